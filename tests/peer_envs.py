@@ -1,0 +1,57 @@
+"""Virtual environments holding real, unmodified Franka clients (test oracles only).
+
+Each peer lives in its own venv under ``$PANDA_PY_PEER_CACHE`` (default
+``~/.cache/panda-py-peers``), created on first use and reused afterwards. The package never
+imports any of them; tests and benchmarks run them as separate processes.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+PEERS: dict[str, list[str]] = {
+    "panda-python": ["panda-python==1.1.1"],  # libfranka 0.9.2, protocol 5
+    "pylibfranka": ["pylibfranka==0.21.3"],  # libfranka 0.21.3, protocol 10
+    "franky": ["franky-control==2.0.0"],  # libfranka 0.21.2, protocol 10
+    "franky-sim": ["franky-sim==1.0.4"],  # the reference protocol-level simulator
+}
+
+
+class PeerUnavailable(RuntimeError):
+    """The peer's virtual environment could not be created (e.g. no package index)."""
+
+
+def cache_dir() -> Path:
+    root = os.environ.get("PANDA_PY_PEER_CACHE") or Path.home() / ".cache" / "panda-py-peers"
+    return Path(root)
+
+
+def peer_python(name: str) -> Path:
+    """The interpreter of the venv holding peer ``name``, created (once) if needed."""
+    if name not in PEERS:
+        raise ValueError(f"name: expected one of {sorted(PEERS)}, got {name!r}")
+    tag = f"{name}-py{sys.version_info.major}{sys.version_info.minor}"
+    venv = cache_dir() / tag
+    python = venv / "bin" / "python"
+    marker = venv / ".complete"
+    cache_dir().mkdir(parents=True, exist_ok=True)
+    with open(cache_dir() / f"{tag}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # several test processes may ask at once
+        if marker.exists() and python.exists():
+            return python
+        try:
+            subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True)
+            subprocess.run(
+                [str(python), "-m", "pip", "install", "-q", "--disable-pip-version-check"]
+                + PEERS[name],
+                check=True,
+                timeout=900,
+            )
+        except (subprocess.CalledProcessError, subprocess.TimeoutExpired, OSError) as exc:
+            raise PeerUnavailable(f"could not create the {name} environment: {exc}") from exc
+        marker.write_text(" ".join(PEERS[name]))
+    return python
