@@ -195,15 +195,17 @@ def status_tables(version: int) -> dict[type, tuple[Any, ...]]:
         stop_move.remove(StopMoveStatus.COMMAND_REJECTED_DUE_TO_ACTIVATED_SAFETY_FUNCTIONS)
         recovery.remove(ErrorRecoveryStatus.COMMAND_REJECTED_DUE_TO_ACTIVATED_SAFETY_FUNCTIONS)
         base.remove(CommandBaseStatus.COMMAND_REJECTED_DUE_TO_ACTIVATED_SAFETY_FUNCTIONS)
-    return {
+    tables: dict[type, tuple[Any, ...]] = {
         ConnectStatus: tuple(ConnectStatus),
-        LoadModelLibraryStatus: tuple(LoadModelLibraryStatus),
         MoveStatus: tuple(move),
         GetterSetterStatus: tuple(getter_setter),
         StopMoveStatus: tuple(stop_move),
         ErrorRecoveryStatus: tuple(recovery),
         CommandBaseStatus: tuple(base),
     }
+    if version <= 9:
+        tables[LoadModelLibraryStatus] = tuple(LoadModelLibraryStatus)
+    return tables
 
 
 STATUS_TYPES: dict[Command, type] = {

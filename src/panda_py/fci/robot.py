@@ -81,7 +81,7 @@ class Dialect:
     error_names: tuple[str, ...]
     _commands: tuple[Command, ...] = field(repr=False)
     _status_by_wire: Mapping[type, tuple[Any, ...]] = field(repr=False)
-    _wire_by_status: Mapping[Any, int] = field(repr=False)
+    _wire_by_status: Mapping[tuple[type, Any], int] = field(repr=False)
     _requests: Mapping[Command, PayloadCodec] = field(repr=False)
     _responses: Mapping[Command, PayloadCodec] = field(repr=False)
 
@@ -164,7 +164,8 @@ class Dialect:
     def encode_status(self, status: Enum) -> int:
         """Wire value of ``status`` in this version (ValueError if the version lacks it)."""
         try:
-            return self._wire_by_status[status]
+            # keyed by (type, member): IntEnum members of different enums compare equal
+            return self._wire_by_status[(type(status), status)]
         except (KeyError, TypeError):
             raise ValueError(
                 f"status {status!r} does not exist in robot protocol version {self.version}"
@@ -296,7 +297,9 @@ class Dialect:
 def _build(version: int) -> Dialect:
     commands = tuple(layouts.command_list(version))
     tables = layouts.status_tables(version)
-    wire_by_status = {m: i for table in tables.values() for i, m in enumerate(table)}
+    wire_by_status = {
+        (cls, m): i for cls, table in tables.items() for i, m in enumerate(table)
+    }
     return Dialect(
         version=version,
         command_ids=MappingProxyType({c: i for i, c in enumerate(commands)}),
