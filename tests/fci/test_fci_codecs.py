@@ -94,7 +94,8 @@ def test_move_request_layout_v5_and_v10() -> None:
     v10 = fci.dialect(10).encode_request(
         Command.MOVE, 3, use_async_motion_generator=True, maximum_velocity=vel, **args
     )
-    assert v10 == struct.pack("<IIIII6d?7d", 1, 3, 125, 2, 1, *fci.DEFAULT_DEVIATION * 2, True, *vel)
+    deviations = fci.DEFAULT_DEVIATION * 2
+    assert v10 == struct.pack("<IIIII6d?7d", 1, 3, 125, 2, 1, *deviations, True, *vel)
 
 
 def test_setter_and_tail_layouts() -> None:

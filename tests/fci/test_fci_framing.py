@@ -91,7 +91,7 @@ def test_bad_sizes(size: int) -> None:
 
 def test_custom_max_size_and_arguments() -> None:
     reader = fci.RobotMessageReader(max_size=100)
-    with pytest.raises(fci.ProtocolError, match="12..100"):
+    with pytest.raises(fci.ProtocolError, match=r"12\.\.100"):
         reader.feed(struct.pack("<III", 0, 0, 101))
     with pytest.raises(ValueError, match="max_size"):
         fci.RobotMessageReader(max_size=5)

@@ -85,7 +85,7 @@ def test_gripper_response_and_framer() -> None:
     assert gripper.decode_gripper_status(got[1].payload) is GripperStatus.UNSUCCESSFUL
     with pytest.raises(fci.ProtocolError, match="GripperStatus"):
         gripper.decode_gripper_status(struct.pack("<H", 4))
-    with pytest.raises(fci.ProtocolError, match="10..1024"):
+    with pytest.raises(fci.ProtocolError, match=r"10\.\.1024"):
         fci.GripperMessageReader(max_size=1024).feed(struct.pack("<HII", 1, 1, 9))
 
 

@@ -203,7 +203,9 @@ def test_error_names() -> None:
     assert fci.ERROR_NAMES[25] == "communication_constraints_violation"
     assert fci.ERROR_NAMES[36] == "joint_move_in_wrong_direction"  # last of the v4 flags
     assert fci.ERROR_NAMES[40] == "base_acceleration_invalid_reading"
-    diff = [i for i, (a, b) in enumerate(zip(fci.ERROR_NAMES, fci.ERROR_STRINGS)) if a != b]
+    diff = [
+        i for i, (a, b) in enumerate(zip(fci.ERROR_NAMES, fci.ERROR_STRINGS, strict=True)) if a != b
+    ]
     assert diff == [31]
 
 
@@ -279,17 +281,40 @@ STATUS_ORDER = {
         ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED", "INVALID_ARGUMENT_REJECTED", SAFETY],
     ),
     StopMoveStatus: (
-        ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED", "EMERGENCY_ABORTED", "REFLEX_ABORTED"]
-        + ["ABORTED"],
-        ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED", SAFETY, "EMERGENCY_ABORTED"]
-        + ["REFLEX_ABORTED", "ABORTED"],
+        [
+            "SUCCESS",
+            "COMMAND_NOT_POSSIBLE_REJECTED",
+            "EMERGENCY_ABORTED",
+            "REFLEX_ABORTED",
+            "ABORTED",
+        ],
+        [
+            "SUCCESS",
+            "COMMAND_NOT_POSSIBLE_REJECTED",
+            SAFETY,
+            "EMERGENCY_ABORTED",
+            "REFLEX_ABORTED",
+            "ABORTED",
+        ],
     ),
     ErrorRecoveryStatus: (
-        ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED", "MANUAL_ERROR_RECOVERY_REQUIRED_REJECTED"]
-        + ["REFLEX_ABORTED", "EMERGENCY_ABORTED", "ABORTED"],
-        ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED", SAFETY]
-        + ["MANUAL_ERROR_RECOVERY_REQUIRED_REJECTED", "REFLEX_ABORTED", "EMERGENCY_ABORTED"]
-        + ["ABORTED"],
+        [
+            "SUCCESS",
+            "COMMAND_NOT_POSSIBLE_REJECTED",
+            "MANUAL_ERROR_RECOVERY_REQUIRED_REJECTED",
+            "REFLEX_ABORTED",
+            "EMERGENCY_ABORTED",
+            "ABORTED",
+        ],
+        [
+            "SUCCESS",
+            "COMMAND_NOT_POSSIBLE_REJECTED",
+            SAFETY,
+            "MANUAL_ERROR_RECOVERY_REQUIRED_REJECTED",
+            "REFLEX_ABORTED",
+            "EMERGENCY_ABORTED",
+            "ABORTED",
+        ],
     ),
     CommandBaseStatus: (
         ["SUCCESS", "COMMAND_NOT_POSSIBLE_REJECTED"],
@@ -344,7 +369,7 @@ def test_status_types() -> None:
 
 def test_decode_status_rejects_bad_arguments() -> None:
     d = fci.dialect(10)
-    with pytest.raises(fci.ProtocolError, match="0..11"):
+    with pytest.raises(fci.ProtocolError, match=r"0\.\.11"):
         d.decode_status(MoveStatus, 12)
     with pytest.raises(fci.ProtocolError):
         d.decode_status(MoveStatus, -1)

@@ -297,9 +297,7 @@ class Dialect:
 def _build(version: int) -> Dialect:
     commands = tuple(layouts.command_list(version))
     tables = layouts.status_tables(version)
-    wire_by_status = {
-        (cls, m): i for cls, table in tables.items() for i, m in enumerate(table)
-    }
+    wire_by_status = {(cls, m): i for cls, table in tables.items() for i, m in enumerate(table)}
     return Dialect(
         version=version,
         command_ids=MappingProxyType({c: i for i, c in enumerate(commands)}),
