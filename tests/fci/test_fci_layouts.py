@@ -200,7 +200,22 @@ def test_command_offsets() -> None:
 
 def test_error_names() -> None:
     assert len(fci.ERROR_NAMES) == len(set(fci.ERROR_NAMES)) == 41
-    assert fci.ERROR_NAMES[25] == "communication_constraints_violation"
+    # spot checks against the §9 table (libfranka's franka::Errors names)
+    spots = {
+        0: "joint_position_limits_violation",
+        2: "self_collision_avoidance_violation",
+        11: "joint_position_motion_generator_start_pose_invalid",
+        23: "force_controller_desired_force_tolerance_violation",
+        24: "start_elbow_sign_inconsistent",
+        25: "communication_constraints_violation",
+        31: "cartesian_position_motion_generator_invalid_frame",
+        33: "joint_p2p_insufficient_torque_for_planning",
+        34: "tau_J_range_violation",
+        37: "cartesian_spline_motion_generator_violation",
+        38: "joint_via_motion_generator_planning_joint_limit_violation",
+        39: "base_acceleration_initialization_timeout",
+    }
+    assert {i: fci.ERROR_NAMES[i] for i in spots} == spots
     assert fci.ERROR_NAMES[36] == "joint_move_in_wrong_direction"  # last of the v4 flags
     assert fci.ERROR_NAMES[40] == "base_acceleration_invalid_reading"
     diff = [
@@ -239,6 +254,7 @@ def test_request_message_sizes(version: int) -> None:
         size = len(d.encode_request(command, 7))
         if command is Command.MOVE:
             assert size == (125 if version >= 10 else 68)
+            assert d.move_request_dtype.itemsize == size - 12
         else:
             assert size == REQUEST_MESSAGE_SIZES[command], command
         assert d.request_payload(command).size == size - 12

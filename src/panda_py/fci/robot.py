@@ -148,6 +148,11 @@ class Dialect:
         """RobotState carries ``F_T_NE``/``NE_T_EE`` (and SetNEToEE replaces SetFToEE)."""
         return self.version >= 4
 
+    @property
+    def move_request_dtype(self) -> np.dtype[Any]:
+        """Packed Move request payload (56 B up to v9, 113 B in v10)."""
+        return self._requests[Command.MOVE].dtype
+
     # --- commands and statuses --------------------------------------------------------
 
     def command_for_id(self, command: int) -> Command | None:
@@ -249,7 +254,8 @@ class Dialect:
 
         Like libfranka, a datagram *longer* than :attr:`state_size` is silently truncated
         (libfranka reads into a ``sizeof(RobotState)`` buffer); a shorter one raises
-        :class:`ProtocolError` ("incorrect object size" in libfranka).
+        :class:`ProtocolError` ("incorrect object size" in libfranka). The record is a view:
+        copy it (``record.copy()``) before reusing a ``bytearray`` receive buffer.
         """
         if len(data) < self.state_dtype.itemsize:
             raise ProtocolError(
