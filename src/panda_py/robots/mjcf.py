@@ -1,0 +1,223 @@
+"""Generate the simulator's MuJoCo model (MJCF) from the parameter tables.
+
+Bodies follow the modified-DH link frames of :mod:`panda_py.robots.params`, so a body's
+pose in MuJoCo equals ``O_T_Ji`` and link inertials go in unchanged. Gravity is
+compensated on every robot body (``gravcomp``), as the real robot compensates the arm's
+and the configured end effector's weight; a grasped object or contact forces are not.
+
+Collision geometry is a coarse capsule approximation of each link (no meshes ship with
+the package): enough for contact with the table and the cube, not for visual fidelity.
+Arm bodies do not collide with each other.
+
+Names (stable, used by the simulator and tests): joints ``joint1..joint7``,
+``finger_joint1``/``finger_joint2``; bodies ``link0..link7``, ``hand``, ``left_finger``,
+``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geom ``table``.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from panda_py.robots.params import FRANKA_HAND, RobotSpec, get_robot
+
+if TYPE_CHECKING:
+    import mujoco
+
+# Contact filtering bits: the world (table) has type 1, the robot type 2; the arm never
+# collides with itself but does with the table and free objects.
+_WORLD = 'contype="1" conaffinity="2"'
+_ROBOT = 'contype="2" conaffinity="1"'
+_OBJECT = 'contype="1" conaffinity="3"'
+
+# Coarse collision capsules per link, in the link's DH frame: (from, to, radius) [m].
+_Capsule = tuple[tuple[float, float, float], tuple[float, float, float], float]
+_LINK_CAPSULES: dict[int, list[_Capsule]] = {
+    1: [((0, 0, -0.19), (0, 0, -0.02), 0.06)],
+    2: [((0, 0, -0.05), (0, 0, 0.05), 0.06), ((0, -0.03, 0), (0, -0.2, 0), 0.06)],
+    3: [((0, 0, -0.12), (0, 0, -0.02), 0.06), ((0.0, 0, 0), (0.0825, 0, 0), 0.055)],
+    4: [((0, 0, -0.05), (0, 0, 0.05), 0.055), ((0, 0.03, 0), (-0.0825, 0.12, 0), 0.055)],
+    5: [((0, 0, -0.26), (0, 0, -0.1), 0.05), ((0, 0.07, -0.08), (0, 0.07, -0.02), 0.035)],
+    6: [((0, 0, -0.04), (0, 0, 0.02), 0.05), ((0.02, 0, 0), (0.088, 0, 0), 0.045)],
+    7: [((0, 0, -0.01), (0, 0, 0.08), 0.04)],
+}  # fmt: skip
+
+# The cube the default scene offers to grasp: 4 cm edge, 100 g, on the table in reach.
+CUBE_SIZE = 0.04  # [m] edge length
+CUBE_MASS = 0.1  # [kg]
+CUBE_POSITION = (0.5, 0.0, CUBE_SIZE / 2)  # [m] resting on the table top (z = 0)
+TABLE_TOP_Z = 0.0  # [m] the robot stands on the table top
+
+# Finger pad geometry in the hand frame (TCP frame orientation): half sizes [m].
+_PAD_HALF = (0.009, 0.006, 0.018)
+_PAD_CENTER_Z = FRANKA_HAND.tcp_offset - 0.012  # pads reach 6 mm past the TCP
+
+
+def _f(x: float) -> str:
+    return repr(float(x))
+
+
+def _vec(v: tuple[float, ...] | list[float]) -> str:
+    return " ".join(_f(x) for x in v)
+
+
+def _inertial(mass: float, com: tuple[float, ...], inertia: tuple[float, ...]) -> str:
+    return f'<inertial pos="{_vec(com)}" mass="{_f(mass)}" fullinertia="{_vec(inertia)}"/>'
+
+
+def _hand_xml() -> str:
+    h = FRANKA_HAND
+    half = h.max_width / 2
+    rot = h.tcp_rotz
+    quat = (math.cos(rot / 2), 0.0, 0.0, math.sin(rot / 2))
+    pad = _vec(_PAD_HALF)
+    finger_inertia = _vec((1e-6, 1e-6, 1e-6, 0, 0, 0))
+    return f"""
+        <body name="hand" pos="0 0 0" gravcomp="1">
+          {_inertial(h.inertial.mass, h.inertial.com, h.inertial.inertia)}
+          <body name="hand_frame" quat="{_vec(quat)}">
+            <geom name="hand_geom" type="box" size="0.025 0.1 0.03" pos="0 0 0.035"
+                  {_ROBOT} rgba="0.9 0.9 0.9 1"/>
+            <site name="tcp" pos="0 0 {_f(h.tcp_offset)}" size="0.005"/>
+            <body name="left_finger" gravcomp="1">
+              <inertial pos="0 0.01 {_f(_PAD_CENTER_Z)}" mass="{_f(h.finger_mass)}"
+                        fullinertia="{finger_inertia}"/>
+              <joint name="finger_joint1" type="slide" axis="0 1 0" range="0 {_f(half)}"
+                     damping="2" armature="0.1"/>
+              <geom name="left_pad" type="box" size="{pad}" {_ROBOT}
+                    pos="0 {_f(_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="1.5 0.01 0.001"
+                    condim="4" rgba="0.2 0.2 0.2 1"/>
+            </body>
+            <body name="right_finger" gravcomp="1">
+              <inertial pos="0 -0.01 {_f(_PAD_CENTER_Z)}" mass="{_f(h.finger_mass)}"
+                        fullinertia="{finger_inertia}"/>
+              <joint name="finger_joint2" type="slide" axis="0 -1 0" range="0 {_f(half)}"
+                     damping="2" armature="0.1"/>
+              <geom name="right_pad" type="box" size="{pad}" {_ROBOT}
+                    pos="0 {_f(-_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="1.5 0.01 0.001"
+                    condim="4" rgba="0.2 0.2 0.2 1"/>
+            </body>
+          </body>
+        </body>"""
+
+
+def _arm_xml(spec: RobotSpec, hand: bool) -> str:
+    dh = spec.dh
+    lim = spec.joints
+    # Open the nested bodies link1..link7; each body frame is the DH frame J_i, so the
+    # fixed part of the DH step (RotX(alpha) TransX(a) TransZ(d)) is the body's pose in
+    # its parent and RotZ(q) is the hinge about the body's own z axis.
+    parts: list[str] = []
+    for i in range(7):
+        alpha, a, d = dh.alpha[i], dh.a[i], dh.d[i]
+        pos = (a, -math.sin(alpha) * d, math.cos(alpha) * d)
+        quat = (math.cos(alpha / 2), math.sin(alpha / 2), 0.0, 0.0)
+        link = spec.links[i + 1]
+        geoms = "".join(
+            f'<geom type="capsule" fromto="{_vec(p0 + p1)}" size="{_f(r)}" {_ROBOT}'
+            f' rgba="0.95 0.95 0.95 1"/>'
+            for p0, p1, r in _LINK_CAPSULES[i + 1]
+        )
+        parts.append(
+            f'<body name="link{i + 1}" pos="{_vec(pos)}" quat="{_vec(quat)}" gravcomp="1">'
+            f"{_inertial(link.mass, link.com, link.inertia)}"
+            f'<joint name="joint{i + 1}" axis="0 0 1"'
+            f' range="{_f(lim.q_min[i])} {_f(lim.q_max[i])}"/>'
+            f"{geoms}"
+        )
+    inner = f'<site name="flange" pos="0 0 {_f(dh.flange_d)}" size="0.005"/>'
+    if hand:
+        inner += f'<body name="flange_body" pos="0 0 {_f(dh.flange_d)}">{_hand_xml()}</body>'
+    base = spec.links[0]
+    return (
+        f'<body name="link0">{_inertial(base.mass, base.com, base.inertia)}'
+        f'<geom type="cylinder" size="0.07 0.07" pos="0 0 0.07" {_ROBOT}/>'
+        + "".join(parts)
+        + inner
+        + "</body>" * 7
+        + "</body>"
+    )
+
+
+def _scene_xml() -> str:
+    c = CUBE_SIZE / 2
+    inertia = CUBE_MASS * CUBE_SIZE**2 / 6  # [kg m^2] solid cube
+    return f"""
+    <geom name="table" type="box" size="0.8 0.8 0.02" pos="0.4 0 {_f(TABLE_TOP_Z - 0.02)}"
+          {_WORLD} rgba="0.6 0.45 0.3 1" friction="1 0.005 0.0001"/>
+    <body name="cube" pos="{_vec(CUBE_POSITION)}">
+      <freejoint name="cube_joint"/>
+      <inertial pos="0 0 0" mass="{_f(CUBE_MASS)}" diaginertia="{_vec([inertia] * 3)}"/>
+      <geom name="cube_geom" type="box" size="{_f(c)} {_f(c)} {_f(c)}"
+            {_OBJECT} rgba="0.8 0.1 0.1 1" friction="1.5 0.01 0.001" condim="4"/>
+    </body>"""
+
+
+def _extra_worldbody(extra: str | Path) -> tuple[str, str]:
+    """Children of ``<worldbody>`` and ``<asset>`` from a user MJCF file, as XML text."""
+    path = Path(extra)
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ValueError(f"extra: expected a readable MJCF file, got {str(path)!r}: {exc}") from exc
+    if root.tag != "mujoco":
+        raise ValueError(f"extra: expected an MJCF file with a <mujoco> root, got <{root.tag}>")
+    bodies = "".join(
+        ET.tostring(el, encoding="unicode") for wb in root.iter("worldbody") for el in wb
+    )
+    assets = "".join(ET.tostring(el, encoding="unicode") for a in root.iter("asset") for el in a)
+    return bodies, assets
+
+
+def model_xml(
+    robot: str | RobotSpec = "fer",
+    *,
+    hand: bool = True,
+    scene: bool = True,
+    extra: str | Path | None = None,
+) -> str:
+    """The MJCF text of the robot (and, with ``scene``, a table and a graspable cube).
+
+    ``extra`` names an MJCF file whose ``<worldbody>`` children (and ``<asset>`` entries)
+    are added to the scene.
+    """
+    spec = get_robot(robot)
+    world = _scene_xml() if scene else ""
+    assets = ""
+    if extra is not None:
+        extra_bodies, assets = _extra_worldbody(extra)
+        world += extra_bodies
+    actuator = ""
+    equality = ""
+    if hand:
+        # The hand's fingers are coupled mechanically: one motor, the other finger follows.
+        equality = '<equality><joint joint1="finger_joint1" joint2="finger_joint2"/></equality>'
+        actuator = '<actuator><motor name="finger_motor" joint="finger_joint1"/></actuator>'
+    return f"""<mujoco model="{spec.name}">
+  <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>
+  <option timestep="0.001" integrator="implicitfast" gravity="0 0 -9.81"/>
+  <asset>{assets}</asset>
+  <worldbody>
+    <light pos="0 0 3" dir="0 0 -1" directional="true"/>
+    {_arm_xml(spec, hand)}
+    {world}
+  </worldbody>
+  {equality}
+  {actuator}
+</mujoco>
+"""
+
+
+def build_model(
+    robot: str | RobotSpec = "fer",
+    *,
+    hand: bool = True,
+    scene: bool = False,
+    extra: str | Path | None = None,
+) -> mujoco.MjModel:
+    """Compile :func:`model_xml` into a ``mujoco.MjModel`` (imports MuJoCo on first use)."""
+    import mujoco
+
+    return mujoco.MjModel.from_xml_string(model_xml(robot, hand=hand, scene=scene, extra=extra))

@@ -1,0 +1,223 @@
+"""Python API of the simulated robot: run one in a child process and talk to it.
+
+    with panda_py.sim.Simulator(host="127.0.0.2", robot="fr3", lockstep=True) as sim:
+        robot = SomeFrankaClient(sim.host)
+        ...
+        print(sim.state()["q"])
+
+The simulator owns its own process so that the 1 kHz loop never competes with the
+caller's Python code for the GIL. Requests (state, fault injection) travel over a pipe and
+are served between two ticks.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import random
+import socket
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from panda_py.robots.params import START_POSE
+from panda_py.sim.server import SimConfig
+
+log = logging.getLogger("panda_py.sim")
+
+
+class SimulatorError(RuntimeError):
+    """The simulator process failed to start, died, or refused a request."""
+
+
+def _child_main(config: SimConfig, conn: Any, log_level: str) -> None:
+    logging.basicConfig(level=log_level, format="panda-sim %(levelname)s: %(message)s")
+    from panda_py.sim.server import SimServer
+
+    try:
+        server = SimServer(config)
+    except Exception as exc:  # reported to the parent as the start failure
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    server.attach_control(conn)
+    conn.send(("ready", None))
+    server.serve_forever()
+
+
+def free_loopback_host(rng: random.Random | None = None) -> str:
+    """A loopback address (127.x.y.z) whose robot and gripper ports are free, so that
+    several simulators (and test runs) can work side by side."""
+    rng = rng or random.Random()
+    for _ in range(200):
+        host = f"127.{rng.randint(1, 254)}.{rng.randint(1, 254)}.{rng.randint(2, 254)}"
+        try:
+            for port in (1337, 1338):
+                with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+                    s.bind((host, port))
+        except OSError:
+            continue
+        return host
+    raise SimulatorError("no free loopback address found for a simulator")
+
+
+class Simulator:
+    """A simulated Franka (FCI on ``host``:1337, gripper on ``host``:1338).
+
+    ``lockstep`` makes simulated time advance one tick per command during motions (tests);
+    otherwise it runs at 1 kHz on the wall clock like a real robot. ``versions`` pins the
+    protocol versions it accepts (a real robot speaks exactly one); by default every
+    supported version is served, chosen from the client's Connect request.
+    """
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        robot: str = "fer",
+        *,
+        lockstep: bool = False,
+        lockstep_timeout: float = 0.5,
+        versions: Sequence[int] | None = None,
+        scene: bool = True,
+        extra: str | Path | None = None,
+        q_start: Sequence[float] = START_POSE,
+        log_level: str = "WARNING",
+        start_timeout: float = 60.0,
+    ) -> None:
+        self.config = SimConfig(
+            host=host,
+            robot=robot,
+            lockstep=lockstep,
+            lockstep_timeout=lockstep_timeout,
+            versions=tuple(versions) if versions is not None else None,
+            scene=scene,
+            extra=str(extra) if extra is not None else None,
+            q_start=tuple(float(x) for x in q_start),
+        )
+        self.log_level = log_level
+        self.start_timeout = start_timeout
+        self._process: Any = None
+        self._conn: Any = None
+        self._lock = threading.Lock()
+
+    @property
+    def host(self) -> str:
+        """The address clients connect to."""
+        return self.config.host
+
+    address = host
+
+    # -- lifecycle ---------------------------------------------------------------------
+
+    def start(self) -> Simulator:
+        if self._process is not None:
+            raise SimulatorError("simulator already started")
+        ctx = multiprocessing.get_context("spawn")
+        parent, child = ctx.Pipe()
+        proc = ctx.Process(
+            target=_child_main, args=(self.config, child, self.log_level), daemon=True
+        )
+        proc.start()
+        child.close()
+        if not parent.poll(self.start_timeout):
+            proc.kill()
+            raise SimulatorError(f"simulator did not start within {self.start_timeout} s")
+        try:
+            kind, detail = parent.recv()
+        except EOFError as exc:
+            proc.join(1)
+            raise SimulatorError(f"simulator process died on start (exit {proc.exitcode})") from exc
+        if kind != "ready":
+            proc.join(1)
+            raise SimulatorError(f"simulator failed to start on {self.host}: {detail}")
+        self._process, self._conn = proc, parent
+        return self
+
+    def stop(self) -> None:
+        proc, conn = self._process, self._conn
+        if proc is None:
+            return
+        self._process = self._conn = None
+        try:
+            conn.send(("stop",))
+        except (OSError, EOFError):
+            pass
+        proc.join(5)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(5)
+        conn.close()
+
+    def kill(self) -> None:
+        """End the simulator abruptly, as a robot that loses power (for failure tests)."""
+        proc = self._process
+        if proc is not None:
+            proc.kill()
+            proc.join(5)
+            self._process = None
+            self._conn.close()
+            self._conn = None
+
+    def __enter__(self) -> Simulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.is_alive()
+
+    # -- requests ------------------------------------------------------------------------
+
+    def _request(self, *request: Any) -> Any:
+        with self._lock:
+            if self._conn is None:
+                raise SimulatorError("simulator is not running")
+            try:
+                self._conn.send(request)
+                kind, value = self._conn.recv()
+            except (OSError, EOFError) as exc:
+                raise SimulatorError("simulator process is gone") from exc
+        if kind == "error":
+            raise ValueError(value)
+        return value
+
+    def state(self) -> dict[str, Any]:
+        """The robot's current state: libfranka's field names (transforms as column-major
+        16-vectors), modes, error flags, and ``gripper_width``, ``cube_position``."""
+        return dict(self._request("state"))
+
+    def q(self) -> np.ndarray:
+        return np.asarray(self.state()["q"])
+
+    def inject_reflex(self, *flags: str) -> None:
+        """Raise error flags (names of libfranka's ``Errors``) as a robot-side reflex."""
+        self._request("inject_reflex", flags or ("joint_reflex",))
+
+    def drop_commands(self, n: int) -> None:
+        """Discard the next ``n`` command datagrams as if the network lost them."""
+        self._request("drop_commands", n)
+
+    def press_user_stop(self) -> None:
+        self._request("user_stop", True)
+
+    def release_user_stop(self) -> None:
+        self._request("user_stop", False)
+
+    def set_guiding(self, on: bool) -> None:
+        """Press (True) or release the pilot's guiding button."""
+        self._request("guiding", on)
+
+    def set_joint_positions(self, q: Sequence[float]) -> None:
+        """Teleport the (idle) arm to ``q`` [rad], at rest."""
+        self._request("set_joint_positions", list(q))
+
+    def stats(self) -> dict[str, Any]:
+        """Tick counts, late ticks, lost commands, wall, simulated and CPU time."""
+        return dict(self._request("stats"))
+
+    def reset_stats(self) -> None:
+        self._request("reset_stats")

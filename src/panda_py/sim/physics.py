@@ -1,0 +1,231 @@
+"""MuJoCo physics of the simulated arm and hand, and the robot's internal controllers.
+
+The robot compensates gravity itself (``gravcomp`` in the model), so every torque handed
+to :meth:`Physics.step` is gravity-free, exactly like ``tau_J_d`` on a real Franka.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from panda_py.robots.mjcf import model_xml
+from panda_py.robots.params import FRANKA_HAND, RobotSpec
+
+DT = 0.001  # [s] one control tick
+
+# Tracking bandwidth of the robot's internal joint controller at the default stiffness:
+# a computed-torque law with natural frequency OMEGA [rad/s], critically damped.
+_OMEGA = 60.0  # [rad/s]
+# Joint-space gains of the null-space posture task used by differential IK.
+_IK_ITERATIONS = 3
+_IK_DAMPING = 1e-6
+
+
+def _tcp_transform() -> np.ndarray:
+    """F_T_NE of the Franka Hand: flange -> TCP [m]."""
+    c, s = math.cos(FRANKA_HAND.tcp_rotz), math.sin(FRANKA_HAND.tcp_rotz)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[2, 3] = FRANKA_HAND.tcp_offset
+    return T
+
+
+class Physics:
+    """One MuJoCo world: the arm, the hand and the scene, stepped at 1 kHz."""
+
+    def __init__(
+        self, spec: RobotSpec, *, scene: bool = True, extra: str | Path | None = None
+    ) -> None:
+        self.spec = spec
+        self.model = mujoco.MjModel.from_xml_string(
+            model_xml(spec, hand=True, scene=scene, extra=extra)
+        )
+        self.model.opt.timestep = DT
+        self.data = mujoco.MjData(self.model)
+        self.kin = mujoco.MjData(self.model)  # scratch data for kinematics of targets
+        m = self.model
+        jid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"joint{i}") for i in range(1, 8)]
+        self.qadr = np.array([m.jnt_qposadr[j] for j in jid])
+        self.vadr = np.array([m.jnt_dofadr[j] for j in jid])
+        if not (np.all(np.diff(self.qadr) == 1) and np.all(np.diff(self.vadr) == 1)):
+            raise RuntimeError("arm joints must be consecutive in the model")
+        self.q0, self.v0 = int(self.qadr[0]), int(self.vadr[0])
+        self.flange_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "flange")
+        self.finger_q = int(
+            m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint1")]
+        )
+        self.finger_q2 = int(
+            m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint2")]
+        )
+        self.finger_v = int(
+            m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint1")]
+        )
+        self.finger_act = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "finger_motor")
+        # Bodies of the robot (for telling robot contacts from others).
+        root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "link0")
+        self.robot_bodies = {b for b in range(m.nbody) if self._descends(b, root)}
+        self.link_body = [
+            mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}") for i in range(8)
+        ]
+        self._jacp = np.zeros((3, m.nv))
+        self._jacr = np.zeros((3, m.nv))
+        self._M = np.zeros((m.nv, m.nv))
+        self.tau_applied = np.zeros(7)  # last gravity-free torque applied [Nm]
+        self.F_T_NE = _tcp_transform()
+
+    def _descends(self, body: int, root: int) -> bool:
+        while body > 0:
+            if body == root:
+                return True
+            body = int(self.model.body_parentid[body])
+        return False
+
+    # -- state ---------------------------------------------------------------------------
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.data.qpos[self.q0 : self.q0 + 7]
+
+    @property
+    def dq(self) -> np.ndarray:
+        return self.data.qvel[self.v0 : self.v0 + 7]
+
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def reset(self, q: np.ndarray, gripper_width: float | None = None) -> None:
+        """Place the arm at ``q`` [rad] at rest (and the fingers at ``gripper_width`` [m])."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[self.q0 : self.q0 + 7] = q
+        width = FRANKA_HAND.max_width if gripper_width is None else gripper_width
+        self.data.qpos[self.finger_q] = width / 2
+        self.data.qpos[self.finger_q2] = width / 2
+        mujoco.mj_forward(self.model, self.data)
+        self.tau_applied[:] = 0.0
+
+    def gripper_width(self) -> float:
+        return float(self.data.qpos[self.finger_q] + self.data.qpos[self.finger_q2])
+
+    def gripper_speed(self) -> float:
+        return float(2.0 * self.data.qvel[self.finger_v])
+
+    def gravity_torque(self) -> np.ndarray:
+        """Torque the robot spends holding the arm and hand against gravity [Nm]."""
+        return self.data.qfrc_gravcomp[self.v0 : self.v0 + 7]
+
+    def coriolis(self) -> np.ndarray:
+        """C(q, dq) dq of the arm [Nm] (the bias force less gravity)."""
+        d = self.data
+        sl = slice(self.v0, self.v0 + 7)
+        return d.qfrc_bias[sl] - d.qfrc_gravcomp[sl]
+
+    def mass_matrix(self) -> np.ndarray:
+        mujoco.mj_fullM(self.model, self.data, self._M)
+        sl = slice(self.v0, self.v0 + 7)
+        return self._M[sl, sl]
+
+    def flange_pose(self, data: mujoco.MjData | None = None) -> np.ndarray:
+        d = self.data if data is None else data
+        T = np.eye(4)
+        T[:3, :3] = d.site_xmat[self.flange_site].reshape(3, 3)
+        T[:3, 3] = d.site_xpos[self.flange_site]
+        return T
+
+    def flange_jacobian(self, data: mujoco.MjData | None = None) -> np.ndarray:
+        """Zero Jacobian (6x7, [v; w] in the base frame) of the flange origin."""
+        d = self.data if data is None else data
+        mujoco.mj_jacSite(self.model, d, self._jacp, self._jacr, self.flange_site)
+        sl = slice(self.v0, self.v0 + 7)
+        return np.vstack((self._jacp[:, sl], self._jacr[:, sl]))
+
+    def link_rotation(self, i: int) -> np.ndarray:
+        return self.data.xmat[self.link_body[i]].reshape(3, 3)
+
+    def contact_torques(self) -> np.ndarray:
+        """Joint torques that contacts with the robot exert on the arm [Nm] (tau_ext)."""
+        m, d = self.model, self.data
+        tau = np.zeros(7)
+        if d.ncon == 0:
+            return tau
+        f6 = np.zeros(6)
+        sl = slice(self.v0, self.v0 + 7)
+        for i in range(d.ncon):
+            c = d.contact[i]
+            b1 = int(m.geom_bodyid[c.geom1])
+            b2 = int(m.geom_bodyid[c.geom2])
+            on1, on2 = b1 in self.robot_bodies, b2 in self.robot_bodies
+            if on1 == on2:
+                continue
+            mujoco.mj_contactForce(m, d, i, f6)
+            frame = c.frame.reshape(3, 3)
+            force = frame.T @ f6[:3]  # world frame, acting on geom2 (normal: geom1 -> geom2)
+            body = b2 if on2 else b1
+            sign = 1.0 if on2 else -1.0
+            mujoco.mj_jac(m, d, self._jacp, self._jacr, c.pos, body)
+            tau += sign * (self._jacp[:, sl].T @ force)
+        return tau
+
+    # -- stepping ------------------------------------------------------------------------
+
+    def step(self, tau: np.ndarray, finger_force: float) -> None:
+        """Advance one tick with gravity-free arm torques ``tau`` [Nm] and the hand's motor
+        force ``finger_force`` [N] (positive opens)."""
+        d = self.data
+        d.qfrc_applied[self.v0 : self.v0 + 7] = tau
+        d.ctrl[self.finger_act] = finger_force
+        self.tau_applied[:] = tau
+        mujoco.mj_step(self.model, d)
+
+    # -- internal controllers -----------------------------------------------------------
+
+    def joint_tracking_torque(
+        self,
+        q_d: np.ndarray,
+        dq_d: np.ndarray,
+        ddq_d: np.ndarray,
+        stiffness_scale: np.ndarray,
+    ) -> np.ndarray:
+        """The robot's joint impedance controller tracking (q_d, dq_d, ddq_d): computed
+        torque with feed-forward, stiffness scaled per joint by K_theta / default."""
+        kp = _OMEGA * _OMEGA * stiffness_scale
+        kd = 2.0 * _OMEGA * np.sqrt(stiffness_scale)
+        acc = ddq_d + kp * (q_d - self.q) + kd * (dq_d - self.dq)
+        return self.mass_matrix() @ acc + self.coriolis()
+
+    def solve_ik(self, O_T_F: np.ndarray, q_seed: np.ndarray, elbow_q3: float | None) -> np.ndarray:
+        """Joint positions placing the flange at ``O_T_F``: a few damped Newton steps from
+        ``q_seed`` (the last desired configuration), with joint 3 held at ``elbow_q3`` when
+        given (the commanded elbow) and the minimum-norm change otherwise."""
+        m, kin = self.model, self.kin
+        q = np.array(q_seed, dtype=float)
+        cols = [0, 1, 3, 4, 5, 6] if elbow_q3 is not None else list(range(7))
+        if elbow_q3 is not None:
+            q[2] = elbow_q3
+        for _ in range(_IK_ITERATIONS):
+            kin.qpos[self.q0 : self.q0 + 7] = q
+            mujoco.mj_kinematics(m, kin)
+            mujoco.mj_comPos(m, kin)
+            T = self.flange_pose(kin)
+            err = np.empty(6)
+            err[:3] = O_T_F[:3, 3] - T[:3, 3]
+            Re = O_T_F[:3, :3] @ T[:3, :3].T
+            err[3:] = 0.5 * np.array(
+                [Re[2, 1] - Re[1, 2], Re[0, 2] - Re[2, 0], Re[1, 0] - Re[0, 1]]
+            )
+            if float(np.abs(err).max()) < 1e-12:
+                break
+            J = self.flange_jacobian(kin)[:, cols]
+            JJt = J @ J.T + _IK_DAMPING * np.eye(6)
+            q[cols] += J.T @ np.linalg.solve(JJt, err)
+        return q
+
+    def flange_pose_at(self, q: np.ndarray) -> np.ndarray:
+        kin = self.kin
+        kin.qpos[self.q0 : self.q0 + 7] = q
+        mujoco.mj_kinematics(self.model, kin)
+        return self.flange_pose(kin)

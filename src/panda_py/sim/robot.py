@@ -1,0 +1,699 @@
+"""The simulated robot's core: mode machine, Move lifecycle, setters, safety, state.
+
+Version-independent: it speaks in :mod:`panda_py.fci` enums and fills a float64 "master"
+state keyed by libfranka's field names; the server copies that into each connection's
+wire dialect.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from panda_py.fci import (
+    ERROR_NAMES,
+    ControllerMode,
+    ErrorRecoveryStatus,
+    GetterSetterStatus,
+    MotionGeneratorMode,
+    MoveControllerMode,
+    MoveMotionGeneratorMode,
+    MoveStatus,
+    RobotMode,
+    StopMoveStatus,
+)
+from panda_py.robots.params import FRANKA_HAND, GRAVITY, RobotSpec
+from panda_py.sim.physics import DT, Physics
+from panda_py.sim.safety import (
+    START_CARTESIAN_TOLERANCE,
+    START_POSE_TOLERANCE,
+    CartesianSignal,
+    JointSignal,
+    is_valid_transform,
+    pose_error,
+)
+
+log = logging.getLogger("panda_py.sim")
+
+_ERROR_INDEX = {name: i for i, name in enumerate(ERROR_NAMES)}
+
+# After this many lost commands in a row the robot aborts (FCI docs: "20 consecutively
+# dropped packets" -> communication_constraints_violation).
+MAX_CONSECUTIVE_LOST = 20
+# Window of control_command_success_rate [ticks].
+SUCCESS_WINDOW = 100
+# First-order filter constant of tau_ext_hat_filtered (about 16 Hz at 1 kHz).
+_EXT_FILTER = 0.1
+
+# Power-up collision thresholds. Source: libfranka examples_common.cpp
+# setDefaultBehavior (the values Franka's examples and franka_ros start with).
+_DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)  # [Nm]
+_DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)  # [N, Nm]
+
+_MG_FROM_MOVE = {
+    MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
+    MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
+    MoveMotionGeneratorMode.CARTESIAN_POSITION: MotionGeneratorMode.CARTESIAN_POSITION,
+    MoveMotionGeneratorMode.CARTESIAN_VELOCITY: MotionGeneratorMode.CARTESIAN_VELOCITY,
+    MoveMotionGeneratorMode.NONE: MotionGeneratorMode.NONE,
+}
+
+
+def col_major(T: np.ndarray) -> np.ndarray:
+    """4x4 -> the 16-vector libfranka puts on the wire (column-major)."""
+    return T.T.reshape(16)
+
+
+def from_col_major(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(4, 4).T.copy()
+
+
+def _finite(*arrays: np.ndarray) -> bool:
+    return all(bool(np.all(np.isfinite(a))) for a in arrays)
+
+
+@dataclass
+class CollisionThresholds:
+    lower_torque_acc: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    upper_torque_acc: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    lower_torque_nom: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    upper_torque_nom: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    lower_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    upper_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    lower_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    upper_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+
+
+@dataclass
+class Command:
+    """One decoded RobotCommand (version-independent view)."""
+
+    message_id: int
+    q_c: np.ndarray
+    dq_c: np.ndarray
+    O_T_EE_c: np.ndarray  # 16, column-major
+    O_dP_EE_c: np.ndarray
+    elbow_c: np.ndarray
+    valid_elbow: bool
+    motion_generation_finished: bool
+    tau_J_d: np.ndarray
+    torque_command_finished: bool
+
+
+class RobotCore:
+    """The robot's behaviour, advanced one 1 ms tick at a time by the server."""
+
+    def __init__(self, spec: RobotSpec, physics: Physics, q_start: np.ndarray) -> None:
+        self.spec = spec
+        self.physics = physics
+        self._q_min = np.asarray(spec.joints.q_min)
+        self._q_max = np.asarray(spec.joints.q_max)
+        self._dq_max = np.asarray(spec.joints.dq_max)
+        self._tau_max = np.asarray(spec.joints.tau_max)
+        self._dtau_max = np.asarray(spec.joints.dtau_max)
+        self._K_default = np.asarray(spec.default_K_theta)
+        self.state = self._new_state()
+        self.reset(q_start)
+
+    # -- setup ---------------------------------------------------------------------------
+
+    @staticmethod
+    def _new_state() -> dict[str, np.ndarray]:
+        sizes = {
+            "O_T_EE": 16, "O_T_EE_d": 16, "F_T_EE": 16, "EE_T_K": 16, "F_T_NE": 16,
+            "NE_T_EE": 16, "m_ee": 1, "I_ee": 9, "F_x_Cee": 3, "m_load": 1, "I_load": 9,
+            "F_x_Cload": 3, "elbow": 2, "elbow_d": 2, "tau_J": 7, "tau_J_d": 7, "dtau_J": 7,
+            "q": 7, "q_d": 7, "dq": 7, "dq_d": 7, "ddq_d": 7, "joint_contact": 7,
+            "cartesian_contact": 6, "joint_collision": 7, "cartesian_collision": 6,
+            "tau_ext_hat_filtered": 7, "O_F_ext_hat_K": 6, "K_F_ext_hat_K": 6,
+            "O_dP_EE_d": 6, "O_ddP_O": 3, "elbow_c": 2, "delbow_c": 2, "ddelbow_c": 2,
+            "O_T_EE_c": 16, "O_dP_EE_c": 6, "O_ddP_EE_c": 6, "theta": 7, "dtheta": 7,
+        }  # fmt: skip
+        state = {name: np.zeros(n) for name, n in sizes.items()}
+        state["accelerometer_top"] = np.zeros((6, 3))  # 6 sensors (joints 1..6) x xyz
+        state["accelerometer_bottom"] = np.zeros((6, 3))
+        return state
+
+    def reset(self, q: np.ndarray) -> None:
+        """Power-up state at joint positions ``q`` [rad]: idle, no errors, defaults set."""
+        q = np.asarray(q, dtype=float)
+        self.physics.reset(q)
+        self.robot_mode = RobotMode.IDLE
+        self.mg_mode = MotionGeneratorMode.IDLE
+        self.ctrl_mode = ControllerMode.JOINT_IMPEDANCE
+        self.errors = np.zeros(len(ERROR_NAMES), dtype=np.uint8)
+        self.reflex_reason = np.zeros(len(ERROR_NAMES), dtype=np.uint8)
+        self.thresholds = CollisionThresholds()
+        self.K_theta = self._K_default.copy()
+        self.K_x = np.asarray(self.spec.default_K_x, dtype=float)
+        self.guiding_axes = np.ones(6, dtype=bool)
+        self.guiding_elbow = False
+        self.filters = np.full(5, 1000.0)
+        hand = FRANKA_HAND
+        self.F_T_NE = self.physics.F_T_NE.copy()
+        self.NE_T_EE = np.eye(4)
+        self.EE_T_K = np.eye(4)
+        self.m_ee = hand.inertial.mass
+        ixx, iyy, izz, ixy, ixz, iyz = hand.inertial.inertia
+        self.I_ee = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        self.F_x_Cee = np.array(hand.inertial.com)
+        self.m_load = 0.0
+        self.I_load = np.zeros((3, 3))
+        self.F_x_Cload = np.zeros(3)
+        self.joint = JointSignal()
+        self.joint.reset(q)
+        self.cart = CartesianSignal()
+        self.cart.reset(self.physics.flange_pose_at(q) @ self.F_T_EE)
+        self.elbow_c = np.array([q[2], self._elbow_sign(q[3])])
+        self.delbow_c = np.zeros(2)
+        self.ddelbow_c = np.zeros(2)
+        self.tau_J_d = np.zeros(7)
+        self.tau_prev_J = np.zeros(7)
+        self.tau_ext = np.zeros(7)
+        self.q_hold = q.copy()
+        self.move_active = False
+        self.first_command = True
+        self.consecutive_lost = 0
+        self.lost_total = 0
+        self.received_total = 0
+        self.success = np.ones(SUCCESS_WINDOW, dtype=bool)
+        self.success_i = 0
+        self.success_rate = 0.0
+        self.pending_final: MoveStatus | None = None
+        self.finger_force = 0.0  # [N] set by the gripper each tick
+        self._fill_state()
+
+    @property
+    def F_T_EE(self) -> np.ndarray:
+        return self.F_T_NE @ self.NE_T_EE
+
+    def _elbow_sign(self, q4: float) -> float:
+        # libfranka: elbow[1] is the flip direction of joint 4 relative to q_elbow-flip.
+        return 1.0 if q4 > self.spec.elbow_flip_q else -1.0
+
+    # -- TCP requests ----------------------------------------------------------------------
+
+    def _mode_allows_commands(self) -> bool:
+        return self.robot_mode == RobotMode.IDLE
+
+    def request_move(
+        self,
+        controller: int,
+        generator: int,
+        deviations: np.ndarray,
+        *,
+        has_none: bool,
+        use_async: bool = False,
+    ) -> MoveStatus:
+        """Handle a Move request; MOTION_STARTED means the motion runs from the next tick."""
+        if self.robot_mode != RobotMode.IDLE:
+            log.info("Move rejected: robot is in mode %s", self.robot_mode.name)
+            return MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
+        try:
+            ctrl = MoveControllerMode(controller)
+            mg = MoveMotionGeneratorMode(generator)
+        except ValueError:
+            log.warning(
+                "Move rejected: controller %d / generator %d unknown", controller, generator
+            )
+            return MoveStatus.INVALID_ARGUMENT_REJECTED
+        if mg == MoveMotionGeneratorMode.NONE and (
+            not has_none or ctrl != MoveControllerMode.EXTERNAL_CONTROLLER
+        ):
+            log.warning("Move rejected: no motion generator needs an external controller (v7+)")
+            return MoveStatus.INVALID_ARGUMENT_REJECTED
+        dev = np.asarray(deviations, dtype=float)
+        if not _finite(dev) or np.any(dev <= 0.0):
+            log.warning("Move rejected: maximum deviations %s out of range", dev.tolist())
+            return MoveStatus.INVALID_ARGUMENT_REJECTED
+        if use_async:
+            log.warning("Move rejected: the robot-side async motion generator is not simulated")
+            return MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
+        q = self.physics.q.copy()
+        self.robot_mode = RobotMode.MOVE
+        self.mg_mode = _MG_FROM_MOVE[mg]
+        self.ctrl_mode = ControllerMode(int(ctrl))
+        self.move_active = True
+        self.first_command = True
+        self.consecutive_lost = 0
+        self.success[:] = True
+        self.pending_final = None
+        self.joint.reset(q)
+        self.q_hold = q
+        self.cart.reset(self.physics.flange_pose_at(q) @ self.F_T_EE)
+        self.elbow_c[:] = [q[2], self._elbow_sign(q[3])]
+        self.delbow_c[:] = 0.0
+        self.ddelbow_c[:] = 0.0
+        self.tau_J_d[:] = 0.0
+        return MoveStatus.MOTION_STARTED
+
+    def request_stop_move(self) -> StopMoveStatus:
+        """StopMove: end a running motion (its Move gets PREEMPTED); a robot in Reflex stays
+        there until AutomaticErrorRecovery."""
+        if self.robot_mode == RobotMode.MOVE:
+            self._end_motion(MoveStatus.PREEMPTED)
+        elif self.robot_mode == RobotMode.USER_STOPPED:
+            return StopMoveStatus.EMERGENCY_ABORTED
+        return StopMoveStatus.SUCCESS
+
+    def request_recovery(self) -> ErrorRecoveryStatus:
+        if self.robot_mode == RobotMode.MOVE:
+            return ErrorRecoveryStatus.COMMAND_NOT_POSSIBLE_REJECTED
+        if self.robot_mode == RobotMode.USER_STOPPED:
+            return ErrorRecoveryStatus.EMERGENCY_ABORTED
+        if self.robot_mode in (RobotMode.REFLEX, RobotMode.IDLE):
+            self.errors[:] = 0
+            self.robot_mode = RobotMode.IDLE
+            self.q_hold = self.physics.q.copy()
+            self.joint.reset(self.q_hold)
+        return ErrorRecoveryStatus.SUCCESS
+
+    def _setter_check(self, *arrays: np.ndarray) -> GetterSetterStatus | None:
+        if self.robot_mode not in (RobotMode.IDLE, RobotMode.REFLEX):
+            return GetterSetterStatus.COMMAND_NOT_POSSIBLE_REJECTED
+        if not _finite(*arrays):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        return None
+
+    def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
+        names = (
+            "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
+            "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
+            "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
+            "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
+        )  # fmt: skip
+        arrays = [np.asarray(f[n], dtype=float) for n in names]
+        bad = self._setter_check(*arrays)
+        if bad is not None:
+            return bad
+        if any(np.any(a < 0) for a in arrays) or any(
+            np.any(arrays[i] > arrays[i + 1]) for i in range(0, 8, 2)
+        ):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.thresholds = CollisionThresholds(*arrays)
+        return GetterSetterStatus.SUCCESS
+
+    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
+        K = np.asarray(K_theta, dtype=float)
+        bad = self._setter_check(K)
+        if bad is not None:
+            return bad
+        if np.any(K < 0):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.K_theta = K
+        return GetterSetterStatus.SUCCESS
+
+    def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
+        K = np.asarray(K_x, dtype=float)
+        bad = self._setter_check(K)
+        if bad is not None:
+            return bad
+        if np.any(K < 0):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.K_x = K
+        return GetterSetterStatus.SUCCESS
+
+    def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
+        bad = self._setter_check()
+        if bad is not None:
+            return bad
+        self.guiding_axes = np.asarray(axes, dtype=bool)
+        self.guiding_elbow = bool(elbow)
+        return GetterSetterStatus.SUCCESS
+
+    def _set_transform(self, flat: np.ndarray, attr: str) -> GetterSetterStatus:
+        T = from_col_major(flat)
+        bad = self._setter_check(T)
+        if bad is not None:
+            return bad
+        if not is_valid_transform(T):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        setattr(self, attr, T)
+        return GetterSetterStatus.SUCCESS
+
+    def set_ee_to_k(self, EE_T_K: np.ndarray) -> GetterSetterStatus:
+        return self._set_transform(EE_T_K, "EE_T_K")
+
+    def set_ne_to_ee(self, NE_T_EE: np.ndarray) -> GetterSetterStatus:
+        return self._set_transform(NE_T_EE, "NE_T_EE")
+
+    def set_f_to_ee(self, F_T_EE: np.ndarray) -> GetterSetterStatus:
+        """Protocol v3's SetFToEE: the whole flange-to-EE transform (NE_T_EE follows)."""
+        T = from_col_major(F_T_EE)
+        bad = self._setter_check(T)
+        if bad is not None:
+            return bad
+        if not is_valid_transform(T):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.NE_T_EE = np.linalg.inv(self.F_T_NE) @ T
+        return GetterSetterStatus.SUCCESS
+
+    def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
+        F_x_C = np.asarray(F_x_C, dtype=float)
+        I_m = np.asarray(I, dtype=float).reshape(3, 3)
+        bad = self._setter_check(np.array([m]), F_x_C, I_m)
+        if bad is not None:
+            return bad
+        if m < 0 or not np.allclose(I_m, I_m.T, atol=1e-9):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
+        return GetterSetterStatus.SUCCESS
+
+    def set_filters(self, frequencies: np.ndarray) -> GetterSetterStatus:
+        f = np.asarray(frequencies, dtype=float)
+        bad = self._setter_check(f)
+        if bad is not None:
+            return bad
+        if np.any(f <= 0) or np.any(f > 1000):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.filters = f
+        return GetterSetterStatus.SUCCESS
+
+    # -- faults and buttons (simulator API) ----------------------------------------------
+
+    def inject_reflex(self, names: list[str]) -> None:
+        """Raise the named error flags as if the robot had detected them."""
+        unknown = [n for n in names if n not in _ERROR_INDEX]
+        if unknown:
+            raise ValueError(f"unknown error flags {unknown}; valid: {list(ERROR_NAMES)}")
+        self._reflex(names)
+
+    def set_user_stop(self, pressed: bool) -> None:
+        """The external activation device (user stop): abort any motion, hold until released."""
+        if pressed:
+            if self.robot_mode == RobotMode.MOVE:
+                self._end_motion(MoveStatus.EMERGENCY_ABORTED)
+            self.robot_mode = RobotMode.USER_STOPPED
+            self.q_hold = self.physics.q.copy()
+        elif self.robot_mode == RobotMode.USER_STOPPED:
+            self.robot_mode = RobotMode.IDLE
+
+    def set_guiding(self, on: bool) -> None:
+        """The pilot's guiding button: free the arm by hand (only from Idle)."""
+        if on and self.robot_mode == RobotMode.IDLE:
+            self.robot_mode = RobotMode.GUIDING
+        elif not on and self.robot_mode == RobotMode.GUIDING:
+            self.robot_mode = RobotMode.IDLE
+            self.q_hold = self.physics.q.copy()
+            self.joint.reset(self.q_hold)
+
+    def client_lost(self) -> None:
+        """The FCI client vanished: a running motion stops as on a real robot."""
+        if self.robot_mode == RobotMode.MOVE:
+            self._reflex(["communication_constraints_violation"])
+        self.pending_final = None
+
+    # -- the tick ----------------------------------------------------------------------
+
+    def _reflex(self, names: list[str]) -> None:
+        for n in names:
+            self.errors[_ERROR_INDEX[n]] = 1
+        was_moving = self.robot_mode == RobotMode.MOVE
+        self.reflex_reason[:] = self.errors
+        if was_moving:
+            self._end_motion(MoveStatus.REFLEX_ABORTED)
+        self.robot_mode = RobotMode.REFLEX
+        log.info("reflex: %s", ", ".join(names))
+
+    def _end_motion(self, status: MoveStatus) -> None:
+        self.move_active = False
+        self.robot_mode = RobotMode.IDLE
+        self.mg_mode = MotionGeneratorMode.IDLE
+        self.ctrl_mode = ControllerMode.JOINT_IMPEDANCE
+        self.q_hold = self.physics.q.copy() if status != MoveStatus.SUCCESS else self.joint.q.copy()
+        self.joint.reset(self.q_hold)
+        self.tau_J_d[:] = 0.0
+        self.pending_final = status
+
+    def tick(self, command: Command | None) -> None:
+        """Advance one tick. ``command`` is the client's answer to the last state (None
+        when it was lost or outside a motion)."""
+        torque = np.zeros(7)
+        if self.robot_mode == RobotMode.MOVE:
+            torque = self._motion_tick(command)
+        if self.robot_mode != RobotMode.MOVE:
+            torque = self._hold_torque()
+        self._apply(torque)
+
+    def _hold_torque(self) -> np.ndarray:
+        if self.robot_mode == RobotMode.GUIDING:
+            return -2.0 * self.physics.dq  # hand guiding: gravity-compensated, lightly damped
+        scale = np.maximum(self.K_theta / self._K_default, 1e-3)
+        return self.physics.joint_tracking_torque(self.q_hold, np.zeros(7), np.zeros(7), scale)
+
+    def _motion_tick(self, command: Command | None) -> np.ndarray:
+        ph = self.physics
+        if command is None and self.first_command:
+            return self._hold_torque()  # the client's loop has not started yet
+        if command is None:
+            self.consecutive_lost += 1
+            self.lost_total += 1
+            self._record_success(False)
+            if self.consecutive_lost >= MAX_CONSECUTIVE_LOST:
+                self._reflex(["communication_constraints_violation"])
+                return np.zeros(7)
+            if not self.first_command:
+                self._extrapolate()
+        else:
+            self.consecutive_lost = 0
+            self.received_total += 1
+            self._record_success(True)
+            status = self._accept(command)
+            if status is not None:
+                return np.zeros(7)
+        if self.robot_mode != RobotMode.MOVE:
+            return np.zeros(7)
+        # Measured-state checks during motion.
+        flags = []
+        if np.any(ph.q < self._q_min - 1e-3) or np.any(ph.q > self._q_max + 1e-3):
+            flags.append("joint_position_limits_violation")
+        if np.any(np.abs(ph.dq) > self._dq_max * 1.05):
+            flags.append("joint_velocity_violation")
+        if np.any(np.abs(self.tau_ext) > self.thresholds.upper_torque_nom):
+            flags.append("joint_reflex")
+        if np.any(self.state["cartesian_collision"]):
+            flags.append("cartesian_reflex")
+        if flags:
+            self._reflex(flags)
+            return np.zeros(7)
+        if self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER:
+            return self.tau_J_d.copy()
+        scale = np.maximum(self.K_theta / self._K_default, 1e-3)
+        tau = ph.joint_tracking_torque(self.joint.q, self.joint.dq, self.joint.ddq, scale)
+        self.tau_J_d[:] = tau
+        return tau
+
+    def _record_success(self, ok: bool) -> None:
+        self.success[self.success_i] = ok
+        self.success_i = (self.success_i + 1) % SUCCESS_WINDOW
+        self.success_rate = float(self.success.mean())
+
+    def _extrapolate(self) -> None:
+        mg = self.mg_mode
+        if mg in (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY):
+            self.joint.extrapolate()
+        elif mg in (MotionGeneratorMode.CARTESIAN_POSITION, MotionGeneratorMode.CARTESIAN_VELOCITY):
+            self.cart.extrapolate()
+            self._track_cartesian(valid_elbow=False)
+        # A lost torque command: the robot keeps the last torques (tau_J_d unchanged).
+
+    def _accept(self, c: Command) -> MoveStatus | None:
+        """Apply one received command; returns a final status if the motion ended."""
+        mg = self.mg_mode
+        fields = [c.tau_J_d]
+        if mg == MotionGeneratorMode.JOINT_POSITION:
+            fields.append(c.q_c)
+        elif mg == MotionGeneratorMode.JOINT_VELOCITY:
+            fields.append(c.dq_c)
+        elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
+            fields += [c.O_T_EE_c, c.elbow_c]
+        elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
+            fields += [c.O_dP_EE_c, c.elbow_c]
+        if not _finite(*fields):
+            log.warning("motion aborted: non-finite value in command %d", c.message_id)
+            self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
+            return MoveStatus.INPUT_ERROR_ABORTED
+        flags: list[str] = []
+        if mg == MotionGeneratorMode.JOINT_POSITION:
+            if self.first_command and np.any(np.abs(c.q_c - self.physics.q) > START_POSE_TOLERANCE):
+                flags.append("joint_position_motion_generator_start_pose_invalid")
+            self.joint.push_position(c.q_c)
+            flags += self.joint.violations(self.spec, cartesian=False)
+        elif mg == MotionGeneratorMode.JOINT_VELOCITY:
+            self.joint.push_velocity(c.dq_c)
+            flags += self.joint.violations(self.spec, cartesian=False)
+        elif mg in (MotionGeneratorMode.CARTESIAN_POSITION, MotionGeneratorMode.CARTESIAN_VELOCITY):
+            flags += self._accept_cartesian(c)
+        if self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER:
+            rate = np.abs(c.tau_J_d - self.tau_J_d) / DT
+            if np.any(rate > self._dtau_max * (1 + 1e-6) + 1e-6):
+                flags.append("controller_torque_discontinuity")
+            if np.any(np.abs(c.tau_J_d) > self._tau_max):
+                flags.append("tau_J_range_violation")
+            self.tau_J_d[:] = c.tau_J_d
+        self.first_command = False
+        if flags:
+            self._reflex(flags)
+            return MoveStatus.REFLEX_ABORTED
+        finished = (
+            c.motion_generation_finished
+            if mg not in (MotionGeneratorMode.NONE,)
+            else c.torque_command_finished
+        )
+        if finished or (
+            c.torque_command_finished and self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
+        ):
+            self._end_motion(MoveStatus.SUCCESS)
+            return MoveStatus.SUCCESS
+        return None
+
+    def _accept_cartesian(self, c: Command) -> list[str]:
+        flags: list[str] = []
+        if self.mg_mode == MotionGeneratorMode.CARTESIAN_POSITION:
+            T = from_col_major(c.O_T_EE_c)
+            if not is_valid_transform(T):
+                return ["cartesian_position_motion_generator_invalid_frame"]
+            if self.first_command and np.any(
+                np.abs(pose_error(self.cart.T, T)) > START_CARTESIAN_TOLERANCE
+            ):
+                flags.append("cartesian_position_motion_generator_start_pose_invalid")
+            self.cart.push_pose(T)
+        else:
+            self.cart.push_twist(np.asarray(c.O_dP_EE_c, dtype=float))
+        flags += self.cart.violations(self.spec)
+        if c.valid_elbow:
+            sign = float(c.elbow_c[1])
+            if sign not in (1.0, -1.0):
+                flags.append("cartesian_motion_generator_elbow_sign_inconsistent")
+            elif self.first_command and sign != self.elbow_c[1]:
+                flags.append("cartesian_motion_generator_start_elbow_invalid")
+            elif sign != self.elbow_c[1]:
+                flags.append("cartesian_motion_generator_elbow_sign_inconsistent")
+            q3 = float(c.elbow_c[0])
+            if not self._q_min[2] <= q3 <= self._q_max[2]:
+                flags.append("cartesian_motion_generator_elbow_limit_violation")
+            delbow = (q3 - self.elbow_c[0]) / DT
+            self.ddelbow_c[0] = (delbow - self.delbow_c[0]) / DT
+            self.delbow_c[0] = delbow
+            self.elbow_c[0] = q3
+        self._track_cartesian(valid_elbow=bool(c.valid_elbow))
+        flags += self.joint.violations(self.spec, cartesian=True)
+        return flags
+
+    def _track_cartesian(self, *, valid_elbow: bool) -> None:
+        """Joint targets of the commanded pose: the robot's own IK from the last targets."""
+        O_T_F = self.cart.T @ np.linalg.inv(self.F_T_EE)
+        q3 = float(self.elbow_c[0]) if valid_elbow else None
+        q = self.physics.solve_ik(O_T_F, self.joint.q, q3)
+        self.joint.push_position(q)
+
+    # -- physics and state -------------------------------------------------------------
+
+    def _apply(self, torque: np.ndarray) -> None:
+        self.physics.step(torque, self.finger_force)
+        self._fill_state()
+
+    def _fill_state(self) -> None:
+        ph, s = self.physics, self.state
+        q, dq = ph.q, ph.dq
+        F_T_EE = self.F_T_EE
+        O_T_F = ph.flange_pose()
+        O_T_EE = O_T_F @ F_T_EE
+        s["O_T_EE"][:] = col_major(O_T_EE)
+        moving_joint = self.mg_mode in (
+            MotionGeneratorMode.JOINT_POSITION,
+            MotionGeneratorMode.JOINT_VELOCITY,
+        )
+        moving_cart = self.mg_mode in (
+            MotionGeneratorMode.CARTESIAN_POSITION,
+            MotionGeneratorMode.CARTESIAN_VELOCITY,
+        )
+        if moving_cart:
+            s["O_T_EE_d"][:] = col_major(self.cart.T)
+        else:
+            s["O_T_EE_d"][:] = col_major(ph.flange_pose_at(self.joint.q) @ F_T_EE)
+        s["F_T_EE"][:] = col_major(F_T_EE)
+        s["EE_T_K"][:] = col_major(self.EE_T_K)
+        s["F_T_NE"][:] = col_major(self.F_T_NE)
+        s["NE_T_EE"][:] = col_major(self.NE_T_EE)
+        s["m_ee"][0] = self.m_ee
+        s["I_ee"][:] = self.I_ee.T.reshape(9)
+        s["F_x_Cee"][:] = self.F_x_Cee
+        s["m_load"][0] = self.m_load
+        s["I_load"][:] = self.I_load.T.reshape(9)
+        s["F_x_Cload"][:] = self.F_x_Cload
+        s["elbow"][:] = (q[2], self._elbow_sign(q[3]))
+        s["elbow_d"][:] = (self.joint.q[2], self._elbow_sign(self.joint.q[3]))
+        if moving_cart:
+            s["elbow_c"][:] = self.elbow_c
+            s["delbow_c"][:] = self.delbow_c
+            s["ddelbow_c"][:] = self.ddelbow_c
+        else:
+            s["elbow_c"][:] = s["elbow_d"]
+            s["delbow_c"][:] = 0.0
+            s["ddelbow_c"][:] = 0.0
+        tau_J = ph.tau_applied + ph.gravity_torque() - self.tau_ext
+        s["dtau_J"][:] = (tau_J - s["tau_J"]) / DT
+        s["tau_J"][:] = tau_J
+        s["tau_J_d"][:] = self.tau_J_d
+        s["q"][:] = q
+        s["dq"][:] = dq
+        s["q_d"][:] = self.joint.q if (moving_joint or moving_cart) else self.q_hold
+        s["dq_d"][:] = self.joint.dq if (moving_joint or moving_cart) else 0.0
+        s["ddq_d"][:] = self.joint.ddq if (moving_joint or moving_cart) else 0.0
+        self._fill_contacts(O_T_EE)
+        s["O_dP_EE_d"][:] = self.cart.v if moving_cart else 0.0
+        s["O_ddP_O"][:] = GRAVITY
+        s["O_T_EE_c"][:] = col_major(self.cart.T) if moving_cart else s["O_T_EE_d"]
+        s["O_dP_EE_c"][:] = self.cart.v if moving_cart else 0.0
+        s["O_ddP_EE_c"][:] = self.cart.a if moving_cart else 0.0
+        s["theta"][:] = q
+        s["dtheta"][:] = dq
+        # Accelerometers of joints 1..6 (v10): specific force at rest, in each link frame.
+        g = -np.asarray(GRAVITY)
+        for i in range(6):
+            s["accelerometer_top"][i] = ph.link_rotation(i + 1).T @ g
+        s["accelerometer_bottom"][:] = s["accelerometer_top"]
+
+    def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
+        s, t = self.state, self.thresholds
+        raw = self.physics.contact_torques()
+        self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
+        if not raw.any() and not self.tau_ext.any():
+            for name in ("joint_contact", "joint_collision", "tau_ext_hat_filtered",
+                         "cartesian_contact", "cartesian_collision", "O_F_ext_hat_K",
+                         "K_F_ext_hat_K"):  # fmt: skip
+                s[name][:] = 0.0
+            return
+        if np.all(np.abs(self.tau_ext) < 1e-9):
+            self.tau_ext[:] = 0.0
+        tau = self.tau_ext
+        s["tau_ext_hat_filtered"][:] = tau
+        s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom
+        s["joint_collision"][:] = np.abs(tau) > t.upper_torque_nom
+        # Wrench at K that explains tau_ext: least squares on tau = J_K^T F.
+        J = self.physics.flange_jacobian()
+        O_T_K = O_T_EE @ self.EE_T_K
+        r = O_T_K[:3, 3] - self.physics.flange_pose()[:3, 3]
+        J_K = J.copy()
+        J_K[:3] = J[:3] + np.cross(J[3:].T, r).T  # v_K = v_F + w x r
+        F, *_ = np.linalg.lstsq(J_K.T, tau, rcond=None)
+        s["O_F_ext_hat_K"][:] = F
+        R = O_T_K[:3, :3]
+        s["K_F_ext_hat_K"][:3] = R.T @ F[:3]
+        s["K_F_ext_hat_K"][3:] = R.T @ F[3:]
+        s["cartesian_contact"][:] = np.abs(F) > t.lower_force_nom
+        s["cartesian_collision"][:] = np.abs(F) > t.upper_force_nom
+
+    def state_modes(self) -> tuple[int, int, int]:
+        return int(self.mg_mode), int(self.ctrl_mode), int(self.robot_mode)

@@ -1,0 +1,186 @@
+"""Robot-side checks of motion-generator and controller commands.
+
+A Franka differentiates the commands it receives by backward Euler with the 1 ms tick and
+aborts the motion with a reflex when a documented necessary condition is violated (FCI
+docs, "Robot and interface specifications"). Each check here returns the error flags it
+raised, by name as in libfranka's ``Errors``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from panda_py.robots.params import RobotSpec
+
+DT = 0.001  # [s]
+# Numerical slack on every limit: commands computed exactly at a limit must pass.
+_REL = 1e-6
+_ABS = 1e-9
+# How far the first joint command may be from the measured position [rad] (the v10 state
+# carries float32 positions, so a client echoing q is off by up to ~1e-7).
+START_POSE_TOLERANCE = 1e-4
+# How far the first Cartesian command may be from the measured pose [m], [rad].
+START_CARTESIAN_TOLERANCE = 1e-3
+
+
+def _over(value: np.ndarray, limit: object) -> bool:
+    return bool(np.any(np.abs(value) > np.asarray(limit, dtype=float) * (1 + _REL) + _ABS))
+
+
+class JointSignal:
+    """Backward-Euler derivatives of a commanded joint signal and its limit checks."""
+
+    def __init__(self) -> None:
+        self.q = np.zeros(7)
+        self.dq = np.zeros(7)
+        self.ddq = np.zeros(7)
+        self.dddq = np.zeros(7)
+
+    def reset(self, q: np.ndarray) -> None:
+        self.q[:] = q
+        self.dq[:] = 0.0
+        self.ddq[:] = 0.0
+        self.dddq[:] = 0.0
+
+    def push_position(self, q: np.ndarray) -> None:
+        dq = (q - self.q) / DT
+        self._push(q, dq)
+
+    def push_velocity(self, dq: np.ndarray) -> None:
+        self._push(self.q + dq * DT, dq)
+
+    def extrapolate(self) -> None:
+        """What the robot does with a lost motion command: keep the acceleration."""
+        dq = self.dq + self.ddq * DT
+        self._push(self.q + dq * DT, dq)
+
+    def _push(self, q: np.ndarray, dq: np.ndarray) -> None:
+        ddq = (dq - self.dq) / DT
+        self.dddq[:] = (ddq - self.ddq) / DT
+        self.ddq[:] = ddq
+        self.dq[:] = dq
+        self.q[:] = q
+
+    def violations(self, spec: RobotSpec, *, cartesian: bool) -> list[str]:
+        """Flags for a joint motion generator (or, with ``cartesian``, for the joint
+        solution of a Cartesian one)."""
+        j = spec.joints
+        out = []
+        pos = bool(
+            np.any(self.q < np.asarray(j.q_min) - _ABS)
+            or np.any(self.q > np.asarray(j.q_max) + _ABS)
+        )
+        if cartesian:
+            names = (
+                "cartesian_motion_generator_joint_position_limits_violation",
+                "cartesian_motion_generator_joint_velocity_limits_violation",
+                "cartesian_motion_generator_joint_velocity_discontinuity",
+                "cartesian_motion_generator_joint_acceleration_discontinuity",
+            )
+        else:
+            names = (
+                "joint_motion_generator_position_limits_violation",
+                "joint_motion_generator_velocity_limits_violation",
+                "joint_motion_generator_velocity_discontinuity",
+                "joint_motion_generator_acceleration_discontinuity",
+            )
+        if pos:
+            out.append(names[0])
+        if _over(self.dq, j.dq_max):
+            out.append(names[1])
+        if _over(self.ddq, j.ddq_max):
+            out.append(names[2])
+        if _over(self.dddq, j.dddq_max):
+            out.append(names[3])
+        return out
+
+
+def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> np.ndarray:
+    """Twist [m, rad] taking pose ``T_a`` to ``T_b``, both in the base frame."""
+    out = np.empty(6)
+    out[:3] = T_b[:3, 3] - T_a[:3, 3]
+    R = T_b[:3, :3] @ T_a[:3, :3].T
+    cos = min(1.0, max(-1.0, (np.trace(R) - 1.0) / 2.0))
+    angle = float(np.arccos(cos))
+    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    s = np.sin(angle)
+    if s > 1e-9:
+        out[3:] = axis * (angle / (2.0 * s))
+    else:
+        out[3:] = axis / 2.0
+    return out
+
+
+class CartesianSignal:
+    """Backward-Euler derivatives of a commanded end-effector pose and its checks."""
+
+    def __init__(self) -> None:
+        self.T = np.eye(4)
+        self.v = np.zeros(6)
+        self.a = np.zeros(6)
+        self.j = np.zeros(6)
+
+    def reset(self, T: np.ndarray) -> None:
+        self.T[:] = T
+        self.v[:] = 0.0
+        self.a[:] = 0.0
+        self.j[:] = 0.0
+
+    def push_pose(self, T: np.ndarray) -> None:
+        self._push(T, pose_error(self.T, T) / DT)
+
+    def push_twist(self, v: np.ndarray) -> None:
+        self._push(integrate_twist(self.T, v, DT), v)
+
+    def extrapolate(self) -> None:
+        v = self.v + self.a * DT
+        self._push(integrate_twist(self.T, v, DT), v)
+
+    def _push(self, T: np.ndarray, v: np.ndarray) -> None:
+        a = (v - self.v) / DT
+        self.j[:] = (a - self.a) / DT
+        self.a[:] = a
+        self.v[:] = v
+        self.T[:] = T
+
+    def violations(self, spec: RobotSpec) -> list[str]:
+        c = spec.cartesian
+        out = []
+        if np.linalg.norm(self.v[:3]) > c.translation_velocity * (1 + _REL) or np.linalg.norm(
+            self.v[3:]
+        ) > c.rotation_velocity * (1 + _REL):
+            out.append("cartesian_motion_generator_velocity_limits_violation")
+        if np.linalg.norm(self.a[:3]) > c.translation_acceleration * (1 + _REL) or np.linalg.norm(
+            self.a[3:]
+        ) > c.rotation_acceleration * (1 + _REL):
+            out.append("cartesian_motion_generator_velocity_discontinuity")
+        if np.linalg.norm(self.j[:3]) > c.translation_jerk * (1 + _REL) or np.linalg.norm(
+            self.j[3:]
+        ) > c.rotation_jerk * (1 + _REL):
+            out.append("cartesian_motion_generator_acceleration_discontinuity")
+        return out
+
+
+def integrate_twist(T: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
+    """Pose reached from ``T`` moving with base-frame twist ``v`` for ``dt`` seconds."""
+    out = T.copy()
+    out[:3, 3] += v[:3] * dt
+    w = v[3:] * dt
+    angle = float(np.linalg.norm(w))
+    if angle > 0.0:
+        k = w / angle
+        K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+        R = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+        out[:3, :3] = R @ T[:3, :3]
+    return out
+
+
+def is_valid_transform(T: np.ndarray) -> bool:
+    """libfranka's test: last row exactly (0,0,0,1), rotation rows/columns of unit norm."""
+    if not np.all(np.isfinite(T)) or not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
+        return False
+    R = T[:3, :3]
+    return bool(
+        np.all(np.abs(np.linalg.norm(R, axis=0) - 1.0) <= 1e-5)
+        and np.all(np.abs(np.linalg.norm(R, axis=1) - 1.0) <= 1e-5)
+    )
