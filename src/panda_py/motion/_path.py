@@ -132,21 +132,26 @@ def build_path(points: Array, max_deviation: float, deadline: float, timeout: fl
     return Path(pieces, node_stop)
 
 
-def max_norm_on_arc(a: Array, b: Array, angle: float) -> Array:
-    """``max over θ in [0, angle]`` of ``|a_g cos θ + b_g sin θ|`` for each group ``g``.
+def max_norm_on_arc(a: Array, b: Array, start: Array, stop: Array) -> Array:
+    """``max over θ in [start_k, stop_k]`` of ``|a_g cos θ + b_g sin θ|``, for each
+    sub-interval k and each group g; result shape (K, G).
 
     ``a`` and ``b`` have shape (G, d): G independent vectors of dimension d (d = 1 for a
-    single joint). The squared norm is ``m + R cos(2θ - ψ)``, so the maximum lies at
-    ``θ* = ψ/2 (mod π)`` when that is inside the interval, else at an end (angle < π).
+    single joint); ``start``, ``stop`` shape (K,), each interval shorter than π. Rotated to
+    start at 0, the squared norm is ``m + R cos(2θ - ψ)``, so the maximum lies at
+    ``θ* = ψ/2 (mod π)`` when that is inside the interval, else at an end.
     """
-    aa = np.einsum("gd,gd->g", a, a)
-    bb = np.einsum("gd,gd->g", b, b)
-    ab = np.einsum("gd,gd->g", a, b)
-    mean = 0.5 * (aa + bb)
+    c0, s0 = np.cos(start)[:, None, None], np.sin(start)[:, None, None]
+    a0 = a * c0 + b * s0  # shape (K, G, d): the sub-interval rotated to start at 0
+    b0 = b * c0 - a * s0
+    aa = np.einsum("kgd,kgd->kg", a0, a0)
+    bb = np.einsum("kgd,kgd->kg", b0, b0)
+    ab = np.einsum("kgd,kgd->kg", a0, b0)
     half_diff = 0.5 * (aa - bb)
     amplitude = np.hypot(half_diff, ab)
     theta_star = np.mod(0.5 * np.arctan2(ab, half_diff), math.pi)
-    c, s = math.cos(angle), math.sin(angle)
-    end = np.einsum("gd,gd->g", a * c + b * s, a * c + b * s)
-    best = np.where(theta_star <= angle, mean + amplitude, np.maximum(aa, end))
+    width = (stop - start)[:, None]
+    end = a0 * np.cos(width)[..., None] + b0 * np.sin(width)[..., None]
+    end_sq = np.einsum("kgd,kgd->kg", end, end)
+    best = np.where(theta_star <= width, 0.5 * (aa + bb) + amplitude, np.maximum(aa, end_sq))
     return np.sqrt(np.maximum(best, 0.0))

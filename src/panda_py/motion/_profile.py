@@ -8,10 +8,13 @@ the velocity limit curve. On a straight piece the bounds on ṡ and s̈ are cons
 with ṡ = V: a forward pass and a backward pass over the nodes between pieces give the
 optimal speed at every node, and each line is a trapezoid or a triangle between them.
 
-A circular blend is traversed at constant speed: the highest speed whose velocity and
-centripetal acceleration stay within the bounds over the whole arc (a closed-form maximum,
-see :func:`~panda_py.motion._path.max_norm_on_arc`). This is the one place where the
-profile is conservative rather than exactly optimal; blends are short, so the cost is small.
+On a circular blend the bounds vary with the angle. The blend is cut into short stretches
+(at most ARC_STRETCH_ANGLE wide), and on each the largest constant bounds (V, A) are taken
+that keep ``|q'| ṡ <= v`` and ``|q'| |s̈| + |q''| ṡ² <= a`` everywhere on the stretch
+(closed-form maxima of sinusoids, :func:`~panda_py.motion._path.max_norm_on_arc`), with V
+a fixed fraction of the top constant speed so that some acceleration remains. The profile
+is then exactly optimal for these piecewise-constant bounds, which lie inside the true ones:
+blends are the one place where it is conservative rather than exactly time-optimal.
 """
 
 from __future__ import annotations
@@ -21,19 +24,29 @@ from bisect import bisect_right
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
 from panda_py.motion._path import Array, Path, Piece, check_deadline, max_norm_on_arc
+from panda_py.motion.errors import TrajectoryError
+
+ARC_STRETCH_ANGLE = math.pi / 32  # [rad] blends are bounded in stretches this wide at most
+ARC_SPEED_FRACTION = 0.95  # [-] of a stretch's top constant speed, leaving room to accelerate
 
 
 class Bounds(Protocol):
-    """Translates the robot's bounds into bounds on the path speed and acceleration."""
+    """The robot's bounds on groups of path coordinates (a joint; a translation or a
+    rotation): ``|q̇_g| <= velocity[g]``, ``|q̈_g| <= acceleration[g]``."""
+
+    velocity: Array
+    acceleration: Array
 
     def line(self, direction: Array) -> tuple[float, float]:
         """Max path speed and acceleration on a line with unit ``direction``."""
         ...
 
-    def arc(self, piece: Piece) -> float:
-        """Max constant path speed along the arc ``piece``."""
+    def arc_coefficients(self, piece: Piece, start: Array, stop: Array) -> tuple[Array, Array]:
+        """For each sub-arc θ in [start_k, stop_k] (shape (K,)) and group g, ``m1[k, g]``
+        and ``m2[k, g]`` with ``|q̇_g| <= m1 ṡ`` and ``|q̈_g| <= m1 |s̈| + m2 ṡ²`` there."""
         ...
 
 
@@ -49,17 +62,30 @@ class BoxBounds:
         with np.errstate(divide="ignore"):
             return float(np.min(self.velocity / mag)), float(np.min(self.acceleration / mag))
 
-    def arc(self, piece: Piece) -> float:
+    def arc_coefficients(self, piece: Piece, start: Array, stop: Array) -> tuple[Array, Array]:
         r = piece.radius
         xu = (piece.x / r)[:, None]
         yu = (piece.y / r)[:, None]
         # q'(θ) = -sin θ xu + cos θ yu;  q''(θ) = -(cos θ xu + sin θ yu) / r
-        dq = max_norm_on_arc(yu, -xu, piece.angle)
-        ddq = max_norm_on_arc(xu, yu, piece.angle) / r
-        with np.errstate(divide="ignore"):
-            return min(
-                float(np.min(self.velocity / dq)), math.sqrt(float(np.min(self.acceleration / ddq)))
-            )
+        m1 = max_norm_on_arc(yu, -xu, start, stop)
+        m2 = max_norm_on_arc(xu, yu, start, stop) / r
+        return m1, m2
+
+
+def arc_stretches(bounds: Bounds, piece: Piece) -> tuple[Array, Array, Array]:
+    """Split a blend into stretches with constant bounds: lengths, max path speeds ``V``
+    and accelerations ``A`` with ``m1 A + m2 V² <= a`` and ``m1 V <= v`` for every group,
+    so any motion with ``ṡ <= V``, ``|s̈| <= A`` keeps the robot's bounds on the stretch."""
+    count = max(1, math.ceil(piece.angle / ARC_STRETCH_ANGLE))
+    edges = np.linspace(0.0, piece.angle, count + 1)
+    m1, m2 = bounds.arc_coefficients(piece, edges[:-1], edges[1:])
+    with np.errstate(divide="ignore"):
+        top = np.minimum(
+            np.min(bounds.velocity / m1, axis=1), np.sqrt(np.min(bounds.acceleration / m2, axis=1))
+        )
+        speed = ARC_SPEED_FRACTION * top
+        accel = np.min((bounds.acceleration - m2 * (speed * speed)[:, None]) / m1, axis=1)
+    return np.diff(edges) * piece.radius, speed, accel
 
 
 # One constant-acceleration stretch of the profile:
@@ -83,51 +109,47 @@ class Profile:
         self.first = first
         self.last = last
         pieces = path.pieces
-        n_pieces = len(pieces)
-        vmax = np.empty(n_pieces)
-        amax = np.empty(n_pieces)
+        # stretches of constant bounds: (piece, σ offset, length, V, A); stop at its end?
+        stretches: list[tuple[int, float, float, float, float]] = []
+        stop_after: list[bool] = []
         for k, piece in enumerate(pieces):
             check_deadline(deadline, timeout)
             if piece.is_arc:
-                vmax[k], amax[k] = bounds.arc(piece), math.inf
+                lengths, speeds, accels = arc_stretches(bounds, piece)
+                offset = 0.0
+                for length, v, a in zip(
+                    lengths.tolist(), speeds.tolist(), accels.tolist(), strict=True
+                ):
+                    stretches.append((k, offset, length, v, a))
+                    stop_after.append(False)
+                    offset += length
             else:
-                vmax[k], amax[k] = bounds.line(piece.x)
-        lengths = [p.length for p in pieces]
-        arcs = [p.is_arc for p in pieces]
+                v, a = bounds.line(piece.x)
+                stretches.append((k, 0.0, piece.length, v, a))
+                stop_after.append(path.stop[k + 1])
+        n = len(stretches)
 
-        # speed at each node: caps, then max-acceleration forward and max-deceleration
-        # backward integration (the switching-point search, in closed form)
-        speed = [0.0] * (n_pieces + 1)
-        for k in range(1, n_pieces):
-            speed[k] = 0.0 if path.stop[k] else min(float(vmax[k - 1]), float(vmax[k]))
-        gain = [0.0 if arcs[k] else 2.0 * amax[k] * lengths[k] for k in range(n_pieces)]
-        for k in range(n_pieces):  # an arc keeps its speed: gain 0
-            speed[k + 1] = min(speed[k + 1], math.sqrt(speed[k] ** 2 + gain[k]))
-        for k in range(n_pieces - 1, -1, -1):
-            speed[k] = min(speed[k], math.sqrt(speed[k + 1] ** 2 + gain[k]))
-        self.node_speeds = speed
+        # speed at each node between stretches: caps, then the max-acceleration forward and
+        # max-deceleration backward integrations (the switching-point search, closed form)
+        speed = [0.0] * (n + 1)
+        for j in range(1, n):
+            speed[j] = 0.0 if stop_after[j - 1] else min(stretches[j - 1][3], stretches[j][3])
+        gain = [2.0 * st[4] * st[2] for st in stretches]
+        for j in range(n):
+            speed[j + 1] = min(speed[j + 1], math.sqrt(speed[j] ** 2 + gain[j]))
+        for j in range(n - 1, -1, -1):
+            speed[j] = min(speed[j], math.sqrt(speed[j + 1] ** 2 + gain[j]))
 
         segments: list[Segment] = []
-        node_times = [0.0]
         t = 0.0
-        for k, piece in enumerate(pieces):
+        for j, (k, offset, length, vmax, amax) in enumerate(stretches):
             check_deadline(deadline, timeout)
-            inv_r = 1.0 / piece.radius if piece.is_arc else 0.0
-            geo = (piece.start, piece.x, piece.y, inv_r, k)
-            length = lengths[k]
-            if arcs[k]:
-                w = speed[k]
-                segments.append((t, 0.0, w, 0.0, *geo))
-                t += length / w
-            else:
-                for sigma0, v0, acc, dur in _line_profile(
-                    length, speed[k], speed[k + 1], float(vmax[k]), float(amax[k])
-                ):
-                    segments.append((t, sigma0, v0, acc, *geo))
-                    t += dur
-            node_times.append(t)
+            piece = pieces[k]
+            geo = (piece.start, piece.x, piece.y, 1.0 / piece.radius, k)
+            for sigma0, v0, acc, dur in _line_profile(length, speed[j], speed[j + 1], vmax, amax):
+                segments.append((t, offset + sigma0, v0, acc, *geo))
+                t += dur
         self.duration = t
-        self.node_times = node_times
         self.segments = segments
         self._t0 = [s[0] for s in segments]
         # the same, as arrays, for vectorised sampling
@@ -203,8 +225,9 @@ class Profile:
 
     # -- vectorised evaluation --
 
-    def evaluate(self, times: object) -> tuple[Array, Array, Array]:
-        """q, q̇, q̈ at every time in ``times`` (any shape S) as arrays of shape S + (n,)."""
+    def evaluate(self, times: object) -> tuple[Array, Array, Array, NDArray[np.intp]]:
+        """q, q̇, q̈ at every time in ``times`` (any shape S) as arrays of shape S + (n,), and
+        the index of the piece each time falls in (-1 before the start and from the end)."""
         t = np.asarray(times, dtype=float)
         if not np.all(np.isfinite(t)):
             raise ValueError("times: expected finite numbers [s], got NaN or infinity")
@@ -214,6 +237,7 @@ class Profile:
         pos = np.empty((t.size, dim))
         vel = np.zeros((t.size, dim))
         acc = np.zeros((t.size, dim))
+        piece = np.full(t.size, -1, dtype=np.intp)
         inside = (t >= 0.0) & (t < self.duration)
         pos[t < 0.0] = self.first
         pos[t >= self.duration] = self.last
@@ -229,27 +253,39 @@ class Profile:
             arc = ir > 0.0
             th = s * ir
             sn, c = np.sin(th), np.cos(th)
+            # q = start + x f + y g, derivatives by σ: (f', g'), (f'', g'')
             f = np.where(arc, -2.0 * np.sin(0.5 * th) ** 2, s)
             fd = np.where(arc, -sn * ir, 1.0)
             gd = c * ir
             fdd = -c * ir * ir
             gdd = -sn * ir * ir
             x, y = self._x[k], self._y[k]
+            tangent = x * fd[:, None] + y * gd[:, None]
             pos[inside] = self._start[k] + x * f[:, None] + y * sn[:, None]
-            vel[inside] = (x * fd[:, None] + y * gd[:, None]) * sd[:, None]
-            acc[inside] = (x * fd[:, None] + y * gd[:, None]) * a[:, None] + (
-                x * fdd[:, None] + y * gdd[:, None]
-            ) * (sd * sd)[:, None]
-        out = (pos, vel, acc)
-        return tuple(v.reshape(*shape, dim) for v in out)  # type: ignore[return-value]
+            vel[inside] = tangent * sd[:, None]
+            acc[inside] = (
+                tangent * a[:, None] + (x * fdd[:, None] + y * gdd[:, None]) * (sd * sd)[:, None]
+            )
+            piece[inside] = k
+        return (
+            pos.reshape(*shape, dim),
+            vel.reshape(*shape, dim),
+            acc.reshape(*shape, dim),
+            piece.reshape(shape),
+        )
 
 
 def _line_profile(
     length: float, v_in: float, v_out: float, vmax: float, amax: float
 ) -> list[tuple[float, float, float, float]]:
-    """Time-optimal motion along a line from speed ``v_in`` to ``v_out``: accelerate at
-    ``amax``, cruise at ``vmax`` if it is reached, decelerate at ``amax``. Returns
-    ``(σ0, ṡ0, s̈, duration)`` per non-empty phase."""
+    """Time-optimal motion along a stretch with constant bounds from speed ``v_in`` to
+    ``v_out``: accelerate at ``amax``, cruise at ``vmax`` if it is reached, decelerate at
+    ``amax``. Returns ``(σ0, ṡ0, s̈, duration)`` per non-empty phase."""
+    if amax <= 0.0:  # no acceleration possible: the passes made v_in == v_out
+        v = 0.5 * (v_in + v_out)
+        if v <= 0.0:
+            raise TrajectoryError("a stretch of the path can be traversed at zero speed only")
+        return [(0.0, v, 0.0, length / v)]
     peak_sq = amax * length + 0.5 * (v_in * v_in + v_out * v_out)
     peak = vmax if peak_sq > vmax * vmax else math.sqrt(peak_sq)
     peak = max(peak, v_in, v_out)

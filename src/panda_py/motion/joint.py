@@ -97,7 +97,7 @@ class JointTrajectory:
     def sample(self, times: object) -> JointSamples:
         """Positions, velocities and accelerations at all of ``times`` [s] at once (array of
         any shape; results have shape ``times.shape + (7,)``). Beyond panda-py's API."""
-        return JointSamples(*self._profile.evaluate(times))
+        return JointSamples(*self._profile.evaluate(times)[:3])
 
     def __repr__(self) -> str:
         return (
