@@ -1,0 +1,167 @@
+"""Forward and inverse kinematics of the Franka arms (FER "Panda", FR3), single or batched.
+
+Drop-in for panda-py's ``fk``, ``ik`` and ``ik_full`` (same arguments, defaults and NaN
+behaviour), in pure Python and NumPy:
+
+* ``fk(q)`` -> ``O_T_EE`` (4, 4) with the Franka Hand's TCP as end effector
+  (``F_T_EE = TransZ(0.1034) RotZ(-pi/4)``; the same offset ik uses, so ``ik(fk(q))``
+  returns q). ``fk_frames``, ``zero_jacobian``, ``body_jacobian`` complete it.
+* ``ik(O_T_EE, q_init=START_POSE, q_7=pi/4)`` or ``ik(position, orientation, q_init,
+  q_7)`` (quaternion x, y, z, w): the analytical solver of He and Liu (ICCAR 2021), the
+  solution in the same case as ``q_init``, NaN if it has none. ``ik_full``: all four
+  (4, 7), NaN rows where a branch has none.
+* Beyond panda-py: ``ik_result`` says why there is no solution (:class:`IKStatus`);
+  ``q7_search=r`` tries q7 within r [rad] of ``q_7`` (nearest first) when ``q_7`` has
+  none; every function takes a batch (N, 7) configurations or (N, 4, 4) poses and returns
+  (N, ...) arrays; ``robot="fr3"`` (or a :class:`Kinematics` object) selects the joint
+  limits, ``F_T_EE=`` another end effector.
+
+Single calls run generated straight-line float code (see ``_codegen``); batches run the
+same code on NumPy arrays.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from panda_py.kinematics._model import (
+    DEFAULT_Q7,
+    Q7_SEARCH_STEP,
+    FloatArray,
+    IKResult,
+    IKStatus,
+    Kinematics,
+    hand_F_T_EE,
+)
+
+__all__ = [
+    "DEFAULT_Q7",
+    "Q7_SEARCH_STEP",
+    "IKResult",
+    "IKStatus",
+    "Kinematics",
+    "body_jacobian",
+    "fk",
+    "fk_frames",
+    "get_kinematics",
+    "hand_F_T_EE",
+    "ik",
+    "ik_full",
+    "ik_result",
+    "zero_jacobian",
+]
+
+_DEFAULT = Kinematics("fer")
+_CACHE: dict[tuple[str, bytes | None], Kinematics] = {("fer", None): _DEFAULT}
+_CACHE_MAX = 32
+
+
+def get_kinematics(robot: Any = "fer", F_T_EE: Any = None) -> Kinematics:
+    """The (cached) :class:`Kinematics` for a robot name and flange-to-EE transform."""
+    if isinstance(robot, Kinematics):
+        if F_T_EE is not None:
+            raise ValueError("F_T_EE: give it to Kinematics(...), not with a Kinematics object")
+        return robot
+    from panda_py.robots.params import get_robot
+
+    name = get_robot(robot).name
+    key_T = None
+    if F_T_EE is not None:
+        key_T = np.ascontiguousarray(F_T_EE, dtype=np.float64).tobytes()
+    kin = _CACHE.get((name, key_T))
+    if kin is None:
+        kin = Kinematics(name, F_T_EE=F_T_EE)
+        if len(_CACHE) >= _CACHE_MAX:
+            _CACHE.pop(next(k for k in _CACHE if k != ("fer", None)))
+        _CACHE[(name, key_T)] = kin
+    return kin
+
+
+def _make_fk(kin: Kinematics) -> Any:
+    # A closure over the default model's generated code: one Python call frame, no
+    # attribute look-ups on the fast path (7 floats in, one 4x4 array out).
+    ee = kin._ee
+    empty = np.empty
+    from panda_py.kinematics._model import _PACK16
+
+    pack = _PACK16
+
+    def fk(q: Any, *, robot: Any = None, F_T_EE: Any = None) -> FloatArray:
+        """``O_T_EE`` (4, 4) [m] for joint positions ``q`` (7,) [rad]; a batch (N, 7)
+        gives (N, 4, 4). ``robot``/``F_T_EE`` select another arm or end effector (default
+        the FER with the Franka Hand)."""
+        if robot is None and F_T_EE is None:
+            try:
+                a, b, c, d, e, f, g = q.tolist()
+                s = a + b + c + d + e + f + g
+                if s - s == 0.0:  # all finite (NaN or infinity make this NaN)
+                    out = empty((4, 4))
+                    pack(out, 0, *ee(a, b, c, d, e, f, g))
+                    return out
+            except (AttributeError, TypeError, ValueError):
+                pass
+        return get_kinematics(robot if robot is not None else "fer", F_T_EE).fk(q)
+
+    return fk
+
+
+fk = _make_fk(_DEFAULT)
+
+
+def fk_frames(q: Any, *, robot: Any = "fer", F_T_EE: Any = None) -> FloatArray:
+    """Poses of J1..J7, flange and EE in the base frame (libfranka's Frame order):
+    (9, 4, 4) for q (7,) [rad], (N, 9, 4, 4) for (N, 7)."""
+    return get_kinematics(robot, F_T_EE).fk_frames(q)
+
+
+def zero_jacobian(q: Any, *, robot: Any = "fer", F_T_EE: Any = None) -> FloatArray:
+    """Geometric EE Jacobian in the base frame, (6, 7) or (N, 6, 7): rows linear
+    velocity [m/s] then angular velocity [rad/s] per joint velocity [rad/s]."""
+    return get_kinematics(robot, F_T_EE).zero_jacobian(q)
+
+
+def body_jacobian(q: Any, *, robot: Any = "fer", F_T_EE: Any = None) -> FloatArray:
+    """Geometric EE Jacobian in the EE frame, (6, 7) or (N, 6, 7)."""
+    return get_kinematics(robot, F_T_EE).body_jacobian(q)
+
+
+def _make_ik(kin: Kinematics) -> Any:
+    fast = kin._ik_fast
+
+    def ik(*args: Any, robot: Any = None, F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
+        """Joint positions (7,) [rad] reaching the EE pose, in the same case as ``q_init``;
+        NaN if that case has no solution within the joint limits.
+
+        ``ik(O_T_EE, q_init=START_POSE, q_7=pi/4)`` or ``ik(position, orientation, q_init,
+        q_7)`` with position [m] (3,) and quaternion (x, y, z, w) (4,). ``q_7`` [rad] is
+        the redundancy parameter. Batches: O_T_EE (N, 4, 4) (or (N, 3) and (N, 4)),
+        q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r``
+        [rad] tries the nearest q7 within r of q_7 with a solution; ``robot`` ("fer",
+        "fr3", ...) the joint limits; ``F_T_EE`` another end effector.
+        """
+        if robot is None and F_T_EE is None and not kwargs and 1 <= len(args) <= 3:
+            q = fast(*args)
+            if q is not None:
+                return q
+        kin_ = get_kinematics(robot if robot is not None else "fer", F_T_EE)
+        return kin_.ik_result(*args, **kwargs).q
+
+    return ik
+
+
+ik = _make_ik(_DEFAULT)
+
+
+def ik_full(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
+    """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none), rows
+    ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0), (cos(q5)
+    >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives (N, 4, 7)."""
+    return get_kinematics(robot, F_T_EE).ik_result(*args, **kwargs).solutions
+
+
+def ik_result(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> IKResult:
+    """:func:`ik` and :func:`ik_full` in one, with the reason (:class:`IKStatus`) for
+    every branch without a solution and the q7 actually used. Arguments as :func:`ik`."""
+    return get_kinematics(robot, F_T_EE).ik_result(*args, **kwargs)

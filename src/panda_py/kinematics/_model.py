@@ -1,0 +1,405 @@
+"""The :class:`Kinematics` of one arm with one end effector: fk, frames, Jacobians and the
+analytical ik, for single configurations and for batches."""
+
+from __future__ import annotations
+
+import enum
+import math
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.kinematics import _ik, _input
+from panda_py.kinematics._codegen import ChainSpec, compile_chain
+from panda_py.robots.params import FRANKA_HAND, START_POSE, RobotSpec, get_robot
+
+# panda-py's default redundancy parameter q7 [rad] (panda_py.ik's q_7 default).
+DEFAULT_Q7 = math.pi / 4
+# Step [rad] of the q7 search (``q7_search``): candidates q_7 +- k * step, nearest first.
+Q7_SEARCH_STEP = 0.01
+# A flange-to-EE transform whose rotation is this close [-] to a z rotation and whose
+# translation this close [m] to the z axis is folded into the last joint (faster code).
+_Z_ONLY_TOL = 1e-15
+
+FloatArray = NDArray[np.float64]
+
+
+class IKStatus(enum.IntEnum):
+    """Why an ik branch has (no) solution."""
+
+    OK = _ik.OK
+    UNREACHABLE = _ik.UNREACHABLE  # the wrist point is out of the arm's reach for this q7
+    JOINT_LIMIT = _ik.JOINT_LIMIT  # the geometry solves, but a joint (or q7) is out of limits
+    SINGULAR = _ik.SINGULAR  # the shoulder lies on the joint-6 axis: q6 is undefined
+
+
+@dataclass(frozen=True)
+class IKResult:
+    """Outcome of :meth:`Kinematics.ik_result`.
+
+    Single pose: ``q`` (7,) [rad], the solution in the case of ``q_init`` (NaN if none);
+    ``status`` its :class:`IKStatus`; ``solutions`` (4, 7) all four branches (as
+    ``ik_full``); ``statuses`` their four statuses; ``q_7`` [rad] the q7 used (differs from
+    the requested one only after a successful ``q7_search``). Batches add a leading N axis
+    and hold statuses as int8 arrays of :class:`IKStatus` values.
+    """
+
+    q: FloatArray
+    status: Any
+    solutions: FloatArray
+    statuses: Any
+    q_7: Any
+
+    @property
+    def ok(self) -> Any:
+        """True where ``q`` is a solution."""
+        if isinstance(self.status, np.ndarray):
+            return self.status == IKStatus.OK
+        return self.status == IKStatus.OK
+
+
+def _case_row(q2: float, q5: float) -> int:
+    """Branch index (see :mod:`._ik`) of a configuration: the q6 branch follows the sign of
+    cos(q5), the shoulder branch the sign of q2."""
+    return (2 if math.cos(q5) >= 0.0 else 0) + (1 if q2 < 0.0 else 0)
+
+
+def _tail(F_T_EE: FloatArray) -> dict[str, Any]:
+    """ChainSpec tail arguments for a flange-to-EE transform."""
+    R, p = F_T_EE[:3, :3], F_T_EE[:3, 3]
+    z_only = (
+        abs(R[2, 2] - 1.0) <= _Z_ONLY_TOL
+        and np.abs(R[:2, 2]).max() <= _Z_ONLY_TOL
+        and np.abs(R[2, :2]).max() <= _Z_ONLY_TOL
+        and np.abs(p[:2]).max() <= _Z_ONLY_TOL
+    )
+    if z_only:
+        return {"tail_rotz": math.atan2(R[1, 0], R[0, 0]), "tail_z": float(p[2])}
+    return {
+        "tail_R": tuple(tuple(float(v) for v in row) for row in R),
+        "tail_p": (float(p[0]), float(p[1]), float(p[2])),
+    }
+
+
+def hand_F_T_EE() -> FloatArray:
+    """The Franka Hand's TCP relative to the flange: ``TransZ(0.1034) RotZ(-pi/4)``."""
+    c, s = math.cos(FRANKA_HAND.tcp_rotz), math.sin(FRANKA_HAND.tcp_rotz)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    T[2, 3] = FRANKA_HAND.tcp_offset
+    return T
+
+
+# struct packs floats straight into a fresh array: ~4x faster than np.array(list)
+_PACK16: Callable[..., None] = struct.Struct("16d").pack_into
+_PACK7: Callable[..., None] = struct.Struct("7d").pack_into
+
+
+class Kinematics:
+    """Kinematics of one arm (``robot``: "fer"/"panda", "fr3", "fr3-pre-5.9"; the joint
+    limits ik respects) with one end effector (``F_T_EE``: flange-to-EE transform, default
+    the Franka Hand's TCP). The DH geometry is the same for all Franka arms."""
+
+    def __init__(self, robot: str | RobotSpec = "fer", *, F_T_EE: object = None) -> None:
+        self.robot: RobotSpec = get_robot(robot)  # ValueError for an unknown name
+        if F_T_EE is None:
+            T = hand_F_T_EE()
+        else:
+            T = _input.transforms("F_T_EE", F_T_EE)
+            if T.ndim != 2:
+                raise ValueError(f"F_T_EE: expected one 4x4 transform, got shape {T.shape}")
+            T = T.copy()
+        T.setflags(write=False)
+        self.F_T_EE: FloatArray = T
+        dh = self.robot.dh
+        tail = _tail(T)
+        spec = ChainSpec(dh.a, dh.d, dh.alpha, dh.flange_d, **tail)
+        scalar = {"sin": math.sin, "cos": math.cos}
+        vector = {"sin": np.sin, "cos": np.cos}
+        self._ee: Callable[..., tuple[float, ...]] = compile_chain(spec, "ee", scalar)  # type: ignore[assignment]
+        self._ee_n: Callable[..., tuple[Any, ...]] = compile_chain(spec, "ee", vector)  # type: ignore[assignment]
+        self._frames_n: Callable[..., tuple[Any, ...]] = compile_chain(spec, "frames", vector)  # type: ignore[assignment]
+        self._jac: Callable[..., tuple[float, ...]] = compile_chain(spec, "jacobian", scalar)  # type: ignore[assignment]
+        self._jac_n: Callable[..., tuple[Any, ...]] = compile_chain(spec, "jacobian", vector)  # type: ignore[assignment]
+        # ik: the He-Liu geometry needs a target on joint 7's z axis; any other EE is first
+        # mapped back to the flange.
+        if dh.a[4] != -dh.a[3] or any(dh.a[i] != 0.0 for i in (0, 1, 2, 5)):
+            raise ValueError("robot: the analytical ik needs the Franka DH structure")
+        if "tail_z" in tail:
+            d_e, theta_e = dh.flange_d + tail["tail_z"], tail["tail_rotz"]
+            self._EE_T_F: FloatArray | None = None
+        else:
+            d_e, theta_e = dh.flange_d, 0.0
+            self._EE_T_F = np.asarray(np.linalg.inv(T), dtype=np.float64)
+        j = self.robot.joints
+        self._ik_params = _ik.IKParams(
+            dh.d[0], dh.d[2], dh.d[4], dh.a[3], dh.a[6], d_e, theta_e, j.q_min, j.q_max
+        )
+        self._solve = _ik.make_scalar_solver(self._ik_params)
+        self.q_min: FloatArray = np.array(j.q_min)
+        self.q_max: FloatArray = np.array(j.q_max)
+
+    def __repr__(self) -> str:
+        return f"Kinematics(robot={self.robot.name!r}, F_T_EE={self.F_T_EE.tolist()!r})"
+
+    # ---------------------------------------------------------------- forward kinematics
+
+    def fk(self, q: object) -> FloatArray:
+        """``O_T_EE`` (4, 4) for joint positions q (7,) [rad]; a batch (N, 7) gives
+        (N, 4, 4). Translations in [m]."""
+        try:
+            a, b, c, d, e, f, g = q.tolist()  # type: ignore[attr-defined]
+            s = a + b + c + d + e + f + g
+            if s - s == 0.0:  # all finite (a NaN or infinity makes this NaN)
+                out = np.empty((4, 4))
+                _PACK16(out, 0, *self._ee(a, b, c, d, e, f, g))
+                return out
+        except (AttributeError, TypeError, ValueError):
+            pass
+        qa = _input.joints("q", q)
+        if qa.ndim == 1:
+            out = np.empty((4, 4))
+            _PACK16(out, 0, *self._ee(*qa.tolist()))
+            return out
+        return self._stack(self._ee_n(*qa.T), qa.shape[0], (4, 4))
+
+    def fk_frames(self, q: object) -> FloatArray:
+        """Poses of J1..J7, the flange and the EE (libfranka's ``Frame`` order) in the base
+        frame: (9, 4, 4) for q (7,) [rad], (N, 9, 4, 4) for a batch (N, 7)."""
+        qa = _input.joints("q", q)
+        single = qa.ndim == 1
+        qb = qa[None] if single else qa
+        out = self._stack(self._frames_n(*qb.T), qb.shape[0], (9, 4, 4))
+        return out[0] if single else out
+
+    def zero_jacobian(self, q: object) -> FloatArray:
+        """Geometric Jacobian of the EE expressed in the base frame, (6, 7) for q (7,) [rad]
+        (rows: linear [m/s per rad/s], then angular [rad/s per rad/s]); (N, 6, 7) for a
+        batch (N, 7). libfranka's ``zeroJacobian(Frame::kEndEffector)``."""
+        return self._jacobians(q, body=False)
+
+    def body_jacobian(self, q: object) -> FloatArray:
+        """Geometric Jacobian of the EE expressed in the EE frame, (6, 7) or (N, 6, 7).
+        libfranka's ``bodyJacobian(Frame::kEndEffector)``."""
+        return self._jacobians(q, body=True)
+
+    def _jacobians(self, q: object, body: bool) -> FloatArray:
+        qa = _input.joints("q", q)
+        if qa.ndim == 1:
+            v = self._jac(*qa.tolist())
+            T = np.array(v[:16]).reshape(4, 4)
+            J = np.array(v[16:]).reshape(6, 7)
+            if body:
+                Rt = T[:3, :3].T
+                J = np.concatenate([Rt @ J[:3], Rt @ J[3:]])
+            return J
+        n = qa.shape[0]
+        v = self._jac_n(*qa.T)
+        T = self._stack(v[:16], n, (4, 4))
+        J = self._stack(v[16:], n, (6, 7))
+        if body:
+            Rt = np.swapaxes(T[:, :3, :3], 1, 2)
+            J = np.concatenate([Rt @ J[:, :3], Rt @ J[:, 3:]], axis=1)
+        return J
+
+    @staticmethod
+    def _stack(values: tuple[Any, ...], n: int, shape: tuple[int, ...]) -> FloatArray:
+        out = np.empty((n, len(values)))
+        for i, v in enumerate(values):
+            out[:, i] = v  # constants broadcast
+        return out.reshape((n, *shape))
+
+    # ---------------------------------------------------------------- inverse kinematics
+
+    def ik(self, *args: Any, **kwargs: Any) -> FloatArray:
+        """See :func:`panda_py.kinematics.ik`."""
+        if not kwargs and 1 <= len(args) <= 3 and self._EE_T_F is None:
+            q = self._ik_fast(*args)
+            if q is not None:
+                return q
+        return self.ik_result(*args, **kwargs).q
+
+    def ik_full(self, *args: Any, **kwargs: Any) -> FloatArray:
+        """See :func:`panda_py.kinematics.ik_full`."""
+        return self.ik_result(*args, **kwargs).solutions
+
+    def _ik_fast(self, O_T_EE: Any, q_init: Any = None, q_7: Any = DEFAULT_Q7) -> FloatArray | None:
+        """One 4x4 pose with default options, on plain floats; None means "take the
+        general path" (which also produces the error message for bad input)."""
+        try:
+            (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz), last = O_T_EE.tolist()
+            if q_init is None:
+                q1, q2, q5 = START_POSE[0], START_POSE[1], START_POSE[4]
+            else:
+                q1, q2, _, _, q5, _, _ = q_init.tolist()
+            q7 = float(q_7)
+        except (AttributeError, TypeError, ValueError):
+            return None
+        tol = _input.ROTATION_TOL
+        # rigid: unit, orthogonal columns x, y and z = x cross y; last row 0 0 0 1
+        ex = r00 * r00 + r10 * r10 + r20 * r20 - 1.0
+        ey = r01 * r01 + r11 * r11 + r21 * r21 - 1.0
+        exy = r00 * r01 + r10 * r11 + r20 * r21
+        cx = r10 * r21 - r20 * r11 - r02
+        cy = r20 * r01 - r00 * r21 - r12
+        cz = r00 * r11 - r10 * r01 - r22
+        if not (
+            -tol < ex < tol
+            and -tol < ey < tol
+            and -tol < exy < tol
+            and -tol < cx < tol
+            and -tol < cy < tol
+            and -tol < cz < tol
+            and last == [0.0, 0.0, 0.0, 1.0]
+        ):
+            return None
+        s = px + py + pz + q1 + q2 + q5 + q7
+        if s - s != 0.0:
+            return None
+        row = (2 if math.cos(q5) >= 0.0 else 0) + (1 if q2 < 0.0 else 0)
+        ((_, _status, sol),) = self._solve(
+            r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7, q1, (row,)
+        )
+        out = np.empty(7)
+        _PACK7(out, 0, *sol)
+        return out
+
+    def ik_result(
+        self,
+        *args: Any,
+        O_T_EE: Any = None,
+        position: Any = None,
+        orientation: Any = None,
+        q_init: Any = None,
+        q_7: Any = None,
+        q7_search: float = 0.0,
+    ) -> IKResult:
+        """Solve and explain; arguments as :func:`panda_py.kinematics.ik`."""
+        T, q_init_a, q7_a = self._parse(args, O_T_EE, position, orientation, q_init, q_7)
+        search = _input.nonnegative("q7_search", q7_search, "rad")
+        batch = T.ndim == 3
+        Tb = T if batch else T[None]
+        n = Tb.shape[0]
+        if self._EE_T_F is not None:
+            Tb = Tb @ self._EE_T_F
+        qi = np.broadcast_to(q_init_a, (n, 7))
+        q7 = np.broadcast_to(q7_a, (n,)).astype(np.float64)
+        rows = (np.where(np.cos(qi[:, 4]) >= 0.0, 2, 0) + (qi[:, 1] < 0.0)).astype(np.int64)
+        sols, stats = self._solve_all(Tb, q7, qi[:, 0])
+        idx = np.arange(n)
+        q = sols[idx, rows].copy()
+        status = stats[idx, rows].copy()
+        q7_used = q7.copy()
+        if search > 0.0:
+            for offset in _search_offsets(search):
+                todo = np.flatnonzero(status != IKStatus.OK)
+                if todo.size == 0:
+                    break
+                q7c = q7[todo] + offset
+                s2, st2 = self._solve_all(Tb[todo], q7c, qi[todo, 0])
+                r = rows[todo]
+                found = st2[np.arange(todo.size), r] == IKStatus.OK
+                hit = todo[found]
+                q[hit] = s2[found, r[found]]
+                status[hit] = IKStatus.OK
+                sols[hit], stats[hit] = s2[found], st2[found]
+                q7_used[hit] = q7c[found]
+        if batch:
+            return IKResult(q, status, sols, stats, q7_used)
+        return IKResult(
+            q[0],
+            IKStatus(int(status[0])),
+            sols[0],
+            tuple(IKStatus(int(s)) for s in stats[0]),
+            float(q7_used[0]),
+        )
+
+    def _solve_all(
+        self, T: FloatArray, q7: FloatArray, q1_init: FloatArray
+    ) -> tuple[FloatArray, NDArray[np.int8]]:
+        """All four branches for N poses: (N, 4, 7) and statuses (N, 4)."""
+        n = T.shape[0]
+        if n == 1:  # the scalar solver is ~50x faster than NumPy on one row
+            args = T[0, :3, :3].ravel().tolist() + T[0, :3, 3].tolist()
+            res = self._solve(*args, float(q7[0]), float(q1_init[0]), (0, 1, 2, 3))
+            sols = np.array([r[2] for r in res])[None]
+            stats = np.array([r[1] for r in res], dtype=np.int8)[None]
+            return sols, stats
+        rows = np.tile(np.arange(4), n)
+        rep = np.repeat
+        q, st = _ik.solve_batch(
+            self._ik_params,
+            rep(T[:, :3, :3], 4, axis=0),
+            rep(T[:, :3, 3], 4, axis=0),
+            rep(q7, 4),
+            rep(q1_init, 4),
+            rows,
+        )
+        return q.reshape(n, 4, 7), st.reshape(n, 4)
+
+    def _parse(
+        self,
+        args: tuple[Any, ...],
+        O_T_EE: Any,
+        position: Any,
+        orientation: Any,
+        q_init: Any,
+        q_7: Any,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Sort panda-py's two overloads, ``(O_T_EE, q_init, q_7)`` and ``(position,
+        orientation, q_init, q_7)``, positional or keyword, into (T, q_init, q_7)."""
+        rest = list(args)
+        if O_T_EE is None and position is None and rest:
+            first = np.asarray(rest[0]) if not isinstance(rest[0], np.ndarray) else rest[0]
+            if first.shape[-1:] == (3,) and first.ndim in (1, 2):
+                position = rest.pop(0)
+            else:
+                O_T_EE = rest.pop(0)
+        if position is not None and orientation is None and rest:
+            orientation = rest.pop(0)
+        names = ["q_init", "q_7"]
+        given = {"q_init": q_init, "q_7": q_7}
+        if len(rest) > 2:
+            raise ValueError(
+                "ik: expected (O_T_EE, q_init, q_7) or (position, orientation, q_init, q_7), "
+                f"got {len(rest)} extra positional arguments"
+            )
+        for name, value in zip(names, rest, strict=False):
+            if given[name] is not None:
+                raise ValueError(f"{name}: given both positionally and by keyword")
+            given[name] = value
+        if O_T_EE is not None:
+            if position is not None or orientation is not None:
+                raise ValueError("O_T_EE: give either O_T_EE or position and orientation")
+            T = _input.transforms("O_T_EE", O_T_EE)
+        elif position is not None and orientation is not None:
+            T = _input.position_orientation(position, orientation)
+        else:
+            raise ValueError("ik: expected O_T_EE (4x4) or position (3,) and orientation (4,)")
+        n = T.shape[0] if T.ndim == 3 else None
+        if given["q_init"] is None:
+            qi = np.array(START_POSE)
+        else:
+            qi = _input.joints("q_init", given["q_init"])
+            if qi.ndim == 2 and (n is None or qi.shape[0] != n):
+                raise ValueError(
+                    f"q_init: expected shape (7,) or ({n}, 7) to match the poses, got {qi.shape}"
+                )
+        q7 = _input.scalar_or_batch(
+            "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad"
+        )
+        return T, qi, q7
+
+
+def _search_offsets(radius: float) -> list[float]:
+    """q7 offsets [rad] to try, nearest first: +step, -step, +2 step, ..."""
+    out: list[float] = []
+    k = 1
+    while k * Q7_SEARCH_STEP <= radius + 1e-12:
+        out += [k * Q7_SEARCH_STEP, -k * Q7_SEARCH_STEP]
+        k += 1
+    return out
