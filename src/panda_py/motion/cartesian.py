@@ -299,12 +299,12 @@ def _stack(name: str, value: object, width: int, unit: str) -> Array:
         raise ValueError(
             f"{name}: expected a sequence of {width}-vectors {unit}, got {type(value).__name__}"
         ) from exc
+    if arr.size == 0:
+        raise ValueError(f"{name}: expected at least one waypoint, got none")
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[:, :, 0]  # panda-py style column vectors
     if arr.ndim != 2 or arr.shape[1] != width:
         raise ValueError(f"{name}: expected shape (N, {width}) {unit}, got shape {arr.shape}")
-    if arr.shape[0] < 1:
-        raise ValueError(f"{name}: expected at least one waypoint, got none")
     _check_finite(name, arr)
     return arr
 
@@ -324,10 +324,10 @@ def _parse_poses(poses: object) -> tuple[Array, Array]:
         raise ValueError(
             f"poses: expected a sequence of 4x4 homogeneous transforms, got {type(poses).__name__}"
         ) from exc
+    if arr.size == 0:
+        raise ValueError("poses: expected at least one pose, got none")
     if arr.ndim != 3 or arr.shape[1:] != (4, 4):
         raise ValueError(f"poses: expected shape (N, 4, 4), got shape {arr.shape}")
-    if arr.shape[0] < 1:
-        raise ValueError("poses: expected at least one pose, got none")
     _check_finite("poses", arr)
     bottom = np.abs(arr[:, 3, :] - (0.0, 0.0, 0.0, 1.0)).max(axis=1)
     rots = arr[:, :3, :3]

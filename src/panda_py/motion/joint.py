@@ -115,6 +115,8 @@ def _joint_waypoints(waypoints: object, robot: RobotSpec) -> Array:
             "waypoints: expected a sequence of joint positions of shape (7,) [rad], "
             f"got {type(waypoints).__name__} that is not a numeric array ({exc})"
         ) from exc
+    if arr.size == 0:
+        raise ValueError("waypoints: expected at least one waypoint, got none")
     if arr.ndim == 3 and arr.shape[2] == 1:
         arr = arr[:, :, 0]  # panda-py style (7, 1) column vectors
     if arr.ndim != 2 or arr.shape[1] != N_JOINTS:
@@ -122,8 +124,6 @@ def _joint_waypoints(waypoints: object, robot: RobotSpec) -> Array:
             f"waypoints: expected shape (N, 7) (a sequence of 7-vectors) [rad], got shape "
             f"{arr.shape}"
         )
-    if arr.shape[0] < 1:
-        raise ValueError("waypoints: expected at least one waypoint, got none")
     bad = ~np.isfinite(arr)
     if bad.any():
         i, j = np.argwhere(bad)[0]
