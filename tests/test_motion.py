@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -39,7 +40,7 @@ def sample_1khz(traj: JointTrajectory) -> tuple[np.ndarray, ...]:
 def polyline_distance(points: np.ndarray, waypoints: np.ndarray) -> np.ndarray:
     """Distance of each point to the polyline through the waypoints."""
     best = np.full(len(points), np.inf)
-    for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
+    for a, b in itertools.pairwise(waypoints):
         d = b - a
         u = np.clip((points - a) @ d / (d @ d), 0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(points - (a + u[:, None] * d), axis=1))
@@ -247,7 +248,7 @@ def test_waypoint_outside_fr3_limits_but_inside_fer_limits() -> None:
     q = list(START_POSE)
     q[5] = 0.2  # FER allows down to -0.0175 rad, FR3 only to 0.4398 rad
     JointTrajectory([q])
-    with pytest.raises(ValueError, match="joint 6.*fr3"):
+    with pytest.raises(ValueError, match=r"joint 6.*fr3"):
         JointTrajectory([q], robot="fr3")
 
 
