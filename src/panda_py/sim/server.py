@@ -293,6 +293,8 @@ class SimServer:
             sock, addr = self._robot_listener.accept()
         except OSError:
             return
+        if self.robot_conn is not None and not self._alive(self.robot_conn):
+            self._close_conn(self.robot_conn)
         if self.robot_conn is not None:
             log.warning(
                 "refusing a second FCI client from %s:%d while %s:%d is connected",
@@ -313,6 +315,8 @@ class SimServer:
             sock, addr = self._gripper_listener.accept()
         except OSError:
             return
+        if self.gripper_conn is not None and not self._alive(self.gripper_conn):
+            self._close_conn(self.gripper_conn)
         if self.gripper_conn is not None:
             log.warning("refusing a second gripper client from %s:%d", *addr)
             sock.close()
@@ -336,12 +340,23 @@ class SimServer:
         conn.udp = None
         if conn is self.robot_conn:
             self.robot_conn = None
+            self.drop_commands = 0  # injected losses belong to the session that saw them
             self.core.client_lost()
             log.info("FCI client %s:%d disconnected", *conn.addr)
         elif conn is self.gripper_conn:
             self.gripper_conn = None
             self.gripper.client_lost()
             log.info("gripper client %s:%d disconnected", *conn.addr)
+
+    @staticmethod
+    def _alive(conn: _RobotConnection | _GripperConnection) -> bool:
+        """Whether a connection is still open (its peer may have closed it unseen yet)."""
+        try:
+            return conn.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) != b""
+        except (BlockingIOError, InterruptedError):
+            return True
+        except OSError:
+            return False
 
     def _recv(self, conn: _RobotConnection | _GripperConnection) -> bytes | None:
         try:
