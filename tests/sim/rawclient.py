@@ -67,8 +67,13 @@ class RawClient:
         self, controller: MoveControllerMode, generator: MoveMotionGeneratorMode
     ) -> tuple[int, Any]:
         dev = np.array(fci.DEFAULT_DEVIATION)
-        cid = self.send(Command.MOVE, controller_mode=int(controller), motion_generator_mode=int(generator),
-                        maximum_path_deviation=dev, maximum_goal_pose_deviation=dev)  # fmt: skip
+        cid = self.send(
+            Command.MOVE,
+            controller_mode=int(controller),
+            motion_generator_mode=int(generator),
+            maximum_path_deviation=dev,
+            maximum_goal_pose_deviation=dev,
+        )
         status, _ = self.response(Command.MOVE, cid)
         return cid, status
 
