@@ -355,7 +355,11 @@ class Kinematics:
         rest = list(args)
         if O_T_EE is None and position is None and rest:
             first = np.asarray(rest[0]) if not isinstance(rest[0], np.ndarray) else rest[0]
-            if first.shape[-1:] == (3,) and first.ndim in (1, 2):
+            second = rest[1] if len(rest) > 1 else orientation
+            is_position = first.shape == (3,) or (
+                first.ndim == 2 and first.shape[1] == 3 and np.shape(second)[-1:] == (4,)
+            )
+            if is_position:
                 position = rest.pop(0)
             else:
                 O_T_EE = rest.pop(0)

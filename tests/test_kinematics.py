@@ -1,0 +1,343 @@
+"""fk / ik / Jacobians: against an independent DH product, finite differences, MuJoCo, and
+themselves (round trips, batched against looped)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import panda_py
+from panda_py import kinematics as kin_mod
+from panda_py.kinematics import IKStatus, Kinematics
+from panda_py.robots.params import DH_FRANKA, FER, FR3, FRANKA_HAND, START_POSE
+
+FER_LO, FER_HI = np.array(FER.joints.q_min), np.array(FER.joints.q_max)
+FR3_LO, FR3_HI = np.array(FR3.joints.q_min), np.array(FR3.joints.q_max)
+
+
+# --- an independent reference: the DH product with NumPy 4x4 matrices ---------------------
+
+
+def _rx(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0, 0], [0, c, -s, 0], [0, s, c, 0], [0, 0, 0, 1.0]])
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+def _trans(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def ref_frames(q: np.ndarray, F_T_EE: np.ndarray | None = None) -> list[np.ndarray]:
+    """O_T_J1..O_T_J7, O_T_F, O_T_EE by multiplying the modified-DH transforms."""
+    dh = DH_FRANKA
+    T = np.eye(4)
+    out = []
+    for i in range(7):
+        T = T @ _rx(dh.alpha[i]) @ _trans(dh.a[i], 0, 0) @ _rz(q[i]) @ _trans(0, 0, dh.d[i])
+        out.append(T)
+    T = T @ _trans(0, 0, dh.flange_d)
+    out.append(T)
+    if F_T_EE is None:
+        F_T_EE = _trans(0, 0, FRANKA_HAND.tcp_offset) @ _rz(FRANKA_HAND.tcp_rotz)
+    out.append(T @ F_T_EE)
+    return out
+
+
+def random_q(rng: np.random.Generator, n: int, lo=FER_LO, hi=FER_HI) -> np.ndarray:
+    return rng.uniform(lo, hi, size=(n, 7))
+
+
+def random_F_T_EE(rng: np.random.Generator) -> np.ndarray:
+    A = rng.normal(size=(3, 3))
+    Q, R = np.linalg.qr(A)
+    Q = Q * np.sign(np.diag(R))
+    if np.linalg.det(Q) < 0:
+        Q[:, 0] *= -1
+    T = np.eye(4)
+    T[:3, :3] = Q
+    T[:3, 3] = rng.uniform(-0.1, 0.2, 3)
+    return T
+
+
+# --- fk ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_fk_matches_dh_product(robot: str) -> None:
+    rng = np.random.default_rng(1)
+    lo, hi = (FER_LO, FER_HI) if robot == "fer" else (FR3_LO, FR3_HI)
+    for q in random_q(rng, 200, lo, hi):
+        np.testing.assert_allclose(
+            kin_mod.fk(q, robot=robot), ref_frames(q)[-1], rtol=0, atol=1e-14
+        )
+
+
+def test_fk_start_pose_is_the_hand_tcp() -> None:
+    T = panda_py.fk(np.array(START_POSE))
+    # at the start pose the TCP points straight down, 0.1034 m below the flange
+    np.testing.assert_allclose(T[:3, 2], [0, 0, -1], atol=1e-12)
+    flange = kin_mod.fk_frames(np.array(START_POSE))[7]
+    np.testing.assert_allclose(flange[:3, 3] - T[:3, 3], [0, 0, FRANKA_HAND.tcp_offset], atol=1e-12)
+    assert T.shape == (4, 4) and T.dtype == np.float64 and T.flags.writeable
+
+
+def test_fk_accepts_lists_and_column_vectors() -> None:
+    q = np.array(START_POSE)
+    np.testing.assert_array_equal(kin_mod.fk(list(START_POSE)), kin_mod.fk(q))
+    np.testing.assert_array_equal(kin_mod.fk(q.reshape(7, 1)), kin_mod.fk(q))
+
+
+def test_fk_with_any_flange_to_ee_transform() -> None:
+    rng = np.random.default_rng(2)
+    F_T_EE = random_F_T_EE(rng)
+    kin = Kinematics("fer", F_T_EE=F_T_EE)
+    for q in random_q(rng, 50):
+        np.testing.assert_allclose(kin.fk(q), ref_frames(q, F_T_EE)[-1], atol=1e-14)
+        np.testing.assert_allclose(
+            kin_mod.fk(q, F_T_EE=F_T_EE), ref_frames(q, F_T_EE)[-1], atol=1e-14
+        )
+    # a pure z offset (folded into joint 7 by the code generator) as well
+    Tz = _trans(0, 0, 0.2) @ _rz(0.3)
+    q = random_q(rng, 1)[0]
+    np.testing.assert_allclose(kin_mod.fk(q, F_T_EE=Tz), ref_frames(q, Tz)[-1], atol=1e-14)
+
+
+def test_frames_of_every_joint_flange_and_ee() -> None:
+    rng = np.random.default_rng(3)
+    for q in random_q(rng, 50):
+        np.testing.assert_allclose(kin_mod.fk_frames(q), np.array(ref_frames(q)), atol=1e-14)
+
+
+# --- Jacobians --------------------------------------------------------------------------
+
+
+def _fd_jacobian(q: np.ndarray, h: float = 1e-6) -> np.ndarray:
+    """Central differences: linear from the position, angular from R(q+h) R(q-h)^T."""
+    J = np.zeros((6, 7))
+    for i in range(7):
+        dq = np.zeros(7)
+        dq[i] = h
+        Tp, Tm = ref_frames(q + dq)[-1], ref_frames(q - dq)[-1]
+        J[:3, i] = (Tp[:3, 3] - Tm[:3, 3]) / (2 * h)
+        W = Tp[:3, :3] @ Tm[:3, :3].T  # ~ I + [w]x 2h
+        J[3:, i] = np.array([W[2, 1] - W[1, 2], W[0, 2] - W[2, 0], W[1, 0] - W[0, 1]]) / (4 * h)
+    return J
+
+
+def test_jacobians_match_finite_differences() -> None:
+    rng = np.random.default_rng(4)
+    for q in random_q(rng, 30):
+        J0 = kin_mod.zero_jacobian(q)
+        np.testing.assert_allclose(J0, _fd_jacobian(q), atol=1e-8)
+        R = ref_frames(q)[-1][:3, :3]
+        Jb = kin_mod.body_jacobian(q)
+        np.testing.assert_allclose(Jb[:3], R.T @ J0[:3], atol=1e-14)
+        np.testing.assert_allclose(Jb[3:], R.T @ J0[3:], atol=1e-14)
+
+
+# --- ik ---------------------------------------------------------------------------------
+
+
+def test_ik_start_pose_round_trip() -> None:
+    q = np.array(START_POSE)
+    np.testing.assert_allclose(panda_py.ik(panda_py.fk(q)), q, atol=1e-12)
+    full = panda_py.ik_full(panda_py.fk(q))
+    assert full.shape == (4, 7)
+    np.testing.assert_allclose(full[3], q, atol=1e-12)  # panda-py's row for this case
+
+
+def test_fk_of_ik_reproduces_the_pose() -> None:
+    rng = np.random.default_rng(5)
+    n_finite = 0
+    for q in random_q(rng, 400):
+        T = kin_mod.fk(q)
+        q7 = rng.uniform(FER_LO[6], FER_HI[6])
+        for sol in [kin_mod.ik(T, q, q7), *kin_mod.ik_full(T, q_init=q, q_7=q7)]:
+            if np.all(np.isfinite(sol)):
+                n_finite += 1
+                np.testing.assert_allclose(kin_mod.fk(sol), T, rtol=0, atol=1e-9)
+                assert np.all(sol >= FER_LO) and np.all(sol <= FER_HI)
+                assert sol[6] == q7
+            else:
+                assert np.all(np.isnan(sol))
+    assert n_finite > 400  # not vacuous
+
+
+def test_ik_recovers_the_generating_configuration() -> None:
+    rng = np.random.default_rng(6)
+    Q = random_q(rng, 2000)
+    hits = sum(
+        bool(np.all(np.abs(kin_mod.ik(kin_mod.fk(q), q_init=q, q_7=q[6]) - q) < 1e-9)) for q in Q
+    )
+    # the solver's four branches cover the elbow below the flip angle (~87 % of the range)
+    assert hits / len(Q) > 0.85
+
+
+def test_ik_position_orientation_overload() -> None:
+    rng = np.random.default_rng(7)
+    q = random_q(rng, 1)[0]
+    T = kin_mod.fk(q)
+    R = T[:3, :3]
+    w = math.sqrt(1 + np.trace(R)) / 2
+    quat = np.array([(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w),
+                     (R[1, 0] - R[0, 1]) / (4 * w), w])  # fmt: skip
+    a = kin_mod.ik(T, q, q[6])
+    b = kin_mod.ik(T[:3, 3], quat, q, q[6])
+    c = kin_mod.ik(position=T[:3, 3], orientation=quat, q_init=q, q_7=q[6])
+    np.testing.assert_allclose(b, a, atol=1e-12)
+    np.testing.assert_allclose(c, a, atol=1e-12)
+    np.testing.assert_allclose(
+        kin_mod.ik_full(T[:3, 3], quat, q, q[6]), kin_mod.ik_full(T, q, q[6]), atol=1e-12
+    )
+
+
+def test_ik_reasons() -> None:
+    far = np.eye(4)
+    far[:3, 3] = (2.0, 0.0, 0.3)
+    r = kin_mod.ik_result(far)
+    assert r.status is IKStatus.UNREACHABLE and not r.ok and np.all(np.isnan(r.q))
+    assert np.all(np.isnan(kin_mod.ik(far)))  # ik keeps panda-py's NaN answer
+    T = kin_mod.fk(np.array(START_POSE))
+    r = kin_mod.ik_result(T, q_7=3.0)  # beyond joint 7's limit
+    assert r.status is IKStatus.JOINT_LIMIT and r.statuses == (IKStatus.JOINT_LIMIT,) * 4
+    r = kin_mod.ik_result(T)
+    assert r.ok and r.statuses[3] is IKStatus.OK and r.statuses[0] is IKStatus.JOINT_LIMIT
+    # The wrist degenerate pose: the shoulder on the joint-6 axis leaves q6 undefined.
+    P = kin_mod._DEFAULT._ik_params
+    q7 = 0.3
+    R6 = np.eye(3)  # frame 6 axes; J7 = J6 RotX(pi/2) TransX(a7) RotZ(q7)
+    R_EE = R6 @ _rx(math.pi / 2)[:3, :3] @ _rz(q7 + P.theta_e)[:3, :3]
+    p6 = np.array([0.0, 0.0, P.d1 + 0.5])  # straight above the shoulder, on z6
+    T = np.eye(4)
+    T[:3, :3] = R_EE
+    T[:3, 3] = p6 + P.a7 * R6[:, 0] + P.d_e * R_EE[:, 2]
+    assert kin_mod.ik_result(T, q_7=q7).status is IKStatus.SINGULAR
+
+
+def test_q7_search_finds_the_nearest_feasible_q7() -> None:
+    q = np.array([0.3, 0.2, -0.4, -1.9, 0.5, 1.8, 2.85])
+    T = kin_mod.fk(q)
+    assert np.all(np.isnan(kin_mod.ik(T, q, 2.95)))  # beyond the limit 2.8973
+    r = kin_mod.ik_result(T, q, 2.95, q7_search=0.2)
+    assert r.ok
+    assert r.q_7 == pytest.approx(2.95 - 0.06)  # nearest step inside the limit
+    np.testing.assert_allclose(kin_mod.fk(r.q), T, atol=1e-9)
+    np.testing.assert_allclose(kin_mod.ik(T, q, 2.95, q7_search=0.2), r.q)
+    # the search never widens past its radius
+    assert np.all(np.isnan(kin_mod.ik(T, q, 2.95, q7_search=0.03)))
+
+
+def test_robot_selects_the_joint_limits() -> None:
+    q = np.array([0.0, 0.3, 0.0, -1.5, 0.0, 4.0, 0.5])  # q6 inside FR3's, beyond FER's limit
+    T = kin_mod.fk(q, robot="fr3")
+    np.testing.assert_allclose(kin_mod.ik(T, q, q[6], robot="fr3"), q, atol=1e-9)
+    np.testing.assert_allclose(Kinematics("fr3").ik(T, q, q[6]), q, atol=1e-9)
+    assert np.all(np.isnan(kin_mod.ik(T, q, q[6])))  # default: FER limits
+    assert kin_mod.ik_result(T, q, q[6]).status is IKStatus.JOINT_LIMIT
+
+
+# --- batches ----------------------------------------------------------------------------
+
+
+def test_batched_equals_looped() -> None:
+    rng = np.random.default_rng(8)
+    Q = random_q(rng, 300)
+    T = kin_mod.fk(Q)
+    assert T.shape == (300, 4, 4)
+    np.testing.assert_allclose(T, np.array([kin_mod.fk(q) for q in Q]), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        kin_mod.fk_frames(Q), np.array([kin_mod.fk_frames(q) for q in Q]), rtol=0, atol=1e-15
+    )
+    for f in (kin_mod.zero_jacobian, kin_mod.body_jacobian):
+        np.testing.assert_allclose(f(Q), np.array([f(q) for q in Q]), rtol=0, atol=1e-14)
+    q7 = rng.uniform(-2.5, 2.5, 300)
+    S = kin_mod.ik(T, Q, q7)
+    L = np.array([kin_mod.ik(T[i], Q[i], q7[i]) for i in range(300)])
+    np.testing.assert_array_equal(np.isnan(S), np.isnan(L))
+    np.testing.assert_allclose(S, L, rtol=0, atol=1e-12)
+    F = kin_mod.ik_full(T, Q, q7)
+    FL = np.array([kin_mod.ik_full(T[i], Q[i], q7[i]) for i in range(300)])
+    np.testing.assert_array_equal(np.isnan(F), np.isnan(FL))
+    np.testing.assert_allclose(F, FL, rtol=0, atol=1e-12)
+    r = kin_mod.ik_result(T, Q, q7)
+    assert r.status.shape == (300,) and r.statuses.shape == (300, 4)
+    assert np.isfinite(S).all(axis=1).sum() > 50  # not vacuous
+
+
+# --- MuJoCo -----------------------------------------------------------------------------
+
+
+def test_agrees_with_the_simulators_mujoco_model() -> None:
+    mujoco = pytest.importorskip("mujoco")
+    from panda_py.robots.mjcf import build_model
+
+    rng = np.random.default_rng(9)
+    for robot, lo, hi in (("fer", FER_LO, FER_HI), ("fr3", FR3_LO, FR3_HI)):
+        model = build_model(robot)
+        data = mujoco.MjData(model)
+        adr = [model.jnt_qposadr[model.joint(f"joint{i}").id] for i in range(1, 8)]
+        for q in random_q(rng, 20, lo, hi):
+            data.qpos[adr] = q
+            mujoco.mj_kinematics(model, data)
+            frames = kin_mod.fk_frames(q, robot=robot)
+            for i in range(7):
+                body = data.body(f"link{i + 1}")
+                np.testing.assert_allclose(frames[i][:3, 3], body.xpos, atol=1e-12)
+                np.testing.assert_allclose(frames[i][:3, :3], body.xmat.reshape(3, 3), atol=1e-12)
+            for site, T in (("flange", frames[7]), ("tcp", kin_mod.fk(q, robot=robot))):
+                s = data.site(site)
+                np.testing.assert_allclose(T[:3, 3], s.xpos, atol=1e-12)
+                np.testing.assert_allclose(T[:3, :3], s.xmat.reshape(3, 3), atol=1e-12)
+
+
+# --- bad input --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: kin_mod.fk(np.zeros(6)), "q: expected 7 joint positions"),
+        (lambda: kin_mod.fk(np.zeros((3, 6))), "q: expected 7"),
+        (lambda: kin_mod.fk(np.zeros((2, 2, 7))), "q: expected 7"),
+        (lambda: kin_mod.fk([0, 0, 0, math.nan, 0, 0, 0]), "q: expected finite"),
+        (lambda: kin_mod.fk(np.array([0, 0, 0, math.inf, 0, 0, 0])), "q: expected finite"),
+        (lambda: kin_mod.fk("abcdefg"), "q: expected an array of real numbers"),
+        (lambda: kin_mod.fk(np.zeros(7), robot="ur5"), "robot: expected one of"),
+        (lambda: kin_mod.ik(np.eye(4), robot="ur5"), "robot: expected one of"),
+        (lambda: kin_mod.ik(np.eye(3)), "O_T_EE: expected a 4x4"),
+        (lambda: kin_mod.ik(np.eye(4) * 2), "O_T_EE: expected a rigid transform"),
+        (lambda: kin_mod.ik(np.diag([1.0, 1.0, -1.0, 1.0])), "O_T_EE: expected a rigid transform"),
+        (lambda: kin_mod.ik(np.full((4, 4), math.nan)), "O_T_EE: expected finite"),
+        (lambda: kin_mod.ik(np.eye(4), np.zeros(6)), "q_init: expected 7"),
+        (lambda: kin_mod.ik(np.eye(4), np.zeros(7), math.nan), "q_7: expected finite"),
+        (lambda: kin_mod.ik(np.eye(4), np.zeros(7), [1.0, 2.0]), "q_7: expected a number"),
+        (lambda: kin_mod.ik(np.zeros(3), np.array([0, 0, 0, 2.0])), "orientation: expected a unit"),
+        (lambda: kin_mod.ik(np.zeros(3), np.zeros(3)), "orientation: expected a quaternion"),
+        (lambda: kin_mod.ik(np.eye(4), q7_search=-1.0), "q7_search: expected a finite number"),
+        (
+            lambda: kin_mod.ik_full(np.eye(4)[None].repeat(3, 0), np.zeros((2, 7))),
+            "q_init: expected",
+        ),
+        (lambda: Kinematics("fer", F_T_EE=np.ones((4, 4))), "F_T_EE: expected a rigid"),
+        (lambda: kin_mod.zero_jacobian(np.zeros(8)), "q: expected 7"),
+    ],
+)
+def test_bad_input_is_a_clear_value_error(call, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        call()
+
+
+def test_public_names_exist() -> None:
+    for name in kin_mod.__all__:
+        assert hasattr(kin_mod, name), name
+    for name in ("fk", "ik", "ik_full"):
+        assert getattr(panda_py, name) is getattr(kin_mod, name)
