@@ -61,10 +61,9 @@ def test_straight_moves_are_the_closed_form_optimum(spec: RobotSpec, speed_facto
         assert traj.get_duration() == pytest.approx(closed_form_duration(angle, v_r, a_r))
     # both at once: one line in [p; φ], bounded by whichever part binds
     d, angle = 0.2, 0.4
-    traj = CartesianTrajectory(
-        [P0, P0 + np.array([d, 0.0, 0.0])], [Q0, rot.multiply(Q0, rot.exp(np.array([0, 0, angle])))],
-        speed_factor=speed_factor, robot=spec,
-    )  # fmt: skip
+    q1 = rot.multiply(Q0, rot.exp(np.array([0.0, 0.0, angle])))
+    p1 = P0 + np.array([d, 0.0, 0.0])
+    traj = CartesianTrajectory([P0, p1], [Q0, q1], speed_factor=speed_factor, robot=spec)
     length = math.hypot(d, angle)
     v = min(v_t * length / d, v_r * length / angle)
     a = min(a_t * length / d, a_r * length / angle)
