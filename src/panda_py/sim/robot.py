@@ -426,11 +426,17 @@ class RobotCore:
         log.info("reflex: %s", ", ".join(names))
 
     def _end_motion(self, status: MoveStatus) -> None:
+        # A finished motion generator holds its last target; after a torque-controlled
+        # motion (whose generator only idles at its start) the robot holds where it is.
+        tracked = self.ctrl_mode != ControllerMode.EXTERNAL_CONTROLLER
         self.move_active = False
         self.robot_mode = RobotMode.IDLE
         self.mg_mode = MotionGeneratorMode.IDLE
         self.ctrl_mode = ControllerMode.JOINT_IMPEDANCE
-        self.q_hold = self.physics.q.copy() if status != MoveStatus.SUCCESS else self.joint.q.copy()
+        if status == MoveStatus.SUCCESS and tracked:
+            self.q_hold = self.joint.q.copy()
+        else:
+            self.q_hold = self.physics.q.copy()
         self.joint.reset(self.q_hold)
         self.tau_J_d[:] = 0.0
         self.pending_final = status
