@@ -288,3 +288,10 @@ def test_nan_time_is_rejected() -> None:
         traj.get_joint_positions(math.nan)
     with pytest.raises(ValueError, match="times"):
         traj.sample([0.0, math.nan])
+
+
+def test_motion_all_is_honest() -> None:
+    import panda_py.motion as motion
+
+    assert all(hasattr(motion, name) for name in motion.__all__)
+    assert {"JointTrajectory", "CartesianTrajectory"} <= set(motion.__all__)
