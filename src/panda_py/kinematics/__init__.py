@@ -94,6 +94,8 @@ def _make_fk(kin: Kinematics) -> Any:
         the FER with the Franka Hand)."""
         if robot is None and F_T_EE is None:
             try:
+                if len(q) != 7:
+                    raise ValueError  # a batch: no tolist() of N rows here
                 a, b, c, d, e, f, g = q.tolist()
                 s = a + b + c + d + e + f + g
                 if s - s == 0.0:  # all finite (NaN or infinity make this NaN)
@@ -158,7 +160,7 @@ def ik_full(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -
     """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none), rows
     ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0), (cos(q5)
     >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives (N, 4, 7)."""
-    return get_kinematics(robot, F_T_EE).ik_result(*args, **kwargs).solutions
+    return get_kinematics(robot, F_T_EE).ik_full(*args, **kwargs)
 
 
 def ik_result(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> IKResult:
