@@ -270,6 +270,13 @@ def test_batched_equals_looped() -> None:
     np.testing.assert_allclose(F, FL, rtol=0, atol=1e-12)
     r = kin_mod.ik_result(T, Q, q7)
     assert r.status.shape == (300,) and r.statuses.shape == (300, 4)
+    np.testing.assert_array_equal(r.q, S)
+    # a batch with the q7 search: a superset of solutions, each reproducing its pose
+    W = kin_mod.ik(T, Q, q7, q7_search=0.3)
+    found = np.isfinite(W).all(axis=1)
+    assert found.sum() > np.isfinite(S).all(axis=1).sum()
+    np.testing.assert_allclose(kin_mod.fk(W[found]), T[found], atol=1e-9)
+    assert np.all(np.abs(W[found, 6] - q7[found]) <= 0.3 + 1e-9)
     assert np.isfinite(S).all(axis=1).sum() > 50  # not vacuous
 
 
