@@ -148,7 +148,7 @@ def _make_ik(kin: Kinematics) -> Any:
             if q is not None:
                 return q
         kin_ = get_kinematics(robot if robot is not None else "fer", F_T_EE)
-        return kin_.ik_result(*args, **kwargs).q
+        return kin_._ik_selected(*args, **kwargs)
 
     return ik
 
