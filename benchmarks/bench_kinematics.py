@@ -164,8 +164,8 @@ def main() -> None:
             tm = theirs[name][0] * 1e6
             line += f"   {tm:18.3f}   {tm / m:8.1f}x"
         print(line)
-    print(f"\nimport panda_py: {_import_time() * 1e3:.1f} ms; "
-          f"import panda_py.kinematics (first, in this process): {t_kin_import * 1e3:.1f} ms")  # fmt: skip
+    print(f"\nimport panda_py: {_import_time() * 1e3:.1f} ms")
+    print(f"import panda_py.kinematics (first, in this process): {t_kin_import * 1e3:.1f} ms")
     print("(ik: O_T_EE of the start pose, default q_init and q_7; ik_q: with q_init and q_7=0.5)")
 
 

@@ -7,10 +7,10 @@ import subprocess
 
 import numpy as np
 import pytest
+from peer_envs import PeerUnavailable, peer_python
 
 from panda_py import kinematics as kin_mod
-from panda_py.robots.params import FER, DH_FRANKA
-from peer_envs import PeerUnavailable, peer_python
+from panda_py.robots.params import DH_FRANKA, FER
 
 pytestmark = [pytest.mark.peer, pytest.mark.timeout(900)]
 
