@@ -7,7 +7,6 @@ import struct
 
 import numpy as np
 import pytest
-from rawclient import RawClient
 
 from panda_py import fci
 from panda_py.fci import (
@@ -23,6 +22,7 @@ from panda_py.fci import (
 )
 from panda_py.robots import FER, START_POSE
 from panda_py.sim import Simulator, free_loopback_host
+from panda_py.sim.probe import RawClient
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -228,7 +228,8 @@ def test_setters_are_reflected_in_the_state(client):
     NE_T_EE[2, 3] = 0.02
     status, _ = client.request(Command.SET_NE_TO_EE, NE_T_EE=NE_T_EE.T.reshape(16))
     assert status == GetterSetterStatus.SUCCESS
-    s = client.state()
+    # the next states carry what the setters set
+    s = client.wait_state(lambda s: s["NE_T_EE"][14] > 0.01)
     assert s["m_load"] == pytest.approx(0.5)
     F_T_EE = np.asarray(s["F_T_EE"], dtype=float).reshape(4, 4).T
     assert F_T_EE[2, 3] == pytest.approx(0.1034 + 0.02, abs=1e-6)

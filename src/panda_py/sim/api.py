@@ -78,7 +78,7 @@ class Simulator:
         robot: str = "fer",
         *,
         lockstep: bool = False,
-        lockstep_timeout: float = 0.5,
+        lockstep_timeout: float = 2.0,
         versions: Sequence[int] | None = None,
         scene: bool = True,
         extra: str | Path | None = None,

@@ -45,6 +45,8 @@ GRIPPER_STATE_PERIOD = 10  # [ticks] gripper state datagrams at 100 Hz
 # catching up and re-anchors (logged), keeping simulated and wall time together.
 LATE_THRESHOLD = 0.0005
 RESYNC = 0.1
+# Lockstep: before a motion's first command arrives, each tick waits this long for it [s].
+ENGAGE_WAIT = 0.02
 
 
 @dataclass
@@ -54,7 +56,7 @@ class SimConfig:
     host: str = "127.0.0.1"
     robot: str = "fer"
     lockstep: bool = False
-    lockstep_timeout: float = 0.5  # [s] wait for a command this long before counting it lost
+    lockstep_timeout: float = 2.0  # [s] wait for a command this long before counting it lost
     versions: tuple[int, ...] | None = None  # accept only these protocol versions
     robot_port: int = fci.COMMAND_PORT
     gripper_port: int = fci.GRIPPER_COMMAND_PORT
@@ -207,7 +209,6 @@ class SimServer:
                 waiting = (
                     self.config.lockstep
                     and conn is not None
-                    and conn.awaiting
                     and self.core.robot_mode == RobotMode.MOVE
                 )
                 now = time.monotonic()
@@ -228,7 +229,7 @@ class SimServer:
                         continue
                     self._tick()
                     next_tick = time.monotonic() + DT
-                    lockstep_deadline = time.monotonic() + self.config.lockstep_timeout
+                    lockstep_deadline = time.monotonic() + self._lockstep_wait()
                     continue
                 if now < next_tick:
                     continue
@@ -242,9 +243,17 @@ class SimServer:
                     next_tick = now
                 self._tick()
                 next_tick += DT
-                lockstep_deadline = time.monotonic() + self.config.lockstep_timeout
+                lockstep_deadline = time.monotonic() + self._lockstep_wait()
         finally:
             self.close()
+
+    def _lockstep_wait(self) -> float:
+        """How long lockstep waits for the next command [s]: the full timeout once the
+        client's loop answers states, briefly before (libfranka skips the first state)."""
+        conn = self.robot_conn
+        if conn is not None and conn.awaiting:
+            return self.config.lockstep_timeout
+        return ENGAGE_WAIT
 
     def _tick(self) -> None:
         conn = self.robot_conn

@@ -1,0 +1,117 @@
+"""``panda-sim``: run a simulated Franka until interrupted.
+
+    panda-sim --host 127.0.0.1 --robot fer --lockstep
+
+Clients connect to HOST (FCI on 1337, the gripper on 1338) as to a real robot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+from types import FrameType
+
+from panda_py import fci
+from panda_py.robots.params import ROBOTS
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="panda-sim",
+        description="A simulated Franka robot (FER or FR3) speaking the real FCI protocol.",
+    )
+    p.add_argument("--host", default="127.0.0.1", help="address to serve on (default %(default)s)")
+    p.add_argument("--robot", default="fer", choices=sorted(ROBOTS), help="arm (default fer)")
+    p.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="advance simulated time one tick per received command during motions",
+    )
+    p.add_argument(
+        "--lockstep-timeout",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="lockstep: seconds to wait for a command before counting it lost",
+    )
+    p.add_argument(
+        "--version",
+        type=int,
+        action="append",
+        dest="versions",
+        choices=fci.SUPPORTED_VERSIONS,
+        metavar="N",
+        help="accept only this FCI protocol version (repeatable; default: any of "
+        f"{', '.join(map(str, fci.SUPPORTED_VERSIONS))})",
+    )
+    p.add_argument("--no-scene", action="store_true", help="no table and cube")
+    p.add_argument("--scene", metavar="MJCF", help="add the bodies of this MJCF file")
+    p.add_argument("--viewer", action="store_true", help="open the MuJoCo viewer (needs a display)")
+    p.add_argument("--log-level", default="INFO", help="logging level (default %(default)s)")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=args.log_level.upper(), format="panda-sim %(levelname)s: %(message)s")
+    from panda_py.sim.server import SimConfig, SimServer
+
+    try:
+        config = SimConfig(
+            host=args.host,
+            robot=args.robot,
+            lockstep=args.lockstep,
+            lockstep_timeout=args.lockstep_timeout,
+            versions=tuple(args.versions) if args.versions else None,
+            scene=not args.no_scene,
+            extra=args.scene,
+        )
+        server = SimServer(config)
+    except (ValueError, OSError) as exc:
+        print(f"panda-sim: {exc}", file=sys.stderr)
+        return 2
+
+    def stop(signum: int, frame: FrameType | None) -> None:
+        server.shutdown()
+
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
+    if args.viewer:
+        _start_viewer(server)
+    mode = "lockstep" if args.lockstep else "realtime"
+    logging.getLogger("panda_py.sim").info(
+        "simulated %s on %s (FCI 1337, gripper 1338), %s; Ctrl-C to stop",
+        server.spec.name,
+        args.host,
+        mode,
+    )
+    server.serve_forever()
+    return 0
+
+
+def _start_viewer(server: object) -> None:
+    """The MuJoCo viewer in a thread, synced at about 30 Hz (optional; needs a display)."""
+    import os
+
+    if not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
+        logging.getLogger("panda_py.sim").warning("no display: running without the viewer")
+        return
+    import mujoco.viewer
+
+    physics = server.physics  # type: ignore[attr-defined]
+
+    def run() -> None:
+        with mujoco.viewer.launch_passive(physics.model, physics.data) as viewer:
+            while viewer.is_running():
+                viewer.sync()
+                threading.Event().wait(1 / 30)
+
+    threading.Thread(target=run, daemon=True).start()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

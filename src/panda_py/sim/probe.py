@@ -1,0 +1,206 @@
+"""Wire-level probes: deliberately small FCI robot and gripper clients.
+
+They speak the protocol with nothing but :mod:`panda_py.fci` codecs, one request at a time,
+so the simulator's tests, its demo and anyone debugging a robot connection can look at
+exactly what goes over the wire. For programs, use :mod:`panda_py.libfranka`.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from typing import Any
+
+import numpy as np
+
+from panda_py import fci
+from panda_py.fci import Command, MoveControllerMode, MoveMotionGeneratorMode
+
+# A receive queue this long may have overflowed; the kernel then dropped the newest
+# datagrams, so what is queued is stale and the next arrival is waited for instead.
+_OVERFLOW_SUSPECT = 32
+
+
+def _fresh_datagram(sock: socket.socket, size: int) -> tuple[bytes, Any]:
+    """The newest queued datagram, or the next one if none (or too many) were queued."""
+    newest = None
+    count = 0
+    sock.setblocking(False)
+    try:
+        while True:
+            newest = sock.recvfrom(size)
+            count += 1
+    except BlockingIOError:
+        pass
+    finally:
+        sock.setblocking(True)
+        sock.settimeout(5.0)
+    if newest is None or count >= _OVERFLOW_SUSPECT:
+        return sock.recvfrom(size)
+    return newest
+
+
+class RawClient:
+    """Connects to ``host``:1337 speaking protocol ``version``; ``status`` and
+    ``server_version`` hold the Connect answer."""
+
+    def __init__(self, host: str, version: int = 10, *, timeout: float = 5.0) -> None:
+        self.host = host
+        self.tcp = socket.create_connection((host, fci.COMMAND_PORT), timeout=timeout)
+        self.tcp.settimeout(timeout)
+        self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.udp.bind(("0.0.0.0", 0))
+        self.udp.settimeout(timeout)
+        self.reader = fci.RobotMessageReader()
+        self.pending: list[fci.Message] = []
+        self.counter = 0
+        self.robot_addr: tuple[str, int] | None = None
+        self.tcp.sendall(fci.encode_connect_request(version, self.udp.getsockname()[1]))
+        msg = self.receive(0)
+        _, self.status, self.server_version = fci.decode_connect_response(msg.raw)
+        self.dialect = fci.dialect(version) if self.status == fci.ConnectStatus.SUCCESS else None
+        self.counter = 1
+
+    def close(self) -> None:
+        self.tcp.close()
+        self.udp.close()
+
+    # -- TCP --------------------------------------------------------------------------
+
+    def receive(self, command_id: int) -> fci.Message:
+        while True:
+            for i, m in enumerate(self.pending):
+                if m.command_id == command_id:
+                    return self.pending.pop(i)
+            data = self.tcp.recv(65536)
+            if not data:
+                raise ConnectionError("server closed connection")
+            self.pending += self.reader.feed(data)
+
+    def send(self, command: Command, **fields: Any) -> int:
+        assert self.dialect is not None
+        cid = self.counter
+        self.counter += 1
+        self.tcp.sendall(self.dialect.encode_request(command, cid, **fields))
+        return cid
+
+    def response(self, command: Command, cid: int) -> tuple[Any, dict[str, Any]]:
+        assert self.dialect is not None
+        return self.dialect.decode_response(command, self.receive(cid).payload)
+
+    def request(self, command: Command, **fields: Any) -> tuple[Any, dict[str, Any]]:
+        return self.response(command, self.send(command, **fields))
+
+    def move(
+        self, controller: MoveControllerMode, generator: MoveMotionGeneratorMode
+    ) -> tuple[int, Any]:
+        dev = np.array(fci.DEFAULT_DEVIATION)
+        cid = self.send(
+            Command.MOVE,
+            controller_mode=int(controller),
+            motion_generator_mode=int(generator),
+            maximum_path_deviation=dev,
+            maximum_goal_pose_deviation=dev,
+        )
+        status, _ = self.response(Command.MOVE, cid)
+        return cid, status
+
+    # -- UDP --------------------------------------------------------------------------
+
+    def state(self) -> np.void:
+        """The newest state (see :func:`_fresh_datagram`)."""
+        assert self.dialect is not None
+        data, self.robot_addr = _fresh_datagram(self.udp, 4096)
+        return self.dialect.decode_state(data).copy()
+
+    def wait_state(self, predicate: Any, timeout: float = 5.0) -> np.void:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            s = self.state()
+            if predicate(s):
+                return s
+        raise TimeoutError("no state matched")
+
+    def command(self, state: np.void, **fields: Any) -> None:
+        """Answer ``state`` with a RobotCommand carrying ``fields``."""
+        assert self.dialect is not None and self.robot_addr is not None
+        rec = self.dialect.new_command()
+        rec["message_id"] = state["message_id"]
+        for k, v in fields.items():
+            rec[k] = v
+        self.udp.sendto(self.dialect.encode_command(rec), self.robot_addr)
+
+
+class GripperProbe:
+    """Connects to ``host``:1338 (gripper protocol v3); each command blocks until done."""
+
+    def __init__(self, host: str, *, timeout: float = 30.0) -> None:
+        from panda_py.fci import gripper as g
+
+        self._g = g
+        self.tcp = socket.create_connection((host, g.GRIPPER_COMMAND_PORT), timeout=timeout)
+        self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.udp.bind(("0.0.0.0", 0))
+        self.udp.settimeout(5.0)
+        self.reader = g.GripperMessageReader()
+        self.pending: list[fci.Message] = []
+        self.tcp.sendall(g.encode_gripper_connect_request(self.udp.getsockname()[1]))
+        _, self.status, self.server_version = g.decode_gripper_connect_response(
+            self._receive(0).raw
+        )
+        self.counter = 1
+
+    def close(self) -> None:
+        self.tcp.close()
+        self.udp.close()
+
+    def _receive(self, command_id: int) -> fci.Message:
+        while True:
+            for i, m in enumerate(self.pending):
+                if m.command_id == command_id:
+                    return self.pending.pop(i)
+            data = self.tcp.recv(65536)
+            if not data:
+                raise ConnectionError("gripper closed connection")
+            self.pending += self.reader.feed(data)
+
+    def request(self, command: Any, **fields: Any) -> Any:
+        """Send a command (a ``GripperCommand``) and return its ``GripperStatus``."""
+        g = self._g
+        codec = g.GRIPPER_REQUESTS.get(command)
+        payload = codec.encode(**fields) if codec is not None else b""
+        cid = self.counter
+        self.counter += 1
+        self.tcp.sendall(g.encode_gripper_message(command, cid, payload))
+        return g.decode_gripper_status(self._receive(cid).payload)
+
+    def state(self) -> np.void:
+        """A fresh gripper state (see :meth:`RawClient.state`)."""
+        data, _ = _fresh_datagram(self.udp, 64)
+        return self._g.decode_gripper_state(data).copy()
+
+
+def follow_joint_positions(client: RawClient, q_of_t: Any, duration: float) -> tuple[Any, np.void]:
+    """Stream joint positions ``q_of_t(t)`` [rad] for ``duration`` [s] as one joint-position
+    motion, the way libfranka drives a callback; returns the final Move status and the
+    last state."""
+    cid, status = client.move(
+        MoveControllerMode.JOINT_IMPEDANCE, MoveMotionGeneratorMode.JOINT_POSITION
+    )
+    if status != fci.MoveStatus.MOTION_STARTED:
+        return status, client.state()
+    gen = fci.MotionGeneratorMode.JOINT_POSITION
+    client.wait_state(lambda s: s["motion_generator_mode"] == gen)
+    ticks = max(1, round(duration * 1000))
+    k = 0
+    s = client.state()
+    while s["robot_mode"] == fci.RobotMode.MOVE and k < ticks:
+        k += 1
+        client.command(
+            s,
+            q_c=np.asarray(q_of_t(k / 1000.0), dtype=float),
+            motion_generation_finished=k == ticks,
+        )
+        s = client.state()
+    final, _ = client.response(Command.MOVE, cid)
+    return final, s
