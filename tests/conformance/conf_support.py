@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/ for peer_envs
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # tests/ for peer_envs
 
 from peer_envs import PeerUnavailable, peer_python
 
@@ -317,7 +317,8 @@ class LowLevelHandlers:
     def teleport_to_cube(self, arg: Any) -> None:
         cube = self.sim.state()["cube_position"]
         self.seen["cube_before"] = cube
-        self.sim.set_joint_positions(ik(cube_grasp_pose(cube)).tolist())
+        q = ik(cube_grasp_pose(cube), robot=self.sim.config.robot)
+        self.sim.set_joint_positions(q.tolist())
 
     def teleport_home(self, arg: Any) -> None:
         self.seen["cube_after"] = self.sim.state()["cube_position"]

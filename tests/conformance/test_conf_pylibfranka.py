@@ -45,9 +45,12 @@ def python() -> Any:
     return peer_or_skip("pylibfranka")
 
 
-@pytest.fixture(scope="module")
-def sim() -> Any:
-    with Simulator(host=free_loopback_host(), robot="fer", lockstep=True, versions=(10,)) as s:
+@pytest.fixture(scope="module", params=["fer", "fr3"])
+def sim(request: Any) -> Any:
+    """A FER and an FR3, in turn (v10 clients drive both)."""
+    with Simulator(
+        host=free_loopback_host(), robot=request.param, lockstep=True, versions=(10,)
+    ) as s:
         yield s
 
 
@@ -57,7 +60,12 @@ def lowlevel(python: Any, sim: Any) -> dict[str, Any]:
     handlers = LowLevelHandlers(sim, MODEL_Q)
     q_initial = sim.state()["q"]
     result = run_peer(python, "plf_lowlevel.py", [sim.host], handlers.handlers(), timeout=90)
-    return {"result": result, "seen": handlers.seen, "q_initial": q_initial}
+    return {
+        "result": result,
+        "seen": handlers.seen,
+        "q_initial": q_initial,
+        "robot": sim.config.robot,
+    }
 
 
 @pytest.mark.timeout(120)
@@ -110,14 +118,14 @@ def test_model_agrees_with_parameters(lowlevel: dict[str, Any], i: int) -> None:
     table and panda_py.dynamics, at the state the simulator reports at MODEL_Q[i] (its
     float32 q and the hand as load; the residue is the float32 rounding of m, F_x_C)."""
     s = scenario(lowlevel["result"], "model")["samples"][i]
-    q = np.array(s["q"])
+    q, robot = np.array(s["q"]), lowlevel["robot"]
     np.testing.assert_allclose(q, MODEL_Q[i], atol=F32)
     F_T_EE = col_major(s["F_T_EE"])
     np.testing.assert_allclose(F_T_EE, hand_F_T_EE(), atol=F32)
-    np.testing.assert_allclose(col_major(s["O_T_EE"]), fk(q, hand_F_T_EE()), atol=1e-5)
+    np.testing.assert_allclose(col_major(s["O_T_EE"]), fk(q, hand_F_T_EE(), robot), atol=1e-5)
     J = np.asarray(s["zero_jacobian"]).reshape(7, 6).T  # column-major 6x7
-    np.testing.assert_allclose(J, zero_jacobian(q, F_T_EE), atol=1e-6)
-    load = {"m_load": s["m_total"], "F_x_Cload": s["F_x_Ctotal"]}
+    np.testing.assert_allclose(J, zero_jacobian(q, F_T_EE, robot), atol=1e-6)
+    load = {"m_load": s["m_total"], "F_x_Cload": s["F_x_Ctotal"], "robot": robot}
     np.testing.assert_allclose(s["gravity"], dynamics.gravity(q, **load), atol=1e-5)
     M = np.asarray(s["mass"]).reshape(7, 7).T
     M_ref = dynamics.mass_matrix(q, I_load=np.asarray(s["I_total"]), **load)
