@@ -34,6 +34,11 @@ from panda_py.robots.params import FRANKA_HAND, START_POSE, get_robot
 
 PEER_SCRIPTS = Path(__file__).resolve().parent / "peer_scripts"
 
+# pytest-timeout of the conformance tests [s]. It includes the module fixtures: on first use
+# they create the peer's venv (bounded at 900 s by peer_envs), then start the simulator and
+# run the peer (bounded by run_peer's own timeout); a normal run takes a few seconds.
+PEER_TEST_TIMEOUT = 1200
+
 Handler = Callable[[Any], Any]
 
 

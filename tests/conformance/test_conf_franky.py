@@ -8,12 +8,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from conf_support import fk, hand_F_T_EE, peer_or_skip, run_peer, scenario
+from conf_support import PEER_TEST_TIMEOUT, fk, hand_F_T_EE, peer_or_skip, run_peer, scenario
 
 from panda_py.robots.params import START_POSE
 from panda_py.sim import Simulator, free_loopback_host
 
-pytestmark = [pytest.mark.peer]
+pytestmark = [pytest.mark.peer, pytest.mark.timeout(PEER_TEST_TIMEOUT)]
 
 Q_GOAL = [0.1, -0.7, 0.05, -2.3, 0.05, 1.6, 0.8]  # [rad]
 
@@ -28,7 +28,6 @@ def run() -> dict[str, Any]:
         return {"result": result, "q_initial": q_initial, "final": sim.state()}
 
 
-@pytest.mark.timeout(120)
 def test_state(run: dict[str, Any]) -> None:
     r = scenario(run["result"], "state")
     np.testing.assert_allclose(r["q"], run["q_initial"], atol=1e-6)  # float32 on the wire
@@ -37,7 +36,6 @@ def test_state(run: dict[str, Any]) -> None:
     np.testing.assert_allclose(r["O_T_EE"], fk(r["q"], hand_F_T_EE()), atol=1e-5)
 
 
-@pytest.mark.timeout(120)
 def test_joint_motion_reaches_goal(run: dict[str, Any]) -> None:
     r = scenario(run["result"], "joint_motion")
     np.testing.assert_allclose(run["final"]["q"], Q_GOAL, atol=1e-4)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conf_support import (
+    PEER_TEST_TIMEOUT,
     LowLevelHandlers,
     check_gripper,
     check_joint_position,
@@ -31,7 +32,7 @@ from panda_py.fci import RobotMode
 from panda_py.robots.params import START_POSE
 from panda_py.sim import Simulator, free_loopback_host
 
-pytestmark = [pytest.mark.peer]
+pytestmark = [pytest.mark.peer, pytest.mark.timeout(PEER_TEST_TIMEOUT)]
 
 IDLE = "kIdle"
 MODES = {"idle": "kIdle", "reflex": "kReflex"}
@@ -75,7 +76,6 @@ def highlevel(python: Any, sim: Any) -> dict[str, Any]:
     return {"result": result, "seen": seen}
 
 
-@pytest.mark.timeout(120)
 def test_read_once(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "read_once")
     assert r["server_version"] == 5
@@ -85,17 +85,14 @@ def test_read_once(lowlevel: dict[str, Any]) -> None:
     np.testing.assert_allclose(col_major(r["O_T_EE"]), fk(r["q"], hand_F_T_EE()), atol=1e-9)
 
 
-@pytest.mark.timeout(120)
 def test_joint_position_motion(lowlevel: dict[str, Any]) -> None:
     check_joint_position(scenario(lowlevel["result"], "joint_position"), IDLE)
 
 
-@pytest.mark.timeout(120)
 def test_torque_control(lowlevel: dict[str, Any]) -> None:
     check_torque(scenario(lowlevel["result"], "torque"), IDLE)
 
 
-@pytest.mark.timeout(120)
 def test_reflex_and_recovery(lowlevel: dict[str, Any]) -> None:
     assert lowlevel["seen"]["mode_before_reflex"] == RobotMode.MOVE
     r = scenario(lowlevel["result"], "reflex_recovery")
@@ -104,21 +101,18 @@ def test_reflex_and_recovery(lowlevel: dict[str, Any]) -> None:
     assert "motion aborted by reflex" in r["exception"]
 
 
-@pytest.mark.timeout(120)
 def test_setters(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "setters")
     check_setters(r, lowlevel["seen"]["setters_state"], IDLE, atol=1e-12)
     np.testing.assert_allclose(col_major(r["F_T_EE_restored"]), hand_F_T_EE(), atol=1e-12)
 
 
-@pytest.mark.timeout(120)
 def test_gripper(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "gripper")
     seen = lowlevel["seen"]
     check_gripper(r, seen["cube_before"], seen["cube_after"])
 
 
-@pytest.mark.timeout(120)
 def test_panda_model_library(highlevel: dict[str, Any]) -> None:
     """panda_py.Panda's model comes from the native library the simulator compiled from
     our parameters (LoadModelLibrary): it must agree with the DH table and our dynamics."""
@@ -135,7 +129,6 @@ def test_panda_model_library(highlevel: dict[str, Any]) -> None:
     np.testing.assert_allclose(M, M_ref, atol=1e-6)
 
 
-@pytest.mark.timeout(120)
 def test_panda_move_to_joint_position(highlevel: dict[str, Any]) -> None:
     r = scenario(highlevel["result"], "move_to_joint_position")
     assert r["returned"] is True
@@ -144,7 +137,6 @@ def test_panda_move_to_joint_position(highlevel: dict[str, Any]) -> None:
     np.testing.assert_allclose(r["q"], q, atol=1e-3)
 
 
-@pytest.mark.timeout(120)
 def test_panda_move_to_pose(highlevel: dict[str, Any]) -> None:
     r = scenario(highlevel["result"], "move_to_pose")
     assert r["returned"] is True

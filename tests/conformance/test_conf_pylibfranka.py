@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from conf_support import (
+    PEER_TEST_TIMEOUT,
     LowLevelHandlers,
     check_gripper,
     check_joint_position,
@@ -29,7 +30,7 @@ from panda_py.fci import RobotMode
 from panda_py.robots.params import START_POSE
 from panda_py.sim import Simulator, free_loopback_host
 
-pytestmark = [pytest.mark.peer]
+pytestmark = [pytest.mark.peer, pytest.mark.timeout(PEER_TEST_TIMEOUT)]
 
 IDLE = "Idle"
 MODES = {"idle": "Idle", "reflex": "Reflex"}
@@ -68,7 +69,6 @@ def lowlevel(python: Any, sim: Any) -> dict[str, Any]:
     }
 
 
-@pytest.mark.timeout(120)
 def test_read_once(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "read_once")
     np.testing.assert_allclose(r["q"], lowlevel["q_initial"], atol=F32)
@@ -78,17 +78,14 @@ def test_read_once(lowlevel: dict[str, Any]) -> None:
     np.testing.assert_allclose(col_major(r["O_T_EE"]), fk(r["q"], hand_F_T_EE()), atol=1e-5)
 
 
-@pytest.mark.timeout(120)
 def test_joint_position_motion(lowlevel: dict[str, Any]) -> None:
     check_joint_position(scenario(lowlevel["result"], "joint_position"), IDLE)
 
 
-@pytest.mark.timeout(120)
 def test_torque_control(lowlevel: dict[str, Any]) -> None:
     check_torque(scenario(lowlevel["result"], "torque"), IDLE)
 
 
-@pytest.mark.timeout(120)
 def test_reflex_and_recovery(lowlevel: dict[str, Any]) -> None:
     assert lowlevel["seen"]["mode_before_reflex"] == RobotMode.MOVE
     r = scenario(lowlevel["result"], "reflex_recovery")
@@ -97,21 +94,18 @@ def test_reflex_and_recovery(lowlevel: dict[str, Any]) -> None:
     assert "motion aborted by reflex" in r["exception"]
 
 
-@pytest.mark.timeout(120)
 def test_setters(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "setters")
     check_setters(r, lowlevel["seen"]["setters_state"], IDLE, atol=F32)
     np.testing.assert_allclose(col_major(r["NE_T_EE_restored"]), np.eye(4), atol=F32)
 
 
-@pytest.mark.timeout(120)
 def test_gripper(lowlevel: dict[str, Any]) -> None:
     r = scenario(lowlevel["result"], "gripper")
     seen = lowlevel["seen"]
     check_gripper(r, seen["cube_before"], seen["cube_after"])
 
 
-@pytest.mark.timeout(120)
 @pytest.mark.parametrize("i", range(len(MODEL_Q)))
 def test_model_agrees_with_parameters(lowlevel: dict[str, Any], i: int) -> None:
     """pylibfranka's Model (Pinocchio on the URDF our simulator serves) against the DH
