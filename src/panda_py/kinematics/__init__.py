@@ -17,7 +17,9 @@ behaviour), in pure Python and NumPy:
   limits, ``F_T_EE=`` another end effector.
 
 Single calls run generated straight-line float code (see ``_codegen``); batches run the
-same code on NumPy arrays.
+same code on NumPy arrays. With numba installed (``pip install panda-py[fast]``) both run
+compiled kernels instead (``_numba``; loaded on the first call, not at import); set
+``PANDA_PY_NO_JIT=1`` to keep the pure paths.
 """
 
 from __future__ import annotations
@@ -84,15 +86,28 @@ def _make_fk(kin: Kinematics) -> Any:
     # attribute look-ups on the fast path (7 floats in, one 4x4 array out).
     ee = kin._ee
     empty = np.empty
-    from panda_py.kinematics._model import _PACK16
+    from panda_py.kinematics import _model
+    from panda_py.kinematics._model import _F64, _PACK16, _UNSET
 
     pack = _PACK16
+    CF = kin._CF
+    ndarray = np.ndarray
 
     def fk(q: Any, *, robot: Any = None, F_T_EE: Any = None) -> FloatArray:
         """``O_T_EE`` (4, 4) [m] for joint positions ``q`` (7,) [rad]; a batch (N, 7)
         gives (N, 4, 4). ``robot``/``F_T_EE`` select another arm or end effector (default
         the FER with the Franka Hand)."""
         if robot is None and F_T_EE is None:
+            if type(q) is ndarray and q.dtype is _F64 and q.shape == (7,):
+                jit = _model._JIT
+                if jit is _UNSET:
+                    jit = _model.load_jit()
+                if jit is not None:
+                    out = empty((4, 4))
+                    if jit.fk_one(q, CF, out):
+                        return out
+            elif _model.load_jit() is not None:
+                return kin.fk(q)
             try:
                 if len(q) != 7:
                     raise ValueError  # a batch: no tolist() of N rows here

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import enum
 import math
+import os
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.kinematics import _ik, _input
-from panda_py.kinematics._codegen import ChainSpec, compile_chain
+from panda_py.kinematics._codegen import ChainSpec, _snap, compile_chain
 from panda_py.robots.params import FRANKA_HAND, START_POSE, RobotSpec, get_robot
 
 # panda-py's default redundancy parameter q7 [rad] (panda_py.ik's q_7 default).
@@ -28,6 +29,49 @@ _Z_ONLY_TOL = 1e-15
 BATCH_CHUNK = 512
 
 FloatArray = NDArray[np.float64]
+_F64 = np.dtype(np.float64)
+
+# The optional numba backend (:mod:`._numba`): _UNSET until the first call that could use
+# it, then the module, or None (numba missing, or PANDA_PY_NO_JIT=1). Tests set it.
+_UNSET: Any = object()
+_JIT: Any = _UNSET
+
+
+def load_jit() -> Any:
+    """The numba backend module, or None: imported on first use (importing numba and
+    loading the cached kernels takes about a second; compiling them the first time, after
+    installing, several more)."""
+    global _JIT
+    if _JIT is _UNSET:
+        if os.environ.get("PANDA_PY_NO_JIT", "") not in ("", "0"):
+            _JIT = None
+        else:
+            try:
+                from panda_py.kinematics import _numba
+            except ImportError:
+                _JIT = None
+            else:
+                _JIT = _numba
+    return _JIT
+
+
+def _pack_chain(dh: Any, F_T_EE: FloatArray) -> FloatArray:
+    """The numba fk kernels' chain (11, 4): per joint ``[a, d, cos alpha, sin alpha]``
+    (cos/sin snapped to exact 0, +-1 as in ``_codegen``), ``[flange_d, 0, 0, 0]``, then
+    the top 3 rows of F_T_EE."""
+    CF = np.zeros((11, 4))
+    for i in range(7):
+        CF[i] = (dh.a[i], dh.d[i], _snap(math.cos(dh.alpha[i])), _snap(math.sin(dh.alpha[i])))
+    CF[7, 0] = dh.flange_d
+    CF[8:] = F_T_EE[:3]
+    return CF
+
+
+def _pack_ik(P: _ik.IKParams) -> FloatArray:
+    """The numba ik kernels' parameters: d1, d3, d5, a4, a7, d_e, theta_e, l24, l46,
+    q4_offset, q_min (7), q_max (7)."""
+    head = [P.d1, P.d3, P.d5, P.a4, P.a7, P.d_e, P.theta_e, P.l24, P.l46, P.q4_offset]
+    return np.array([*head, *P.q_min, *P.q_max], dtype=np.float64)
 
 
 class IKStatus(enum.IntEnum):
@@ -143,6 +187,9 @@ class Kinematics:
             dh.d[0], dh.d[2], dh.d[4], dh.a[3], dh.a[6], d_e, theta_e, j.q_min, j.q_max
         )
         self._solve = _ik.make_scalar_solver(self._ik_params)
+        self._CF = _pack_chain(dh, T)
+        self._P = _pack_ik(self._ik_params)
+        self._start = np.array(START_POSE)
         self.q_min: FloatArray = np.array(j.q_min)
         self.q_max: FloatArray = np.array(j.q_max)
 
@@ -154,6 +201,22 @@ class Kinematics:
     def fk(self, q: object) -> FloatArray:
         """``O_T_EE`` (4, 4) for joint positions q (7,) [rad]; a batch (N, 7) gives
         (N, 4, 4). Translations in [m]."""
+        if type(q) is np.ndarray and q.dtype is _F64 and q.shape == (7,):
+            jit = _JIT if _JIT is not _UNSET else load_jit()
+            if jit is not None:
+                out = np.empty((4, 4))
+                if jit.fk_one(q, self._CF, out):
+                    return out
+        jit = load_jit()
+        if jit is None:
+            return self._fk_pure(q)
+        qa = _input.joints("q", q)
+        qb = np.ascontiguousarray(qa.reshape(-1, 7))
+        out = np.empty((qb.shape[0], 4, 4))
+        jit.fk_batch(qb, self._CF, out)
+        return out[0] if qa.ndim == 1 else out
+
+    def _fk_pure(self, q: object) -> FloatArray:
         try:
             if len(q) != 7:  # type: ignore[arg-type]
                 raise ValueError  # a batch: no tolist() of N rows here
@@ -178,7 +241,12 @@ class Kinematics:
         qa = _input.joints("q", q)
         single = qa.ndim == 1
         qb = qa[None] if single else qa
-        out = self._batched(self._frames_n, qb, (9, 4, 4))
+        jit = load_jit()
+        if jit is not None:
+            out = np.empty((qb.shape[0], 9, 4, 4))
+            jit.frames_batch(np.ascontiguousarray(qb), self._CF, out)
+        else:
+            out = self._batched(self._frames_n, qb, (9, 4, 4))
         return out[0] if single else out
 
     def zero_jacobian(self, q: object) -> FloatArray:
@@ -194,6 +262,12 @@ class Kinematics:
 
     def _jacobians(self, q: object, body: bool) -> FloatArray:
         qa = _input.joints("q", q)
+        jit = load_jit()
+        if jit is not None:
+            qb = np.ascontiguousarray(qa.reshape(-1, 7))
+            out = np.empty((qb.shape[0], 6, 7))
+            jit.jacobian_batch(qb, self._CF, body, out)
+            return out[0] if qa.ndim == 1 else out
         if qa.ndim == 1:
             v = self._jac(*qa.tolist())
             T = np.array(v[:16]).reshape(4, 4)
@@ -256,6 +330,19 @@ class Kinematics:
             T = T @ self._EE_T_F
         qi = np.broadcast_to(qi_a, (n, 7))
         q7 = np.broadcast_to(q7_a, (n,)).astype(np.float64)
+        jit = load_jit()
+        if jit is not None:
+            out = np.empty((n, 7))
+            st = np.empty(n, dtype=np.int8)
+            jit.ik_batch(
+                self._P,
+                np.ascontiguousarray(T),
+                np.ascontiguousarray(qi_a.reshape(-1, 7)),
+                np.ascontiguousarray(q7),
+                out,
+                st,
+            )
+            return out
         rows = (np.where(np.cos(qi[:, 4]) >= 0.0, 2, 0) + (qi[:, 1] < 0.0)).astype(np.int64)
         out = np.empty((n, 7))
         for a in range(0, n, BATCH_CHUNK):
@@ -280,6 +367,26 @@ class Kinematics:
         general path" (which also produces the error message for bad input)."""
         if self._EE_T_F is not None:
             return None
+        if type(O_T_EE) is np.ndarray and O_T_EE.dtype is _F64 and O_T_EE.shape == (4, 4):
+            jit = _JIT if _JIT is not _UNSET else load_jit()
+            if jit is not None:
+                if q_init is None:
+                    qi = self._start
+                elif type(q_init) is np.ndarray and q_init.dtype is _F64 and q_init.shape == (7,):
+                    qi = q_init
+                else:
+                    qi = None
+                if qi is not None and type(q_7) in (float, np.float64):
+                    if full:
+                        out4 = np.empty((4, 7))
+                        if jit.ik_full_one(self._P, O_T_EE, qi, q_7, out4):
+                            return out4
+                    else:
+                        out1 = np.empty(7)
+                        if jit.ik_one(self._P, O_T_EE, qi, q_7, out1):
+                            return out1
+        if load_jit() is not None:
+            return None  # the validating path, on the same kernels
         try:
             if len(O_T_EE) != 4:
                 return None
@@ -382,6 +489,19 @@ class Kinematics:
     ) -> tuple[FloatArray, NDArray[np.int8]]:
         """All four branches for N poses: (N, 4, 7) and statuses (N, 4)."""
         n = T.shape[0]
+        jit = load_jit()
+        if jit is not None:
+            sols = np.empty((n, 4, 7))
+            stats = np.empty((n, 4), dtype=np.int8)
+            jit.ik_full_batch(
+                self._P,
+                np.ascontiguousarray(T),
+                np.ascontiguousarray(q1_init, dtype=np.float64),
+                np.ascontiguousarray(q7, dtype=np.float64),
+                sols,
+                stats,
+            )
+            return sols, stats
         if n == 1:  # the scalar solver is ~50x faster than NumPy on one row
             args = T[0, :3, :3].ravel().tolist() + T[0, :3, 3].tolist()
             res = self._solve(*args, float(q7[0]), float(q1_init[0]), (0, 1, 2, 3))
