@@ -68,6 +68,9 @@ class Physics:
         # Bodies of the robot (for telling robot contacts from others).
         root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "link0")
         self.robot_bodies = {b for b in range(m.nbody) if self._descends(b, root)}
+        self._robot_geom = np.array(
+            [int(m.geom_bodyid[g]) in self.robot_bodies for g in range(m.ngeom)]
+        )
         self.link_body = [
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}") for i in range(8)
         ]
@@ -152,15 +155,19 @@ class Physics:
         tau = np.zeros(7)
         if d.ncon == 0:
             return tau
+        # Most ticks only the cube rests on the table: select robot contacts vectorised.
+        on1 = self._robot_geom[d.contact.geom1]
+        on2 = self._robot_geom[d.contact.geom2]
+        hits = np.flatnonzero(on1 != on2)
+        if hits.size == 0:
+            return tau
         f6 = np.zeros(6)
         sl = slice(self.v0, self.v0 + 7)
-        for i in range(d.ncon):
+        for i in hits.tolist():
             c = d.contact[i]
             b1 = int(m.geom_bodyid[c.geom1])
             b2 = int(m.geom_bodyid[c.geom2])
-            on1, on2 = b1 in self.robot_bodies, b2 in self.robot_bodies
-            if on1 == on2:
-                continue
+            on2 = b2 in self.robot_bodies
             mujoco.mj_contactForce(m, d, i, f6)
             frame = c.frame.reshape(3, 3)
             force = frame.T @ f6[:3]  # world frame, acting on geom2 (normal: geom1 -> geom2)

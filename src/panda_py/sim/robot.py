@@ -24,6 +24,7 @@ from panda_py.fci import (
     RobotMode,
     StopMoveStatus,
 )
+from panda_py.kinematics import get_kinematics
 from panda_py.robots.params import FRANKA_HAND, GRAVITY, RobotSpec
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
@@ -122,6 +123,8 @@ class RobotCore:
         self._tau_max = np.asarray(spec.joints.tau_max)
         self._dtau_max = np.asarray(spec.joints.dtau_max)
         self._K_default = np.asarray(spec.default_K_theta)
+        # The hand's TCP kinematics, fast generated fk (O_T_EE of the nominal EE).
+        self._kin = get_kinematics(spec, F_T_EE=physics.F_T_NE)
         self.state = self._new_state()
         self.reset(q_start)
 
@@ -627,7 +630,7 @@ class RobotCore:
         if moving_cart:
             s["O_T_EE_d"][:] = col_major(self.cart.T)
         else:
-            s["O_T_EE_d"][:] = col_major(ph.flange_pose_at(self.joint.q) @ F_T_EE)
+            s["O_T_EE_d"][:] = col_major(self._kin.fk(self.joint.q) @ self.NE_T_EE)
         s["F_T_EE"][:] = col_major(F_T_EE)
         s["EE_T_K"][:] = col_major(self.EE_T_K)
         s["F_T_NE"][:] = col_major(self.F_T_NE)

@@ -23,10 +23,6 @@ START_POSE_TOLERANCE = 1e-4
 START_CARTESIAN_TOLERANCE = 1e-3
 
 
-def _over(value: np.ndarray, limit: object) -> bool:
-    return bool(np.any(np.abs(value) > np.asarray(limit, dtype=float) * (1 + _REL) + _ABS))
-
-
 class JointSignal:
     """Backward-Euler derivatives of a commanded joint signal and its limit checks."""
 
@@ -64,35 +60,59 @@ class JointSignal:
     def violations(self, spec: RobotSpec, *, cartesian: bool) -> list[str]:
         """Flags for a joint motion generator (or, with ``cartesian``, for the joint
         solution of a Cartesian one)."""
-        j = spec.joints
-        out = []
-        pos = bool(
-            np.any(self.q < np.asarray(j.q_min) - _ABS)
-            or np.any(self.q > np.asarray(j.q_max) + _ABS)
+        limits = _joint_limits(spec)
+        # one comparison for position, velocity, acceleration and jerk of all joints
+        values = np.concatenate(
+            (self.q, self.q, np.abs(self.dq), np.abs(self.ddq), np.abs(self.dddq))
         )
-        if cartesian:
-            names = (
-                "cartesian_motion_generator_joint_position_limits_violation",
-                "cartesian_motion_generator_joint_velocity_limits_violation",
-                "cartesian_motion_generator_joint_velocity_discontinuity",
-                "cartesian_motion_generator_joint_acceleration_discontinuity",
-            )
-        else:
-            names = (
-                "joint_motion_generator_position_limits_violation",
-                "joint_motion_generator_velocity_limits_violation",
-                "joint_motion_generator_velocity_discontinuity",
-                "joint_motion_generator_acceleration_discontinuity",
-            )
-        if pos:
-            out.append(names[0])
-        if _over(self.dq, j.dq_max):
-            out.append(names[1])
-        if _over(self.ddq, j.ddq_max):
-            out.append(names[2])
-        if _over(self.dddq, j.dddq_max):
-            out.append(names[3])
-        return out
+        bad = values > limits.upper
+        bad[:7] = self.q < limits.lower
+        if not bad.any():
+            return []
+        names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
+        below, above, vel, acc, jerk = bad.reshape(5, 7).any(axis=1).tolist()
+        return [n for n, hit in zip(names, (below or above, vel, acc, jerk), strict=True) if hit]
+
+
+class _Limits:
+    """Joint limits of one robot as one flat vector (q_max, |dq|, |ddq|, |dddq| with
+    slack), and q_min."""
+
+    def __init__(self, spec: RobotSpec) -> None:
+        j = spec.joints
+        slack = 1 + _REL
+        self.upper = np.concatenate((
+            np.asarray(j.q_max) + _ABS,
+            np.asarray(j.q_max) + _ABS,
+            np.asarray(j.dq_max) * slack + _ABS,
+            np.asarray(j.ddq_max) * slack + _ABS,
+            np.asarray(j.dddq_max) * slack + _ABS,
+        ))  # fmt: skip
+        self.lower = np.asarray(j.q_min) - _ABS
+
+
+_LIMITS: dict[int, _Limits] = {}
+
+
+def _joint_limits(spec: RobotSpec) -> _Limits:
+    limits = _LIMITS.get(id(spec))
+    if limits is None:
+        limits = _LIMITS[id(spec)] = _Limits(spec)
+    return limits
+
+
+_JOINT_FLAGS = (
+    "joint_motion_generator_position_limits_violation",
+    "joint_motion_generator_velocity_limits_violation",
+    "joint_motion_generator_velocity_discontinuity",
+    "joint_motion_generator_acceleration_discontinuity",
+)
+_CARTESIAN_JOINT_FLAGS = (
+    "cartesian_motion_generator_joint_position_limits_violation",
+    "cartesian_motion_generator_joint_velocity_limits_violation",
+    "cartesian_motion_generator_joint_velocity_discontinuity",
+    "cartesian_motion_generator_joint_acceleration_discontinuity",
+)
 
 
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> np.ndarray:
