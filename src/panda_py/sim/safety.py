@@ -70,7 +70,8 @@ class JointSignal:
         if not bad.any():
             return []
         names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
-        below, above, vel, acc, jerk = bad.reshape(5, 7).any(axis=1).tolist()
+        rows: list[bool] = bad.reshape(5, 7).any(axis=1).tolist()
+        below, above, vel, acc, jerk = rows
         return [n for n, hit in zip(names, (below or above, vel, acc, jerk), strict=True) if hit]
 
 
