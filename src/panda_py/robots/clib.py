@@ -77,7 +77,7 @@ _memory: dict[str, bytes] = {}  # cache key -> library bytes (this process)
 _compiler_ids: dict[tuple[str, ...], str] = {}
 
 
-class ModelLibraryUnavailable(RuntimeError):  # noqa: N818 (name given by the simulator API)
+class ModelLibraryUnavailable(RuntimeError):
     """The model library for the requested platform cannot be produced here.
 
     ``architecture`` and ``system`` are what was asked for (ints as on the wire, or the

@@ -70,8 +70,7 @@ class JointSignal:
         if not bad.any():
             return []
         names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
-        rows: list[bool] = bad.reshape(5, 7).any(axis=1).tolist()
-        below, above, vel, acc, jerk = rows
+        below, above, vel, acc, jerk = (bool(x) for x in bad.reshape(5, 7).any(axis=1))
         return [n for n, hit in zip(names, (below or above, vel, acc, jerk), strict=True) if hit]
 
 
