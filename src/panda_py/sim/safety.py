@@ -70,7 +70,8 @@ class JointSignal:
         if not bad.any():
             return []
         names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
-        below, above, vel, acc, jerk = (bool(x) for x in bad.reshape(5, 7).any(axis=1))
+        rows = np.any(bad.reshape(5, 7), axis=1)
+        below, above, vel, acc, jerk = (bool(rows[i]) for i in range(5))
         return [n for n, hit in zip(names, (below or above, vel, acc, jerk), strict=True) if hit]
 
 
