@@ -4,17 +4,48 @@ themselves (round trips, batched against looped)."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 import panda_py
 from panda_py import kinematics as kin_mod
-from panda_py.kinematics import IKStatus, Kinematics
+from panda_py.kinematics import IKStatus, Kinematics, _model
 from panda_py.robots.params import DH_FRANKA, FER, FR3, FRANKA_HAND, START_POSE
 
 FER_LO, FER_HI = np.array(FER.joints.q_min), np.array(FER.joints.q_max)
 FR3_LO, FR3_HI = np.array(FR3.joints.q_min), np.array(FR3.joints.q_max)
+
+
+# --- backends: every test runs on the pure-NumPy paths and on the numba kernels ----------
+
+
+def _numba_backend():
+    """The numba backend module, or a pytest.skip reason."""
+    if os.environ.get("PANDA_PY_NO_JIT", "") not in ("", "0"):
+        return None, "PANDA_PY_NO_JIT is set"
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return None, "numba is not installed (pip install panda-py[fast])"
+    from panda_py.kinematics import _numba
+
+    return _numba, ""
+
+
+@pytest.fixture(params=["pure", "numba"], autouse=True)
+def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    if request.param == "pure":
+        monkeypatch.setattr(_model, "_JIT", None)
+    else:
+        mod, reason = _numba_backend()
+        if mod is None:
+            pytest.skip(reason)
+        monkeypatch.setattr(_model, "_JIT", mod)
+    return request.param
 
 
 # --- an independent reference: the DH product with NumPy 4x4 matrices ---------------------
@@ -348,3 +379,92 @@ def test_public_names_exist() -> None:
         assert hasattr(kin_mod, name), name
     for name in ("fk", "ik", "ik_full"):
         assert getattr(panda_py, name) is getattr(kin_mod, name)
+
+
+# --- the numba backend against the pure one ------------------------------------------------
+
+
+def _both(monkeypatch: pytest.MonkeyPatch, fn):
+    """fn() on the pure paths, then on the numba kernels."""
+    mod, reason = _numba_backend()
+    if mod is None:
+        pytest.skip(reason)
+    monkeypatch.setattr(_model, "_JIT", None)
+    pure = fn()
+    monkeypatch.setattr(_model, "_JIT", mod)
+    return pure, fn()
+
+
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_numba_equals_pure(robot: str, backend: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    if backend == "pure":
+        pytest.skip("compares both backends itself")
+    rng = np.random.default_rng(11)
+    lo, hi = (FER_LO, FER_HI) if robot == "fer" else (FR3_LO, FR3_HI)
+    Q = random_q(rng, 400, lo, hi)
+    kins = [Kinematics(robot), Kinematics(robot, F_T_EE=random_F_T_EE(rng))]
+    for kin in kins:
+        for f in (kin.fk, kin.fk_frames, kin.zero_jacobian, kin.body_jacobian):
+            pure, fast = _both(monkeypatch, lambda f=f: (f(Q), f(Q[0]), f(Q[1].tolist())))
+            for a, b in zip(pure, fast, strict=True):
+                np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+        T = kin.fk(Q)
+        # q7 partly out of range, poses partly unreachable: NaN rows of every kind
+        q7 = rng.uniform(-3.2, 3.2, Q.shape[0])
+        T[::7, :3, 3] *= 3.0
+        Qi = random_q(rng, Q.shape[0], lo, hi)
+        pure, fast = _both(
+            monkeypatch,
+            lambda kin=kin, T=T, q7=q7, Qi=Qi: (
+                kin.ik(T, Qi, q7),
+                kin.ik_full(T, Qi, q7),
+                kin.ik_result(T, Qi, q7).statuses,
+                kin.ik(T, Qi[0], q7),
+                [kin.ik(T[i], Qi[i], float(q7[i])) for i in range(40)],
+                [kin.ik_full(T[i], Qi[i], float(q7[i])) for i in range(40)],
+                [kin.ik(T[i]) for i in range(40)],
+            ),
+        )
+        for a, b in zip(pure, fast, strict=True):
+            a, b = np.asarray(a), np.asarray(b)
+            np.testing.assert_array_equal(np.isnan(b), np.isnan(a))
+            np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+        statuses = pure[2]
+        for s in IKStatus:  # not vacuous: every outcome occurs
+            if s is not IKStatus.SINGULAR:
+                assert np.any(statuses == s), s
+
+
+def _python(code: str, **env: str) -> str:
+    full_env = {**os.environ, **env}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=full_env, timeout=120
+    )
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip()
+
+
+@pytest.mark.timeout(240)
+def test_jit_is_lazy_optional_and_survives_an_unwritable_cache(backend: str) -> None:
+    if backend == "pure":
+        pytest.skip("runs once")
+    if _numba_backend()[0] is None:
+        pytest.skip(_numba_backend()[1])
+    probe = (
+        "import sys, numpy as np, panda_py, panda_py.kinematics as k\n"
+        "from panda_py.kinematics import _model\n"
+        "print('numba' in sys.modules, end=' ')\n"
+        "k.fk(np.zeros(7)); print(_model._JIT is not None)"
+    )
+    assert _python(probe) == "False True"  # not imported with panda_py; used on first call
+    assert _python(probe, PANDA_PY_NO_JIT="1") == "False False"
+    # numba finds no place for its cache: the kernels still compile (in memory)
+    no_cache = (
+        "from numba.core import caching\n"
+        "caching.CacheImpl._locator_classes = []\n"
+        "import numpy as np\n"
+        "from panda_py.kinematics import _numba, Kinematics\n"
+        "K = Kinematics(); out = np.empty((4, 4))\n"
+        "print(_numba.fk_one(np.zeros(7), K._CF, out), np.allclose(out, K._fk_pure(np.zeros(7))))"
+    )
+    assert _python(no_cache) == "True True"
