@@ -40,6 +40,20 @@ def _fresh_datagram(sock: socket.socket, size: int) -> tuple[bytes, Any]:
     return newest
 
 
+def _receive(
+    tcp: socket.socket, reader: fci.MessageReader, pending: list[fci.Message], command_id: int
+) -> fci.Message:
+    """The response with ``command_id``, keeping others that arrive meanwhile."""
+    while True:
+        for i, m in enumerate(pending):
+            if m.command_id == command_id:
+                return pending.pop(i)
+        data = tcp.recv(65536)
+        if not data:
+            raise ConnectionError("server closed connection")
+        pending += reader.feed(data)
+
+
 class RawClient:
     """Connects to ``host``:1337 speaking protocol ``version``; ``status`` and
     ``server_version`` hold the Connect answer."""
@@ -68,14 +82,7 @@ class RawClient:
     # -- TCP --------------------------------------------------------------------------
 
     def receive(self, command_id: int) -> fci.Message:
-        while True:
-            for i, m in enumerate(self.pending):
-                if m.command_id == command_id:
-                    return self.pending.pop(i)
-            data = self.tcp.recv(65536)
-            if not data:
-                raise ConnectionError("server closed connection")
-            self.pending += self.reader.feed(data)
+        return _receive(self.tcp, self.reader, self.pending, command_id)
 
     def send(self, command: Command, **fields: Any) -> int:
         assert self.dialect is not None
@@ -155,14 +162,7 @@ class GripperProbe:
         self.udp.close()
 
     def _receive(self, command_id: int) -> fci.Message:
-        while True:
-            for i, m in enumerate(self.pending):
-                if m.command_id == command_id:
-                    return self.pending.pop(i)
-            data = self.tcp.recv(65536)
-            if not data:
-                raise ConnectionError("gripper closed connection")
-            self.pending += self.reader.feed(data)
+        return _receive(self.tcp, self.reader, self.pending, command_id)
 
     def request(self, command: Any, **fields: Any) -> Any:
         """Send a command (a ``GripperCommand``) and return its ``GripperStatus``."""

@@ -283,59 +283,46 @@ class SimServer:
     def _dispatch(self, data: tuple[str, Any]) -> None:
         kind, conn = data
         if kind == "accept-robot":
-            self._accept_robot()
+            self._accept(robot=True)
         elif kind == "accept-gripper":
-            self._accept_gripper()
-        elif kind == "robot-tcp":
-            self._read_robot_tcp(conn)
+            self._accept(robot=False)
+        elif kind == "tcp":
+            self._read_tcp(conn)
         elif kind == "robot-udp":
             self._read_robot_udp(conn)
-        elif kind == "gripper-tcp":
-            self._read_gripper_tcp(conn)
         elif kind == "gripper-udp":
             self._drain(conn.udp)
         elif kind == "control":
             self._serve_control()
 
-    def _accept_robot(self) -> None:
+    def _accept(self, robot: bool) -> None:
+        """Accept an FCI (``robot``) or gripper client; one of each at a time."""
+        listener = self._robot_listener if robot else self._gripper_listener
+        what = "FCI" if robot else "gripper"
         try:
-            sock, addr = self._robot_listener.accept()
+            sock, addr = listener.accept()
         except OSError:
             return
-        if self.robot_conn is not None and not self._alive(self.robot_conn):
-            self._close_conn(self.robot_conn)
-        if self.robot_conn is not None:
+        current = self.robot_conn if robot else self.gripper_conn
+        if current is not None and not self._alive(current):
+            self._close_conn(current)
+            current = None
+        if current is not None:
             log.warning(
-                "refusing a second FCI client from %s:%d while %s:%d is connected",
-                *addr,
-                *self.robot_conn.addr,
-            )
+                "refusing a second %s client from %s:%d while %s:%d is connected",
+                what, *addr, *current.addr,
+            )  # fmt: skip
             sock.close()
             return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        conn = _RobotConnection(sock, addr)
-        self.robot_conn = conn
-        self._sel.register(sock, selectors.EVENT_READ, ("robot-tcp", conn))
-        log.info("FCI client connected from %s:%d", *addr)
-
-    def _accept_gripper(self) -> None:
-        try:
-            sock, addr = self._gripper_listener.accept()
-        except OSError:
-            return
-        if self.gripper_conn is not None and not self._alive(self.gripper_conn):
-            self._close_conn(self.gripper_conn)
-        if self.gripper_conn is not None:
-            log.warning("refusing a second gripper client from %s:%d", *addr)
-            sock.close()
-            return
-        sock.setblocking(False)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        conn = _GripperConnection(sock, addr)
-        self.gripper_conn = conn
-        self._sel.register(sock, selectors.EVENT_READ, ("gripper-tcp", conn))
-        log.info("gripper client connected from %s:%d", *addr)
+        conn: _RobotConnection | _GripperConnection
+        if robot:
+            conn = self.robot_conn = _RobotConnection(sock, addr)
+        else:
+            conn = self.gripper_conn = _GripperConnection(sock, addr)
+        self._sel.register(sock, selectors.EVENT_READ, ("tcp", conn))
+        log.info("%s client connected from %s:%d", what, *addr)
 
     def _close_conn(self, conn: _RobotConnection | _GripperConnection) -> None:
         for s in (conn.sock, conn.udp):
@@ -394,20 +381,25 @@ class SimServer:
 
     # -- robot TCP ---------------------------------------------------------------------
 
-    def _read_robot_tcp(self, conn: _RobotConnection) -> None:
+    def _read_tcp(self, conn: _RobotConnection | _GripperConnection) -> None:
+        """Cut what arrived into messages and handle them; a stream that cannot be cut
+        (bad size) is closed, the server keeps serving."""
         data = self._recv(conn)
         if not data:
             return
         try:
             messages = conn.reader.feed(data)
         except ProtocolError as exc:
-            log.warning("closing FCI connection from %s:%d: %s", *conn.addr, exc)
+            log.warning("closing connection from %s:%d: %s", *conn.addr, exc)
             self._close_conn(conn)
             return
         for msg in messages:
-            if self.robot_conn is not conn:
-                return
-            self._handle_robot_message(conn, msg)
+            if conn is self.robot_conn and isinstance(conn, _RobotConnection):
+                self._handle_robot_message(conn, msg)
+            elif conn is self.gripper_conn and isinstance(conn, _GripperConnection):
+                self._handle_gripper_message(conn, msg)
+            else:
+                return  # closed while handling an earlier message
 
     def _handle_robot_message(self, conn: _RobotConnection, msg: fci.Message) -> None:
         if conn.dialect is None:
@@ -680,21 +672,6 @@ class SimServer:
         conn.awaiting = mode == RobotMode.MOVE and not self.core.first_command
 
     # -- gripper -------------------------------------------------------------------------
-
-    def _read_gripper_tcp(self, conn: _GripperConnection) -> None:
-        data = self._recv(conn)
-        if not data:
-            return
-        try:
-            messages = conn.reader.feed(data)
-        except ProtocolError as exc:
-            log.warning("closing gripper connection from %s:%d: %s", *conn.addr, exc)
-            self._close_conn(conn)
-            return
-        for msg in messages:
-            if self.gripper_conn is not conn:
-                return
-            self._handle_gripper_message(conn, msg)
 
     def _gripper_reply(
         self, conn: _GripperConnection, command: int, cid: int, status: GripperStatus
