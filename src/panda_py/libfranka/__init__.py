@@ -1,0 +1,105 @@
+"""A pure-Python libfranka: the Franka FCI client with panda-py's (and pylibfranka's)
+Python API, speaking every robot protocol version 3-10 from one install.
+
+    from panda_py.libfranka import Robot, Torques, motion_finished
+    robot = Robot("172.16.0.2")              # negotiates the protocol version
+    robot.read_once().q
+    model = robot.load_model()               # computed locally, no download
+
+See :class:`Robot`, :class:`Gripper`, :class:`Model` and :class:`RobotState`.
+"""
+
+from __future__ import annotations
+
+from panda_py.libfranka._control import ActiveControl
+from panda_py.libfranka._realtime import (
+    has_realtime_kernel,
+    set_current_thread_to_highest_priority,
+)
+from panda_py.libfranka.errors import (
+    CommandException,
+    ControlException,
+    FrankaException,
+    IncompatibleVersionException,
+    InvalidOperationException,
+    ModelException,
+    NetworkException,
+    ProtocolException,
+    RealtimeException,
+)
+from panda_py.libfranka.gripper import Gripper
+from panda_py.libfranka.limits import (
+    RateLimits,
+    cartesian_lowpass_filter,
+    limit_rate,
+    limit_rate_cartesian_pose,
+    limit_rate_cartesian_velocity,
+    limit_rate_joint_positions,
+    limit_rate_joint_velocities,
+    lowpass_filter,
+)
+from panda_py.libfranka.model import Model
+from panda_py.libfranka.robot import Robot
+from panda_py.libfranka.state import GripperState, RobotState
+from panda_py.libfranka.types import (
+    CartesianPose,
+    CartesianVelocities,
+    ControllerMode,
+    Duration,
+    Errors,
+    Frame,
+    JointPositions,
+    JointVelocities,
+    RealtimeConfig,
+    RobotMode,
+    Torques,
+    is_homogeneous_transformation,
+    is_valid_elbow,
+    motion_finished,
+)
+
+#: panda-py 1.1.1's name of the torque-rate limit [Nm/s] (libfranka kMaxTorqueRate).
+MAX_TORQUE_RATE = RateLimits.for_robot("fer").max_torque_rate.tolist()
+
+__all__ = [
+    "MAX_TORQUE_RATE",
+    "ActiveControl",
+    "CartesianPose",
+    "CartesianVelocities",
+    "CommandException",
+    "ControlException",
+    "ControllerMode",
+    "Duration",
+    "Errors",
+    "Frame",
+    "FrankaException",
+    "Gripper",
+    "GripperState",
+    "IncompatibleVersionException",
+    "InvalidOperationException",
+    "JointPositions",
+    "JointVelocities",
+    "Model",
+    "ModelException",
+    "NetworkException",
+    "ProtocolException",
+    "RateLimits",
+    "RealtimeConfig",
+    "RealtimeException",
+    "Robot",
+    "RobotMode",
+    "RobotState",
+    "Torques",
+    "cartesian_lowpass_filter",
+    "has_realtime_kernel",
+    "is_homogeneous_transformation",
+    "is_valid_elbow",
+    "limit_rate",
+    "limit_rate_cartesian_pose",
+    "limit_rate_cartesian_velocity",
+    "limit_rate_joint_positions",
+    "limit_rate_joint_velocities",
+    "lowpass_filter",
+    "motion_finished",
+    "set_current_thread_to_highest_priority",
+]

@@ -1,0 +1,166 @@
+"""One robot connection: Connect handshake, numbered TCP requests, newest-state reception
+and status-to-exception translation (libfranka's ``Robot::Impl`` plumbing)."""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Any
+
+import numpy as np
+
+from panda_py import fci
+from panda_py.fci import Command, ConnectStatus, Dialect, RobotMode
+from panda_py.libfranka._network import TCP_TIMEOUT, Network, translate
+from panda_py.libfranka.errors import (
+    CommandException,
+    IncompatibleVersionException,
+    ProtocolException,
+)
+
+__all__ = ["MODE_NAMES", "RobotConnection", "status_message"]
+
+#: libfranka's printed names of the robot modes (``operator<<(RobotMode)``).
+MODE_NAMES = {
+    RobotMode.OTHER: "Other",
+    RobotMode.IDLE: "Idle",
+    RobotMode.MOVE: "Move",
+    RobotMode.GUIDING: "Guiding",
+    RobotMode.REFLEX: "Reflex",
+    RobotMode.USER_STOPPED: "User stopped",
+    RobotMode.AUTOMATIC_ERROR_RECOVERY: "Automatic error recovery",
+}
+
+_SAFETY = "due to activated safety function! Please disable all safety functions."
+# Status enumerator name -> (verb, reason) of libfranka's "<Name> command <verb>: <reason>"
+_STATUS_TEXT = {
+    "kPreempted": ("preempted", None),
+    "kPreemptedDueToActivatedSafetyFunctions": ("preempted", _SAFETY),
+    "kCommandRejectedDueToActivatedSafetyFunctions": ("rejected", _SAFETY),
+    "kCommandNotPossibleRejected": ("rejected", "command not possible in the current mode"),
+    "kStartAtSingularPoseRejected": ("rejected", "cannot start at singular pose!"),
+    "kInvalidArgumentRejected": ("rejected", "invalid argument!"),
+    "kReflexAborted": ("aborted", "motion aborted by reflex!"),
+    "kEmergencyAborted": ("aborted", "User Stop pressed!"),
+    "kInputErrorAborted": ("aborted", "invalid input provided!"),
+    "kAborted": ("aborted", "command aborted!"),
+    "kManualErrorRecoveryRequiredRejected": ("rejected", "manual error recovery required!"),
+    "kError": ("rejected", "error!"),
+}
+
+
+def status_message(command: Command, status: Enum, mode: int | None = None) -> str:
+    """libfranka's exception text for a non-success ``status`` of ``command``."""
+    verb, reason = _STATUS_TEXT.get(str(status.value), ("failed", f"status {status.name}"))
+    if command is Command.MOVE and status.value == "kInvalidArgumentRejected":
+        reason = "maximum path deviation out of range!"
+    if reason is None:
+        return f"libfranka: {command.value} command {verb}!"
+    if reason is _SAFETY:
+        return f"libfranka: {command.value} command {verb} {reason}"
+    if status.value == "kCommandNotPossibleRejected" and mode is not None:
+        name = MODE_NAMES.get(RobotMode(mode), "Other") if mode in MODE_NAMES else "Other"
+        reason += f' ("{name}")!'
+        if mode == RobotMode.OTHER:
+            reason += " Did you open the brakes?"
+    elif status.value == "kCommandNotPossibleRejected":
+        reason += "!"
+    return f"libfranka: {command.value} command {verb}: {reason}"
+
+
+class RobotConnection:
+    """A connected robot speaking protocol ``version`` (raises
+    :class:`IncompatibleVersionException` carrying the robot's version if it refuses)."""
+
+    def __init__(self, host: str, version: int, *, timeout: float = TCP_TIMEOUT) -> None:
+        self.dialect: Dialect = fci.dialect(version)
+        self.net = Network(
+            host,
+            fci.COMMAND_PORT,
+            fci.RobotMessageReader(),
+            udp_size=self.dialect.state_size,
+            timeout=timeout,
+        )
+        self._next_id = 0
+        self.last: np.void | None = None  # newest RobotState record
+        self.last_id = 0
+        try:
+            self._connect(version)
+            self.receive_state()  # the robot streams right after Connect (1 s timeout)
+        except BaseException:
+            self.net.close()
+            raise
+
+    def _connect(self, version: int) -> None:
+        cid = self._take_id()
+        self.net.send(fci.encode_connect_request(version, self.net.udp_port, command_id=cid))
+        msg = self.net.wait_response(cid)
+        try:
+            _, status, server_version = fci.decode_connect_response(msg.raw)
+        except fci.ProtocolError as exc:
+            raise translate(exc, "Connect") from exc
+        if status == ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION:
+            raise IncompatibleVersionException(
+                f"libfranka: Incompatible library version (server version: {server_version}, "
+                f"library version: {version}).",
+                server_version=server_version,
+                library_version=version,
+            )
+        self.server_version = server_version
+
+    def close(self) -> None:
+        self.net.close()
+
+    def _take_id(self) -> int:
+        cid = self._next_id
+        self._next_id = (cid + 1) & 0xFFFFFFFF
+        return cid
+
+    # --- TCP requests -------------------------------------------------------------------
+
+    def send_request(self, command: Command, **fields: Any) -> int:
+        """Send ``command`` and return its command id (the caller collects responses)."""
+        cid = self._take_id()
+        self.net.send(self.dialect.encode_request(command, cid, **fields))
+        return cid
+
+    def _decode(self, command: Command, msg: fci.Message) -> tuple[Any, dict[str, Any]]:
+        try:
+            return self.dialect.decode_response(command, msg.payload)
+        except (fci.ProtocolError, ValueError) as exc:
+            raise ProtocolException(f"libfranka: {command.value} response: {exc}") from exc
+
+    def response(
+        self, command: Command, cid: int, timeout: float | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Block for the next response to request ``cid`` -> (status member, fields)."""
+        return self._decode(command, self.net.wait_response(cid, timeout))
+
+    def poll(self, command: Command, cid: int) -> tuple[Any, dict[str, Any]] | None:
+        msg = self.net.poll_response(cid)
+        return None if msg is None else self._decode(command, msg)
+
+    def execute(
+        self, command: Command, *, timeout: float | None = None, **fields: Any
+    ) -> dict[str, Any]:
+        """Send ``command``, wait for its response, raise CommandException unless success."""
+        cid = self.send_request(command, **fields)
+        status, out = self.response(command, cid, timeout)
+        if status.value != "kSuccess":
+            mode = int(self.last["robot_mode"]) if self.last is not None else None
+            raise CommandException(
+                status_message(command, status, mode), command=command.value, status=status
+            )
+        return out
+
+    # --- UDP ----------------------------------------------------------------------------
+
+    def receive_state(self) -> np.void:
+        """The newest RobotState record newer than the last one (waits up to 1 s)."""
+        data = self.net.receive_newest(self.last_id)
+        rec = self.dialect.decode_state(data)
+        self.last = rec
+        self.last_id = int(rec["message_id"])
+        return rec
+
+    def send_command(self, record: np.ndarray) -> None:
+        self.net.send_udp(record.tobytes())

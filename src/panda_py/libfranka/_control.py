@@ -1,0 +1,362 @@
+"""Control loops: libfranka's callback style (``Robot.control`` and friends) and the
+active-control style (``start_*_control`` returning :class:`ActiveControl`)."""
+
+from __future__ import annotations
+
+import typing
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from panda_py.fci import MoveControllerMode, MoveMotionGeneratorMode
+from panda_py.libfranka._commander import Commander, check_cutoff
+from panda_py.libfranka._connection import RobotConnection
+from panda_py.libfranka._motion import MotionSession
+from panda_py.libfranka._realtime import check_realtime, realtime_scope
+from panda_py.libfranka.errors import InvalidOperationException
+from panda_py.libfranka.limits import RateLimits
+from panda_py.libfranka.state import RobotState
+from panda_py.libfranka.types import (
+    CartesianPose,
+    CartesianVelocities,
+    ControllerMode,
+    Duration,
+    JointPositions,
+    JointVelocities,
+    RealtimeConfig,
+    Torques,
+)
+
+__all__ = ["ActiveControl", "ControlMixin"]
+
+_MOTIONS: dict[type, tuple[MoveMotionGeneratorMode, str]] = {
+    JointPositions: (MoveMotionGeneratorMode.JOINT_POSITION, "joint_positions"),
+    JointVelocities: (MoveMotionGeneratorMode.JOINT_VELOCITY, "joint_velocities"),
+    CartesianPose: (MoveMotionGeneratorMode.CARTESIAN_POSITION, "cartesian_pose"),
+    CartesianVelocities: (MoveMotionGeneratorMode.CARTESIAN_VELOCITY, "cartesian_velocities"),
+}
+_MOVE_CONTROLLER = {
+    ControllerMode.kJointImpedance: MoveControllerMode.JOINT_IMPEDANCE,
+    ControllerMode.kCartesianImpedance: MoveControllerMode.CARTESIAN_IMPEDANCE,
+}
+
+Callback = Callable[[RobotState, Duration], Any]
+
+
+def _callback_kind(callback: Any, explicit: type | None) -> type:
+    """What ``callback`` returns: ``explicit``, else its return annotation, else Torques."""
+    if not callable(callback):
+        raise ValueError(f"control_callback: expected a callable, got {callback!r}")
+    if explicit is not None:
+        if explicit is not Torques and explicit not in _MOTIONS:
+            raise ValueError(
+                f"motion: expected one of Torques, {', '.join(t.__name__ for t in _MOTIONS)}, "
+                f"got {explicit!r}"
+            )
+        return explicit
+    try:
+        hint = typing.get_type_hints(callback).get("return")
+    except Exception:  # unresolvable annotations: fall back to the default
+        hint = None
+    if hint is Torques or hint in _MOTIONS:
+        return typing.cast(type, hint)
+    return Torques
+
+
+class _RobotBase:
+    """What the control code needs of a Robot (declared for type checking)."""
+
+    _conn: RobotConnection
+    _limits: RateLimits
+    _log: deque[RobotState]
+    _realtime_config: RealtimeConfig
+    _session: MotionSession | None
+
+
+class ActiveControl:
+    """A running motion whose loop the caller drives: ``readOnce()`` -> ``(RobotState,
+    Duration)``, then ``writeOnce(command)`` once per state. A command marked
+    ``motion_finished`` ends the motion; so does leaving a ``with`` block (by StopMove)."""
+
+    def __init__(
+        self,
+        robot: _RobotBase,
+        session: MotionSession,
+        commander: Commander,
+        kind: type,
+        *,
+        control: bool,
+        motion: bool,
+    ) -> None:
+        self._robot = robot
+        self._session = session
+        self._commander = commander
+        self._convert = (
+            commander.torques if kind is Torques else getattr(commander, _MOTIONS[kind][1])
+        )
+        self._kind = kind
+        self._flags = (motion, control)
+        self._last_id: int | None = None
+        self._last_rec: np.void | None = None
+        self._finished = False
+
+    @property
+    def finished(self) -> bool:
+        return self._finished
+
+    def _check(self) -> None:
+        if self._finished:
+            raise InvalidOperationException("libfranka: this motion has already finished")
+
+    def _end(self) -> None:
+        self._finished = True
+        if self._robot._session is self._session:
+            self._robot._session = None
+
+    def readOnce(self) -> tuple[RobotState, Duration]:
+        """The newest robot state and the time since the previous read (0 at first)."""
+        self._check()
+        try:
+            rec = self._session.receive()
+        except BaseException:
+            self.cancel()
+            raise
+        state = RobotState(self._robot._conn.dialect, rec)
+        self._robot._log.append(state)
+        mid = int(rec["message_id"])
+        dt = Duration(0 if self._last_id is None else mid - self._last_id)
+        self._last_id = mid
+        self._last_rec = rec
+        return state, dt
+
+    def writeOnce(self, command: Any) -> None:
+        """Send ``command`` (of this motion's type) for the last state read."""
+        self._check()
+        rec = self._last_rec
+        if rec is None:
+            raise InvalidOperationException("libfranka: call readOnce() before writeOnce()")
+        try:
+            finished = self._convert(command, rec)
+            if finished:
+                self._session.finish(
+                    self._commander.record, motion=self._flags[0], control=self._flags[1]
+                )
+                self._end()
+            else:
+                self._session.send(self._commander.record)
+        except BaseException:
+            self.cancel()
+            raise
+
+    read_once = readOnce
+    write_once = writeOnce
+
+    def cancel(self) -> None:
+        """Stop the motion now (StopMove) if it still runs."""
+        if not self._finished:
+            self._session.cancel()
+            self._end()
+
+    def __enter__(self) -> ActiveControl:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.cancel()
+
+
+class ControlMixin(_RobotBase):
+    """``Robot``'s control methods."""
+
+    def _start(
+        self, controller: MoveControllerMode, generator: MoveMotionGeneratorMode
+    ) -> MotionSession:
+        if self._session is not None and not self._session.done:
+            raise InvalidOperationException("libfranka: Attempted to start multiple motions!")
+        session = MotionSession(self._conn, controller, generator, self._log)
+        self._session = session
+        return session
+
+    def _plan(
+        self, kind: type, torque: bool, controller_mode: Any
+    ) -> tuple[MoveControllerMode, MoveMotionGeneratorMode, bool]:
+        """(Move controller, Move generator, whether a generator runs) for a loop."""
+        if kind is Torques:  # torque only
+            if self._conn.dialect.has_motion_generator_none:
+                return MoveControllerMode.EXTERNAL_CONTROLLER, MoveMotionGeneratorMode.NONE, False
+            # protocol <= 6: a joint velocity generator commanding zero (libfranka <= 0.13.2)
+            return (
+                MoveControllerMode.EXTERNAL_CONTROLLER,
+                MoveMotionGeneratorMode.JOINT_VELOCITY,
+                True,
+            )
+        generator = _MOTIONS[kind][0]
+        if torque:
+            return MoveControllerMode.EXTERNAL_CONTROLLER, generator, True
+        try:
+            controller = _MOVE_CONTROLLER[ControllerMode(controller_mode)]
+        except (ValueError, KeyError):
+            raise ValueError(
+                f"controller_mode: expected ControllerMode.kJointImpedance or "
+                f"kCartesianImpedance, got {controller_mode!r}"
+            ) from None
+        return controller, generator, True
+
+    def control(
+        self,
+        control_callback: Callback,
+        motion_generator_callback: Callback | None = None,
+        *,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        limit_rate: bool = True,
+        cutoff_frequency: float = 100.0,
+        motion: type | None = None,
+    ) -> None:
+        """Run a 1 kHz control loop until a callback returns a command marked
+        ``motion_finished``.
+
+        * ``control(torque_cb)``: torque control (``Torques`` [Nm], gravity compensated);
+        * ``control(torque_cb, motion_cb)``: torques plus a motion generator;
+        * ``control(motion_cb, controller_mode=...)``: a motion generator tracked by the
+          robot's joint or Cartesian impedance controller. What a lone callback returns is
+          read from ``motion=`` (e.g. ``motion=JointPositions``), else from its return
+          annotation, else it is taken to return ``Torques``.
+
+        Callbacks get ``(RobotState, Duration since the previous call)``. ``limit_rate``
+        and ``cutoff_frequency`` [Hz] (>= 1000 disables) as in libfranka.
+        """
+        limit_rate, cutoff_frequency = check_cutoff(limit_rate, cutoff_frequency)
+        if motion_generator_callback is not None:
+            if not callable(motion_generator_callback):
+                raise ValueError(
+                    f"motion_generator_callback: expected a callable, got "
+                    f"{motion_generator_callback!r}"
+                )
+            _callback_kind(control_callback, Torques)
+            kind = _callback_kind(motion_generator_callback, motion)
+            if kind is Torques:
+                raise ValueError("motion: the motion generator cannot return Torques")
+            self._run(
+                control_callback,
+                motion_generator_callback,
+                kind,
+                controller_mode,
+                limit_rate,
+                cutoff_frequency,
+            )
+            return
+        kind = _callback_kind(control_callback, motion)
+        if kind is Torques:
+            self._run(
+                control_callback, None, Torques, controller_mode, limit_rate, cutoff_frequency
+            )
+        else:
+            self._run(None, control_callback, kind, controller_mode, limit_rate, cutoff_frequency)
+
+    def _run(
+        self,
+        control_cb: Callback | None,
+        motion_cb: Callback | None,
+        kind: type,
+        controller_mode: Any,
+        limit_rate: bool,
+        cutoff_frequency: float,
+    ) -> None:
+        conn = self._conn
+        d = conn.dialect
+        controller, generator, has_mg = self._plan(kind, control_cb is not None, controller_mode)
+        commander = Commander(d, self._limits, limit_rate, cutoff_frequency)
+        torque = commander.torques
+        convert = None if motion_cb is None else getattr(commander, _MOTIONS[kind][1])
+        record = commander.record
+        log = self._log
+        with realtime_scope(self._realtime_config):
+            session = self._start(controller, generator)
+            try:
+                rec = session.receive()  # libfranka skips the state that shows the modes
+                prev = int(rec["message_id"])
+                while True:
+                    state = RobotState(d, rec)
+                    log.append(state)
+                    mid = int(rec["message_id"])
+                    dt = Duration(mid - prev)
+                    prev = mid
+                    finished = False
+                    if control_cb is not None:
+                        finished = torque(control_cb(state, dt), rec)
+                    if convert is not None and not finished:
+                        assert motion_cb is not None
+                        finished = convert(motion_cb(state, dt), rec)
+                    if finished:
+                        break
+                    session.send(record)
+                    rec = session.receive()
+                session.finish(record, motion=has_mg, control=control_cb is not None)
+            except BaseException:
+                session.cancel()
+                raise
+            finally:
+                if self._session is session:
+                    self._session = None
+
+    # --- active control (libfranka >= 0.15 / pylibfranka) ---------------------------------
+
+    def _start_active(
+        self, kind: type, controller_mode: Any, limit_rate: bool, cutoff_frequency: float
+    ) -> ActiveControl:
+        limit_rate, cutoff_frequency = check_cutoff(limit_rate, cutoff_frequency)
+        check_realtime(self._realtime_config)
+        controller, generator, has_mg = self._plan(kind, False, controller_mode)
+        commander = Commander(self._conn.dialect, self._limits, limit_rate, cutoff_frequency)
+        session = self._start(controller, generator)
+        session.caller_driven = True
+        return ActiveControl(self, session, commander, kind, control=kind is Torques, motion=has_mg)
+
+    def start_torque_control(
+        self, *, limit_rate: bool = False, cutoff_frequency: float = 1000.0
+    ) -> ActiveControl:
+        """Start torque control driven by the caller (``writeOnce(Torques)``)."""
+        return self._start_active(Torques, None, limit_rate, cutoff_frequency)
+
+    def start_joint_position_control(
+        self,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        *,
+        limit_rate: bool = False,
+        cutoff_frequency: float = 1000.0,
+    ) -> ActiveControl:
+        """Start a joint position generator driven by the caller."""
+        return self._start_active(JointPositions, controller_mode, limit_rate, cutoff_frequency)
+
+    def start_joint_velocity_control(
+        self,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        *,
+        limit_rate: bool = False,
+        cutoff_frequency: float = 1000.0,
+    ) -> ActiveControl:
+        """Start a joint velocity generator driven by the caller."""
+        return self._start_active(JointVelocities, controller_mode, limit_rate, cutoff_frequency)
+
+    def start_cartesian_pose_control(
+        self,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        *,
+        limit_rate: bool = False,
+        cutoff_frequency: float = 1000.0,
+    ) -> ActiveControl:
+        """Start a Cartesian pose generator driven by the caller."""
+        return self._start_active(CartesianPose, controller_mode, limit_rate, cutoff_frequency)
+
+    def start_cartesian_velocity_control(
+        self,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        *,
+        limit_rate: bool = False,
+        cutoff_frequency: float = 1000.0,
+    ) -> ActiveControl:
+        """Start a Cartesian velocity generator driven by the caller."""
+        return self._start_active(
+            CartesianVelocities, controller_mode, limit_rate, cutoff_frequency
+        )

@@ -1,0 +1,233 @@
+"""Sockets of one FCI connection: a TCP command channel and a UDP state/command channel.
+
+Every socket call has a timeout, and every low-level failure (``OSError``,
+``socket.timeout``, a malformed message) is translated to this package's exceptions in one
+function, :func:`translate`. The UDP socket is bound to ``0.0.0.0:0`` and commands go back
+to the source address of the states, as libfranka does.
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import struct
+import threading
+import time
+from collections import deque
+from typing import Any
+
+from panda_py.fci import Message, MessageReader, ProtocolError
+from panda_py.libfranka.errors import FrankaException, NetworkException, ProtocolException
+
+__all__ = ["CONNECT_TIMEOUT", "TCP_TIMEOUT", "UDP_TIMEOUT", "Network", "translate"]
+
+CONNECT_TIMEOUT = 5.0  # [s] TCP connect
+TCP_TIMEOUT = 10.0  # [s] default wait for a TCP response
+UDP_TIMEOUT = 1.0  # [s] wait for a UDP datagram (libfranka: 1 s)
+_UDP_BUFFER = 4096  # [bytes] larger than any state datagram
+_MESSAGE_ID = struct.Struct("<Q")
+
+
+def translate(exc: BaseException, what: str) -> FrankaException:
+    """The one place where socket and decoding errors become this package's exceptions."""
+    if isinstance(exc, FrankaException):
+        return exc
+    if isinstance(exc, (ProtocolError, struct.error)):
+        return ProtocolException(f"libfranka: {what}: {exc}")
+    if isinstance(exc, (TimeoutError, socket.timeout)):
+        return NetworkException(f"libfranka: {what}: Timeout")
+    if isinstance(exc, ConnectionRefusedError):
+        return NetworkException(
+            f"libfranka: {what}: Connection refused. Is FCI enabled and the address right?"
+        )
+    if isinstance(exc, OSError):
+        return NetworkException(f"libfranka: {what}: {exc.strerror or exc}")
+    return FrankaException(f"libfranka: {what}: {exc}")
+
+
+class Network:
+    """TCP + UDP sockets to ``host:port``; ``reader`` cuts the TCP stream into messages."""
+
+    def __init__(
+        self, host: str, port: int, reader: MessageReader, *, udp_size: int, timeout: float
+    ) -> None:
+        if not isinstance(host, str) or not host:
+            raise ValueError(f"hostname: expected a host name or IP address, got {host!r}")
+        self.host = host
+        self.timeout = timeout
+        self._reader = reader
+        self._udp_size = udp_size  # datagrams shorter than this are a protocol error
+        self._responses: dict[int, deque[Message]] = {}
+        self._tcp_lock = threading.Lock()
+        self._udp_peer: tuple[str, int] | None = None
+        self._tcp: socket.socket | None = None
+        self._udp: socket.socket | None = None
+        try:
+            self._tcp = socket.create_connection((host, port), timeout=CONNECT_TIMEOUT)
+            self._tcp.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._tcp.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
+            self._tcp.settimeout(timeout)
+            self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._udp.bind(("0.0.0.0", 0))
+            # Non-blocking: a socket with a Python timeout waits for readability even when
+            # asked not to (MSG_DONTWAIT), so draining would block; waits use select().
+            self._udp.setblocking(False)
+        except OSError as exc:
+            self.close()
+            raise translate(exc, f"Connection to {host}:{port}") from exc
+
+    @property
+    def udp_port(self) -> int:
+        """The local UDP port the robot sends states to."""
+        assert self._udp is not None
+        return int(self._udp.getsockname()[1])
+
+    def close(self) -> None:
+        for s in (self._tcp, self._udp):
+            if s is not None:
+                try:
+                    s.close()
+                except OSError:
+                    pass
+        self._tcp = self._udp = None
+
+    @property
+    def closed(self) -> bool:
+        return self._tcp is None
+
+    # --- TCP --------------------------------------------------------------------------
+
+    def _sock(self) -> socket.socket:
+        if self._tcp is None:
+            raise NetworkException("libfranka: connection is closed")
+        return self._tcp
+
+    def send(self, data: bytes) -> None:
+        """Send one complete TCP message."""
+        try:
+            self._sock().sendall(data)
+        except OSError as exc:
+            raise translate(exc, "TCP send") from exc
+
+    def _pump(self, timeout: float) -> None:
+        """Read what the TCP socket has (waiting up to ``timeout`` [s]) into the response
+        queues. Caller holds ``_tcp_lock``."""
+        sock = self._sock()
+        try:
+            ready, _, _ = select.select([sock], [], [], max(0.0, timeout))
+            if not ready:
+                return
+            data = sock.recv(65536)
+            if not data:
+                raise NetworkException("libfranka: server closed connection")
+            for msg in self._reader.feed(data):
+                self._responses.setdefault(msg.command_id, deque()).append(msg)
+        except (OSError, ProtocolError, ValueError) as exc:
+            raise translate(exc, "TCP receive") from exc
+
+    def poll_response(self, command_id: int) -> Message | None:
+        """The next queued response to ``command_id``, reading the socket without waiting."""
+        queue = self._responses.get(command_id)
+        if not queue:
+            with self._tcp_lock:
+                self._pump(0.0)
+            queue = self._responses.get(command_id)
+        if queue:
+            msg = queue.popleft()
+            if not queue:
+                del self._responses[command_id]
+            return msg
+        return None
+
+    def wait_response(self, command_id: int, timeout: float | None = None) -> Message:
+        """Block (at most ``timeout`` [s], default the connection's) for a response."""
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        while True:
+            queue = self._responses.get(command_id)
+            if queue:
+                msg = queue.popleft()
+                if not queue:
+                    del self._responses[command_id]
+                return msg
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0:
+                raise NetworkException("libfranka: TCP receive: Timeout")
+            with self._tcp_lock:
+                if not self._responses.get(command_id):
+                    self._pump(min(remaining, 0.1))
+
+    def check_closed(self) -> None:
+        """Raise NetworkException if the robot closed the TCP connection (a select and, if
+        readable, one peek; pending responses stay queued in the socket)."""
+        sock = self._sock()
+        try:
+            ready, _, _ = select.select([sock], [], [], 0.0)
+            if ready and sock.recv(1, socket.MSG_PEEK) == b"":
+                raise NetworkException("libfranka: server closed connection")
+        except (BlockingIOError, InterruptedError):
+            return
+        except (OSError, ValueError) as exc:
+            raise translate(exc, "TCP receive") from exc
+
+    # --- UDP --------------------------------------------------------------------------
+
+    def _recv_udp(self, block: bool) -> bytes | None:
+        udp = self._udp
+        if udp is None:
+            raise NetworkException("libfranka: connection is closed")
+        try:
+            if block:
+                ready, _, _ = select.select([udp], [], [], UDP_TIMEOUT)
+                if not ready:
+                    raise NetworkException("libfranka: UDP receive: Timeout")
+            data, addr = udp.recvfrom(_UDP_BUFFER)
+        except (BlockingIOError, InterruptedError):
+            return None  # nothing (left) to read; a readable datagram may have been dropped
+        except (OSError, ValueError) as exc:
+            raise translate(exc, "UDP receive") from exc
+        if len(data) < self._udp_size:
+            raise ProtocolException("libfranka: incorrect object size")
+        self._udp_peer = addr
+        return data
+
+    def receive_newest(self, last_id: int) -> bytes:
+        """The newest robot state on the UDP socket whose ``message_id`` (u64 at offset 0)
+        is above ``last_id``; waits for one if there is none (libfranka's
+        ``receiveRobotState``)."""
+        best: bytes | None = None
+        best_id = last_id
+        unpack = _MESSAGE_ID.unpack_from
+        while best is None:
+            data = self._recv_udp(block=False)
+            while data is not None:
+                mid = unpack(data)[0]
+                if mid > best_id:
+                    best, best_id = data, mid
+                data = self._recv_udp(block=False)
+            if best is None:
+                data = self._recv_udp(block=True)
+                if data is not None and unpack(data)[0] > best_id:
+                    best, best_id = data, unpack(data)[0]
+        return best
+
+    def receive_any(self) -> bytes:
+        """Drain the UDP socket and return the last datagram, waiting if there is none."""
+        last: bytes | None = None
+        while True:
+            data = self._recv_udp(block=False)
+            if data is None:
+                break
+            last = data
+        while last is None:
+            last = self._recv_udp(block=True)
+        return last
+
+    def send_udp(self, data: Any) -> None:
+        """Send a datagram to where the last state came from."""
+        udp, peer = self._udp, self._udp_peer
+        if udp is None or peer is None:
+            raise NetworkException("libfranka: UDP send: no robot state received yet")
+        try:
+            udp.sendto(data, peer)
+        except OSError as exc:
+            raise translate(exc, "UDP send") from exc

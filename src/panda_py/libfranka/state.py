@@ -1,0 +1,254 @@
+"""``RobotState`` and ``GripperState``: thin, lazy views over a decoded wire record.
+
+Decoding a datagram is one ``numpy.frombuffer`` (see :meth:`panda_py.fci.Dialect.decode_state`);
+each attribute converts its field to a float64 NumPy array only when read, so a control
+loop pays only for the fields its callback uses. Transforms are flat 16-vectors in
+column-major order and inertia tensors flat 9-vectors, exactly as libfranka's
+``std::array``s. Fields missing from older protocol versions read as libfranka documents
+them (``O_ddP_O`` = (0, 0, -9.81), ``NE_T_EE`` = identity, accelerometers zero).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.fci import Dialect
+from panda_py.libfranka.types import Duration, Errors, RobotMode
+from panda_py.robots.params import GRAVITY
+
+__all__ = ["GripperState", "RobotState", "combine_load"]
+
+FloatArray = NDArray[np.float64]
+
+_IDENTITY16 = np.eye(4).reshape(16)
+
+
+def _array(name: str, doc: str) -> Any:
+    def get(self: RobotState) -> FloatArray:
+        return np.array(self._record[name], dtype=np.float64)
+
+    return property(get, doc=doc)
+
+
+def _scalar(name: str, doc: str) -> Any:
+    def get(self: RobotState) -> float:
+        return float(self._record[name])
+
+    return property(get, doc=doc)
+
+
+def _skew(v: FloatArray) -> FloatArray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def combine_load(
+    m_ee: float,
+    F_x_Cee: Any,
+    I_ee: Any,
+    m_load: float,
+    F_x_Cload: Any,
+    I_load: Any,
+) -> tuple[float, FloatArray, FloatArray]:
+    """End effector plus payload as one rigid body, as libfranka combines them:
+    ``(m_total [kg], F_x_Ctotal (3,) [m], I_total (9,) column-major [kg m^2] about the
+    combined centre of mass)`` by the parallel-axis theorem. Inputs: masses [kg], centres
+    of mass in the flange frame [m], inertias (9,) column-major about each own centre."""
+    m_total = float(m_ee) + float(m_load)
+    c_ee = np.asarray(F_x_Cee, dtype=np.float64).reshape(3)
+    c_load = np.asarray(F_x_Cload, dtype=np.float64).reshape(3)
+    if m_total > 0.0:
+        c_total = (float(m_ee) * c_ee + float(m_load) * c_load) / m_total
+    else:
+        c_total = np.zeros(3)
+    I_total = np.zeros((3, 3))
+    for m, c, inertia in ((m_ee, c_ee, I_ee), (m_load, c_load, I_load)):
+        I_c = np.asarray(inertia, dtype=np.float64).reshape(3, 3, order="F")
+        S = _skew(c - c_total)
+        I_total += I_c - float(m) * (S @ S)  # I + m (|r|^2 1 - r r^T)
+    return m_total, c_total, I_total.reshape(9, order="F")
+
+
+class RobotState:
+    """The robot's state at one 1 ms tick (libfranka's ``franka::RobotState``).
+
+    Attributes are NumPy float64 arrays (libfranka's ``std::array``s), floats for the
+    masses and the success rate, ``time`` a :class:`Duration` (the robot's tick counter in
+    ms), ``robot_mode`` a :class:`RobotMode`, ``current_errors``/``last_motion_errors``
+    :class:`Errors`.
+    """
+
+    __slots__ = ("_dialect", "_record")
+
+    def __init__(self, dialect: Dialect, record: np.void) -> None:
+        self._dialect = dialect
+        self._record = record
+
+    @classmethod
+    def from_bytes(cls, dialect: Dialect, data: bytes) -> RobotState:
+        """Decode one RobotState datagram of ``dialect``'s layout."""
+        return cls(dialect, dialect.decode_state(data))
+
+    @property
+    def version(self) -> int:
+        """The protocol version this state was decoded with."""
+        return self._dialect.version
+
+    @property
+    def message_id(self) -> int:
+        """The robot's tick counter [ms]."""
+        return int(self._record["message_id"])
+
+    @property
+    def time(self) -> Duration:
+        """Robot time since power-up, from the tick counter [ms]."""
+        return Duration(int(self._record["message_id"]))
+
+    @property
+    def robot_mode(self) -> RobotMode:
+        return RobotMode(int(self._record["robot_mode"]))
+
+    @property
+    def current_errors(self) -> Errors:
+        """Errors active now (the ``errors`` field)."""
+        return Errors(self._record["errors"])
+
+    @property
+    def last_motion_errors(self) -> Errors:
+        """Errors that aborted the last motion (the ``reflex_reason`` field)."""
+        return Errors(self._record["reflex_reason"])
+
+    @property
+    def motion_generator_mode(self) -> int:
+        """Wire value of the motion generator (:class:`panda_py.fci.MotionGeneratorMode`)."""
+        return int(self._record["motion_generator_mode"])
+
+    @property
+    def controller_mode(self) -> int:
+        """Wire value of the active controller (:class:`panda_py.fci.ControllerMode`)."""
+        return int(self._record["controller_mode"])
+
+    @property
+    def F_T_NE(self) -> FloatArray:
+        """Flange -> nominal end effector (16,) column-major [m]; ``F_T_EE`` before v4."""
+        if self._dialect.has_F_T_NE:
+            return np.array(self._record["F_T_NE"], dtype=np.float64)
+        return np.array(self._record["F_T_EE"], dtype=np.float64)
+
+    @property
+    def NE_T_EE(self) -> FloatArray:
+        """Nominal end effector -> end effector (16,) column-major [m]; identity before v4."""
+        if self._dialect.has_F_T_NE:
+            return np.array(self._record["NE_T_EE"], dtype=np.float64)
+        return _IDENTITY16.copy()
+
+    @property
+    def O_ddP_O(self) -> FloatArray:
+        """Base acceleration (3,) [m/s^2]; (0, 0, -9.81) before protocol v5."""
+        if self._dialect.has_O_ddP_O:
+            return np.array(self._record["O_ddP_O"], dtype=np.float64)
+        return np.array(GRAVITY, dtype=np.float64)
+
+    @property
+    def accelerometer_top(self) -> FloatArray:
+        """(6, 3) [m/s^2] per joint 1..6 (protocol v10; zeros before)."""
+        if self._dialect.has_accelerometers:
+            return np.array(self._record["accelerometer_top"], dtype=np.float64)
+        return np.zeros((6, 3))
+
+    @property
+    def accelerometer_bottom(self) -> FloatArray:
+        """(6, 3) [m/s^2] per joint 1..6 (protocol v10; zeros before)."""
+        if self._dialect.has_accelerometers:
+            return np.array(self._record["accelerometer_bottom"], dtype=np.float64)
+        return np.zeros((6, 3))
+
+    def _total(self) -> tuple[float, FloatArray, FloatArray]:
+        r = self._record
+        return combine_load(
+            float(r["m_ee"]), r["F_x_Cee"], r["I_ee"], float(r["m_load"]), r["F_x_Cload"],
+            r["I_load"],
+        )  # fmt: skip
+
+    @property
+    def m_total(self) -> float:
+        """End effector plus load mass [kg]."""
+        return float(self._record["m_ee"]) + float(self._record["m_load"])
+
+    @property
+    def F_x_Ctotal(self) -> FloatArray:
+        """Combined centre of mass of end effector and load in the flange frame (3,) [m]."""
+        return self._total()[1]
+
+    @property
+    def I_total(self) -> FloatArray:
+        """Combined inertia about ``F_x_Ctotal`` (9,) column-major [kg m^2]."""
+        return self._total()[2]
+
+    O_T_EE = _array("O_T_EE", "Measured end-effector pose in the base frame (16,) [m].")
+    O_T_EE_d = _array("O_T_EE_d", "Last desired end-effector pose (16,) [m].")
+    F_T_EE = _array("F_T_EE", "Flange -> end effector (16,) [m].")
+    EE_T_K = _array("EE_T_K", "End effector -> stiffness frame K (16,) [m].")
+    m_ee = _scalar("m_ee", "End-effector mass [kg].")
+    I_ee = _array("I_ee", "End-effector inertia about its centre of mass (9,) [kg m^2].")
+    F_x_Cee = _array("F_x_Cee", "End-effector centre of mass in the flange frame (3,) [m].")
+    m_load = _scalar("m_load", "Payload mass [kg].")
+    I_load = _array("I_load", "Payload inertia about its centre of mass (9,) [kg m^2].")
+    F_x_Cload = _array("F_x_Cload", "Payload centre of mass in the flange frame (3,) [m].")
+    elbow = _array("elbow", "Measured elbow (joint-3 position [rad], joint-4 flip sign).")
+    elbow_d = _array("elbow_d", "Desired elbow.")
+    elbow_c = _array("elbow_c", "Commanded elbow.")
+    delbow_c = _array("delbow_c", "Commanded elbow velocity [rad/s].")
+    ddelbow_c = _array("ddelbow_c", "Commanded elbow acceleration [rad/s^2].")
+    tau_J = _array("tau_J", "Measured link-side joint torque (7,) [Nm].")
+    tau_J_d = _array("tau_J_d", "Desired torque without gravity (7,) [Nm].")
+    dtau_J = _array("dtau_J", "Derivative of the measured torque (7,) [Nm/s].")
+    q = _array("q", "Measured joint position (7,) [rad].")
+    q_d = _array("q_d", "Desired joint position (7,) [rad].")
+    dq = _array("dq", "Measured joint velocity (7,) [rad/s].")
+    dq_d = _array("dq_d", "Desired joint velocity (7,) [rad/s].")
+    ddq_d = _array("ddq_d", "Desired joint acceleration (7,) [rad/s^2].")
+    joint_contact = _array("joint_contact", "Contact level per joint (7,) [0/1].")
+    cartesian_contact = _array("cartesian_contact", "Contact level per Cartesian axis (6,).")
+    joint_collision = _array("joint_collision", "Collision level per joint (7,) [0/1].")
+    cartesian_collision = _array("cartesian_collision", "Collision per Cartesian axis (6,).")
+    tau_ext_hat_filtered = _array("tau_ext_hat_filtered", "External torque, filtered (7,) [Nm].")
+    O_F_ext_hat_K = _array("O_F_ext_hat_K", "External wrench at K, base frame (6,) [N, Nm].")
+    K_F_ext_hat_K = _array("K_F_ext_hat_K", "External wrench at K, K frame (6,) [N, Nm].")
+    O_dP_EE_d = _array("O_dP_EE_d", "Desired end-effector twist (6,) [m/s, rad/s].")
+    O_T_EE_c = _array("O_T_EE_c", "Last commanded end-effector pose (16,) [m].")
+    O_dP_EE_c = _array("O_dP_EE_c", "Last commanded twist (6,) [m/s, rad/s].")
+    O_ddP_EE_c = _array("O_ddP_EE_c", "Last commanded acceleration (6,) [m/s^2, rad/s^2].")
+    theta = _array("theta", "Motor position (7,) [rad].")
+    dtheta = _array("dtheta", "Motor velocity (7,) [rad/s].")
+    control_command_success_rate = _scalar(
+        "control_command_success_rate", "Fraction of the last commands that arrived [0..1]."
+    )
+
+    def __repr__(self) -> str:
+        return (
+            f"RobotState(time={self.message_id} ms, robot_mode={self.robot_mode.name}, "
+            f"q={np.round(self.q, 4).tolist()})"
+        )
+
+
+class GripperState:
+    """The Franka Hand's state: ``width``/``max_width`` [m], ``is_grasped``,
+    ``temperature`` [°C], ``time`` (:class:`Duration`, the gripper's tick counter)."""
+
+    __slots__ = ("is_grasped", "max_width", "temperature", "time", "width")
+
+    def __init__(self, record: np.void) -> None:
+        self.width = float(record["width"])
+        self.max_width = float(record["max_width"])
+        self.is_grasped = bool(record["is_grasped"])
+        self.temperature = int(record["temperature"])
+        self.time = Duration(int(record["message_id"]))
+
+    def __repr__(self) -> str:
+        return (
+            f"GripperState(width={self.width:.4f}, max_width={self.max_width:.4f}, "
+            f"is_grasped={self.is_grasped}, temperature={self.temperature})"
+        )
