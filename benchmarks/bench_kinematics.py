@@ -7,7 +7,8 @@ samples: median, p99 and worst in microseconds, for us and for panda-python (run
 own virtual environment, created by ``tests/peer_envs.py`` if missing, as a subprocess
 with the same timing code). Batched: one call over N configurations or poses against
 panda-python's per-call loop over the same N, per configuration. Also the import time of
-``panda_py``.
+``panda_py``. Both backends are timed: the pure-NumPy paths and, if numba is installed
+(and PANDA_PY_NO_JIT is not set), the numba kernels.
 """
 
 from __future__ import annotations
@@ -87,6 +88,15 @@ def _import_time() -> float:
     return best
 
 
+def _first_call_time() -> float:
+    code = (
+        "import time, numpy as np, panda_py; q = np.zeros(7); t = time.perf_counter(); "
+        "panda_py.fk(q); print(time.perf_counter() - t)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    return float(out.stdout)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--samples", type=int, default=300, help="samples per per-call figure")
@@ -102,31 +112,45 @@ def main() -> None:
     import panda_py.kinematics as kin
 
     t_kin_import = time.perf_counter() - t0
+    from panda_py.kinematics import _model
     from panda_py.robots.params import FER, START_POSE
 
     q = np.array(START_POSE)
-    T = kin.fk(q)
     s, b = args.samples, args.block
-    ours = {
-        "fk": measure(lambda: kin.fk(q), s, b),  # type: ignore[operator]
-        "ik": measure(lambda: kin.ik(T), s, b),  # type: ignore[operator]
-        "ik_q": measure(lambda: kin.ik(T, q, 0.5), s, b),  # type: ignore[operator]
-        "ik_full": measure(lambda: kin.ik_full(T), s, b),  # type: ignore[operator]
-        "zero_jacobian": measure(lambda: kin.zero_jacobian(q), s, b),  # type: ignore[operator]
-    }
     rng = np.random.default_rng(0)
     n = args.batch
     Q = rng.uniform(FER.joints.q_min, FER.joints.q_max, size=(n, 7))
-    TT = kin.fk(Q)
     q7 = Q[:, 6].copy()
-    batched = {
-        "fk_loop": lambda: kin.fk(Q),
-        "ik_loop": lambda: kin.ik(TT, Q, q7),
-        "ik_full_loop": lambda: kin.ik_full(TT, Q, q7),
-        "zero_jacobian_loop": lambda: kin.zero_jacobian(Q),
-    }
-    for name, fn in batched.items():
-        ours[name] = [min(measure(fn, 5, 1)) / n]  # type: ignore[operator]
+    backends: dict[str, object] = {"pure": None}
+    t0 = time.perf_counter()
+    jit = _model.load_jit()
+    t_jit_import = time.perf_counter() - t0
+    if jit is not None:
+        backends["numba"] = jit
+    results: dict[str, dict[str, list[float]]] = {}
+    for bname, mod in backends.items():
+        _model._JIT = mod
+        T = kin.fk(q)
+        TT = kin.fk(Q)
+        ours = {
+            "fk": measure(lambda: kin.fk(q), s, b),  # type: ignore[operator]
+            "ik": measure(lambda: kin.ik(T), s, b),  # type: ignore[operator]  # noqa: B023
+            "ik_q": measure(lambda: kin.ik(T, q, 0.5), s, b),  # type: ignore[operator]  # noqa: B023
+            "ik_full": measure(lambda: kin.ik_full(T), s, b),  # type: ignore[operator]  # noqa: B023
+            "zero_jacobian": measure(lambda: kin.zero_jacobian(q), s, b),  # type: ignore[operator]
+        }
+        batched = {
+            "fk_loop": lambda: kin.fk(Q),
+            "ik_loop": lambda: kin.ik(TT, Q, q7),  # noqa: B023
+            "ik_full_loop": lambda: kin.ik_full(TT, Q, q7),  # noqa: B023
+            "zero_jacobian_loop": lambda: kin.zero_jacobian(Q),
+        }
+        for name, fn in batched.items():
+            ours[name] = [min(measure(fn, 5, 1)) / n]  # type: ignore[operator]
+        results[bname] = ours
+    _model._JIT = jit
+    T = kin.fk(q)
+    TT = kin.fk(Q)
 
     theirs: dict[str, list[float]] = {}
     try:
@@ -147,23 +171,31 @@ def main() -> None:
     except (PeerUnavailable, subprocess.SubprocessError) as exc:
         print(f"panda-python unavailable, no ratios: {exc}")
 
-    print(f"{'per call [us]':<22}{'median':>9}{'p99':>9}{'worst':>9}   panda-python median"
-          f"{'p99':>8}{'worst':>9}   ours/theirs")  # fmt: skip
-    for name in ("fk", "ik", "ik_q", "ik_full", "zero_jacobian"):
-        m, p, w = _stats(ours[name])
-        line = f"{name:<22}{m:9.2f}{p:9.2f}{w:9.2f}"
-        if name in theirs:
-            tm, tp, tw = _stats(theirs[name])
-            line += f"   {tm:19.2f}{tp:8.2f}{tw:9.2f}   {m / tm:10.2f}x"
-        print(line)
-    print(f"\nbatched over N = {n} [us per configuration]   panda-python loop   speed-up")
-    for name in ("fk_loop", "ik_loop", "ik_full_loop", "zero_jacobian_loop"):
-        m = ours[name][0] * 1e6
-        line = f"{name.replace('_loop', ''):<22}{m:9.3f}"
-        if name in theirs:
-            tm = theirs[name][0] * 1e6
-            line += f"   {tm:18.3f}   {tm / m:8.1f}x"
-        print(line)
+    for bname, ours in results.items():
+        print(f"\n=== backend: {bname} ===")
+        print(f"{'per call [us]':<22}{'median':>9}{'p99':>9}{'worst':>9}   panda-python median"
+              f"{'p99':>8}{'worst':>9}   ours/theirs")  # fmt: skip
+        for name in ("fk", "ik", "ik_q", "ik_full", "zero_jacobian"):
+            m, p, w = _stats(ours[name])
+            line = f"{name:<22}{m:9.2f}{p:9.2f}{w:9.2f}"
+            if name in theirs:
+                tm, tp, tw = _stats(theirs[name])
+                line += f"   {tm:19.2f}{tp:8.2f}{tw:9.2f}   {m / tm:10.2f}x"
+            print(line)
+        print(f"batched over N = {n} [us per configuration]   panda-python loop   speed-up")
+        for name in ("fk_loop", "ik_loop", "ik_full_loop", "zero_jacobian_loop"):
+            m = ours[name][0] * 1e6
+            line = f"{name.replace('_loop', ''):<22}{m:9.3f}"
+            if name in theirs:
+                tm = theirs[name][0] * 1e6
+                line += f"   {tm:18.3f}   {tm / m:8.1f}x"
+            print(line)
+    if jit is None:
+        print("\n(numba not installed or PANDA_PY_NO_JIT set: pure backend only)")
+    else:
+        print(f"\nload numba + cached kernels (this process): {t_jit_import * 1e3:.0f} ms")
+        print(f"first fk call in a fresh process (numba import, kernel load): "
+              f"{_first_call_time() * 1e3:.0f} ms")  # fmt: skip
     print(f"\nimport panda_py: {_import_time() * 1e3:.1f} ms")
     print(f"import panda_py.kinematics (first, in this process): {t_kin_import * 1e3:.1f} ms")
     print("(ik: O_T_EE of the start pose, default q_init and q_7; ik_q: with q_init and q_7=0.5)")

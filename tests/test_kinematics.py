@@ -468,3 +468,18 @@ def test_jit_is_lazy_optional_and_survives_an_unwritable_cache(backend: str) -> 
         "print(_numba.fk_one(np.zeros(7), K._CF, out), np.allclose(out, K._fk_pure(np.zeros(7))))"
     )
     assert _python(no_cache) == "True True"
+
+
+def test_strided_and_integer_inputs_give_the_same_results() -> None:
+    rng = np.random.default_rng(12)
+    q = random_q(rng, 1)[0]
+    strided = np.empty(14)
+    strided[::2] = q
+    q_s = strided[::2]
+    T = kin_mod.fk(q)
+    T_s = np.asfortranarray(T)
+    for f in (kin_mod.fk, kin_mod.zero_jacobian, kin_mod.body_jacobian, kin_mod.fk_frames):
+        np.testing.assert_allclose(f(q_s), f(q), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(kin_mod.ik(T_s, q_s, q[6]), kin_mod.ik(T, q, q[6]), atol=1e-15)
+    np.testing.assert_allclose(kin_mod.ik_full(T_s, q_s), kin_mod.ik_full(T, q), atol=1e-15)
+    np.testing.assert_allclose(kin_mod.fk(np.zeros(7, dtype=int)), kin_mod.fk(np.zeros(7)))

@@ -171,11 +171,25 @@ def _make_ik(kin: Kinematics) -> Any:
 ik = _make_ik(_DEFAULT)
 
 
-def ik_full(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
-    """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none), rows
-    ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0), (cos(q5)
-    >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives (N, 4, 7)."""
-    return get_kinematics(robot, F_T_EE).ik_full(*args, **kwargs)
+def _make_ik_full(kin: Kinematics) -> Any:
+    fast = kin._ik_fast
+
+    def ik_full(*args: Any, robot: Any = None, F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
+        """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none), rows
+        ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0),
+        (cos(q5) >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives
+        (N, 4, 7)."""
+        if robot is None and F_T_EE is None and not kwargs and 1 <= len(args) <= 3:
+            q = fast(*args, full=True)
+            if q is not None:
+                return q
+        kin_ = get_kinematics(robot if robot is not None else "fer", F_T_EE)
+        return kin_.ik_full(*args, **kwargs)
+
+    return ik_full
+
+
+ik_full = _make_ik_full(_DEFAULT)
 
 
 def ik_result(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> IKResult:

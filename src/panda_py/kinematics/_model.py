@@ -261,8 +261,18 @@ class Kinematics:
         return self._jacobians(q, body=True)
 
     def _jacobians(self, q: object, body: bool) -> FloatArray:
+        jit = _JIT if _JIT is not _UNSET else load_jit()
+        if (
+            jit is not None
+            and type(q) is np.ndarray
+            and q.dtype is _F64
+            and q.shape == (7,)
+            and q.flags.c_contiguous
+        ):
+            out = np.empty((1, 6, 7))
+            if jit.jacobian_one(q, self._CF, body, out):
+                return out[0]
         qa = _input.joints("q", q)
-        jit = load_jit()
         if jit is not None:
             qb = np.ascontiguousarray(qa.reshape(-1, 7))
             out = np.empty((qb.shape[0], 6, 7))

@@ -380,3 +380,16 @@ def ik_full_batch(P: Any, T: Any, q1_init: Any, q7: Any, qout: Any, stout: Any) 
     """All four branches for each pose T[k] into qout (N, 4, 7), stout (N, 4)."""
     for k in range(T.shape[0]):
         _solve_pose(P, T[k], q7[k], q1_init[k], 0, 3, qout[k], stout[k])
+
+
+@njit(**_OPTS)
+def jacobian_one(q: Any, CF: Any, body: bool, out: Any) -> bool:
+    """:func:`jacobian_batch` for one q (7,) into out (1, 6, 7); False if q is not
+    finite."""
+    s = 0.0
+    for i in range(7):
+        s += q[i]
+    if not math.isfinite(s):
+        return False
+    jacobian_batch(q.reshape((1, 7)), CF, body, out)
+    return True
