@@ -1,6 +1,10 @@
 """Turn what a control callback returns into the RobotCommand record: type and value
 checks, the optional low-pass filter and rate limiter (referenced to the desired/commanded
-values in the robot's last state, as libfranka's ``ControlLoop::convertMotion``)."""
+values in the robot's last state, as libfranka's ``ControlLoop::convertMotion``).
+
+This runs once per 1 ms tick, so it works on Python floats (:mod:`._fast`) and writes into
+one pre-allocated record; :mod:`.limits` holds the NumPy reference of the same math.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from panda_py.fci import Dialect
+from panda_py.libfranka import _fast
 from panda_py.libfranka import limits as lim
 from panda_py.libfranka.types import (
     CartesianPose,
@@ -17,10 +22,13 @@ from panda_py.libfranka.types import (
     JointPositions,
     JointVelocities,
     Torques,
-    is_homogeneous_transformation,
 )
 
 __all__ = ["Commander", "check_cutoff"]
+
+_INVALID_POSE = (
+    "O_T_EE: Attempt to set invalid transformation in motion generator. Has to be column major!"
+)
 
 
 def check_cutoff(limit_rate: Any, cutoff_frequency: Any) -> tuple[bool, float]:
@@ -37,9 +45,9 @@ def check_cutoff(limit_rate: Any, cutoff_frequency: Any) -> tuple[bool, float]:
     return bool(limit_rate), f
 
 
-def _finite(name: str, x: np.ndarray) -> None:
-    s = float(x.sum())
-    if s - s != 0.0:
+def _finite(name: str, values: list[float]) -> None:
+    s = sum(values)
+    if s - s != 0.0:  # a NaN or an infinity makes this NaN
         raise ValueError(f"{name}: Commanding value is infinite or NaN.")
 
 
@@ -67,23 +75,59 @@ class Commander:
         self.limits = limits
         self.limit_rate = limit_rate
         self.filter = cutoff_frequency < lim.MAX_CUTOFF_FREQUENCY
-        self.cutoff = cutoff_frequency
         self.gain = lim._gain(lim.DELTA_T, cutoff_frequency) if self.filter else 1.0
         self.initialized = False  # position/pose filters start from the first command
+        L = limits
+        self._tau_step = (L.max_torque_rate * lim.DELTA_T).tolist()
+        self._acc = L.max_joint_acceleration.tolist()
+        self._jerk = L.max_joint_jerk.tolist()
+        self._vmax = L.max_joint_velocity.tolist()
+        self._vmin = (-L.max_joint_velocity).tolist()
+        self._pbvl = list(
+            zip(
+                (L.max_joint_velocity + L._tolerance).tolist(),
+                L._tolerance.tolist(),
+                L._q_min.tolist(),
+                L._q_max.tolist(),
+                L._offset.tolist(),
+                L._decel2.tolist(),
+                strict=True,
+            )
+        )
+        f = lim.POSE_ROTATION_FACTOR
+        self._pose_rotation = (f * L.rotation[0], f * L.rotation[1], f * L.rotation[2])
+
+    def _velocity_limits(self, q_d: list[float]) -> tuple[list[float], list[float]]:
+        """``RateLimits.joint_velocity_limits`` on floats."""
+        if not self.limits.position_based:
+            return self._vmax, self._vmin
+        upper, lower = [], []
+        sqrt = math.sqrt
+        for i, (cap, tol, qmin, qmax, off, dec2) in enumerate(self._pbvl):
+            qi = q_d[i]
+            up = sqrt(dec2 * (qmax - qi)) - off if qi < qmax else -off
+            lo = sqrt(dec2 * (qi - qmin)) - off if qi > qmin else -off
+            upper.append(min(cap, max(0.0, up)) - tol)
+            lower.append(-min(cap, max(0.0, lo)) + tol)
+        return upper, lower
 
     # --- torques --------------------------------------------------------------------
 
     def torques(self, out: Any, state: np.void) -> bool:
         _expect(out, Torques)
-        tau = out.tau_J
+        tau = out.tau_J.tolist()
         _finite("tau_J", tau)
-        last = state["tau_J_d"]
-        if self.filter:
-            tau = last + self.gain * (tau - last)
-        if self.limit_rate:
-            m = self.limits.max_torque_rate
-            tau = last + np.minimum(np.maximum((tau - last) / lim.DELTA_T, -m), m) * lim.DELTA_T
-        _finite("tau_J", tau)
+        if self.filter or self.limit_rate:
+            last = state["tau_J_d"].tolist()
+            g = self.gain
+            step = self._tau_step
+            for i in range(7):
+                d = g * (tau[i] - last[i])
+                if self.limit_rate:
+                    s = step[i]
+                    d = s if d > s else -s if d < -s else d
+                tau[i] = last[i] + d
+            _finite("tau_J", tau)
         self._tau[:] = tau
         return bool(out.motion_finished)
 
@@ -91,38 +135,45 @@ class Commander:
 
     def joint_positions(self, out: Any, state: np.void) -> bool:
         _expect(out, JointPositions)
-        q = out.q
+        q = out.q.tolist()
         _finite("q", q)
-        q_d = state["q_d"]
-        if self.filter and self.initialized:
-            q = q_d + self.gain * (q - q_d)
+        if self.filter or self.limit_rate:
+            q_d = state["q_d"].tolist()
+            if self.filter and self.initialized:
+                g = self.gain
+                q = [q_d[i] + g * (q[i] - q_d[i]) for i in range(7)]
+            if self.limit_rate:
+                upper, lower = self._velocity_limits(q_d)
+                q = _fast.joint_positions(
+                    upper,
+                    lower,
+                    self._acc,
+                    self._jerk,
+                    q,
+                    q_d,
+                    state["dq_d"].tolist(),
+                    state["ddq_d"].tolist(),
+                )
+            _finite("q", q)
         self.initialized = True
-        if self.limit_rate:
-            L = self.limits
-            upper, lower = L.joint_velocity_limits(q_d)
-            q = lim.limit_rate_joint_positions(
-                upper, lower, L.max_joint_acceleration, L.max_joint_jerk, q, q_d,
-                state["dq_d"], state["ddq_d"],
-            )  # fmt: skip
-        _finite("q", q)
         self._q_c[:] = q
         return bool(out.motion_finished)
 
     def joint_velocities(self, out: Any, state: np.void) -> bool:
         _expect(out, JointVelocities)
-        dq = out.dq
+        dq = out.dq.tolist()
         _finite("dq", dq)
-        dq_d = state["dq_d"]
-        if self.filter:
-            dq = dq_d + self.gain * (dq - dq_d)
-        if self.limit_rate:
-            L = self.limits
-            upper, lower = L.joint_velocity_limits(state["q_d"])
-            dq = lim.limit_rate_joint_velocities(
-                upper, lower, L.max_joint_acceleration, L.max_joint_jerk, dq, dq_d,
-                state["ddq_d"],
-            )  # fmt: skip
-        _finite("dq", dq)
+        if self.filter or self.limit_rate:
+            dq_d = state["dq_d"].tolist()
+            if self.filter:
+                g = self.gain
+                dq = [dq_d[i] + g * (dq[i] - dq_d[i]) for i in range(7)]
+            if self.limit_rate:
+                upper, lower = self._velocity_limits(state["q_d"].tolist())
+                dq = _fast.joint_velocities(
+                    upper, lower, self._acc, self._jerk, dq, dq_d, state["ddq_d"].tolist()
+                )
+            _finite("dq", dq)
         self._dq_c[:] = dq
         return bool(out.motion_finished)
 
@@ -139,10 +190,17 @@ class Commander:
         if self.filter and not first:
             e0 = last + self.gain * (e0 - last)
         if self.limit_rate:
-            e0 = lim.limit_rate_position(
-                self.limits.elbow, e0, last, float(state["delbow_c"][0]),
-                float(state["ddelbow_c"][0]),
-            )  # fmt: skip
+            v, a, j = self.limits.elbow
+            e0 = _fast.joint_positions(
+                [v],
+                [-v],
+                [a],
+                [j],
+                [e0],
+                [last],
+                [float(state["delbow_c"][0])],
+                [float(state["ddelbow_c"][0])],
+            )[0]
         if not math.isfinite(e0):
             raise ValueError("elbow: Commanding value is infinite or NaN.")
         self.record["valid_elbow"] = True
@@ -151,41 +209,48 @@ class Commander:
 
     def cartesian_pose(self, out: Any, state: np.void) -> bool:
         _expect(out, CartesianPose)
-        T = out.O_T_EE
+        T = out.O_T_EE.tolist()
         _finite("O_T_EE", T)
-        if not is_homogeneous_transformation(T):
-            raise ValueError(
-                "O_T_EE: Attempt to set invalid transformation in motion generator. "
-                "Has to be column major!"
-            )
+        if not _fast.is_pose(T):
+            raise ValueError(_INVALID_POSE)
         first = not self.initialized
         self.initialized = True
-        last = state["O_T_EE_c"]
-        if self.filter and not first:
-            T = lim.cartesian_lowpass_filter(lim.DELTA_T, T, last, self.cutoff)
-        if self.limit_rate:
-            L = self.limits
-            T = lim.limit_rate_cartesian_pose(
-                L.translation, L.rotation, T, last, state["O_dP_EE_c"], state["O_ddP_EE_c"]
-            )
-        _finite("O_T_EE", T)
+        if self.filter or self.limit_rate:
+            last = state["O_T_EE_c"].tolist()
+            if self.filter and not first:
+                T = _fast.pose_lowpass(self.gain, T, last)
+            if self.limit_rate:
+                T = _fast.pose_limit(
+                    self.limits.translation,
+                    self._pose_rotation,
+                    T,
+                    last,
+                    state["O_dP_EE_c"].tolist(),
+                    state["O_ddP_EE_c"].tolist(),
+                )
+            _finite("O_T_EE", T)
         self._O_T_EE_c[:] = T
         self._elbow(out.elbow, state, first)
         return bool(out.motion_finished)
 
     def cartesian_velocities(self, out: Any, state: np.void) -> bool:
         _expect(out, CartesianVelocities)
-        v = out.O_dP_EE
+        v = out.O_dP_EE.tolist()
         _finite("O_dP_EE", v)
-        last = state["O_dP_EE_c"]
-        if self.filter:
-            v = last + self.gain * (v - last)
-        if self.limit_rate:
-            L = self.limits
-            v = lim.limit_rate_cartesian_velocity(
-                L.translation, L.rotation, v, last, state["O_ddP_EE_c"]
-            )
-        _finite("O_dP_EE", v)
+        if self.filter or self.limit_rate:
+            last = state["O_dP_EE_c"].tolist()
+            if self.filter:
+                g = self.gain
+                v = [last[i] + g * (v[i] - last[i]) for i in range(6)]
+            if self.limit_rate:
+                v = _fast.twist_limit(
+                    self.limits.translation,
+                    self.limits.rotation,
+                    v,
+                    last,
+                    state["O_ddP_EE_c"].tolist(),
+                )
+            _finite("O_dP_EE", v)
         self._O_dP_EE_c[:] = v
         self._elbow(out.elbow, state, False)
         return bool(out.motion_finished)

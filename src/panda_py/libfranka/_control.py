@@ -3,6 +3,7 @@ active-control style (``start_*_control`` returning :class:`ActiveControl`)."""
 
 from __future__ import annotations
 
+import gc
 import typing
 from collections import deque
 from collections.abc import Callable
@@ -271,8 +272,12 @@ class ControlMixin(_RobotBase):
         convert = None if motion_cb is None else getattr(commander, _MOTIONS[kind][1])
         record = commander.record
         log = self._log
+        gc_was_enabled = gc.isenabled()
         with realtime_scope(self._realtime_config):
             session = self._start(controller, generator)
+            # No cyclic garbage collection inside the loop: a collection pass costs more
+            # than a tick; cycles the callbacks create are collected after the motion.
+            gc.disable()
             try:
                 rec = session.receive()  # libfranka skips the state that shows the modes
                 prev = int(rec["message_id"])
@@ -297,6 +302,8 @@ class ControlMixin(_RobotBase):
                 session.cancel()
                 raise
             finally:
+                if gc_was_enabled:
+                    gc.enable()
                 if self._session is session:
                     self._session = None
 

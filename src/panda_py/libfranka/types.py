@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.fci import ERROR_NAMES, ERROR_STRINGS
+from panda_py.libfranka import _fast
 
 __all__ = [
     "CartesianPose",
@@ -35,10 +36,6 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-
-#: Tolerance on the norm of each rotation row and column of a commanded pose [-]
-#: (``kOrthonormalThreshold`` of libfranka's ``isHomogeneousTransformation``).
-ORTHONORMAL_THRESHOLD = 1e-5
 
 
 class RobotMode(enum.IntEnum):
@@ -251,14 +248,7 @@ def is_homogeneous_transformation(transform: Any) -> bool:
     """True if ``transform`` (16 values, column-major) is a rigid transform as libfranka
     checks it: last row exactly (0, 0, 0, 1), rotation rows and columns of unit norm."""
     t = np.asarray(transform, dtype=np.float64).reshape(-1)
-    if t.shape != (16,) or t[3] != 0.0 or t[7] != 0.0 or t[11] != 0.0 or t[15] != 1.0:
-        return False
-    R = t.reshape(4, 4)[:3, :3]  # rows of this view are the columns of the rotation
-    cols = np.sqrt((R * R).sum(axis=1))
-    rows = np.sqrt((R * R).sum(axis=0))
-    return bool(np.all(np.abs(cols - 1.0) <= ORTHONORMAL_THRESHOLD)) and bool(
-        np.all(np.abs(rows - 1.0) <= ORTHONORMAL_THRESHOLD)
-    )
+    return t.shape == (16,) and _fast.is_pose(t.tolist())
 
 
 def is_valid_elbow(elbow: Any) -> bool:
@@ -268,11 +258,10 @@ def is_valid_elbow(elbow: Any) -> bool:
 
 
 def _pose(value: Any) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape == (4, 4):
-        arr = arr.reshape(16, order="F")  # a 4x4 matrix -> libfranka's column-major 16
-    flat = _vector("O_T_EE", arr, 16, "(column-major 4x4 transform)")
-    if not is_homogeneous_transformation(flat):
+    if getattr(value, "shape", None) == (4, 4):
+        value = np.asarray(value, dtype=np.float64).reshape(16, order="F")  # -> column-major
+    flat = _vector("O_T_EE", value, 16, "(column-major 4x4 transform)")
+    if not _fast.is_pose(flat.tolist()):
         raise ValueError(
             "O_T_EE: Attempt to set invalid transformation in motion generator. "
             "Has to be column major!"

@@ -1,0 +1,178 @@
+"""Time the pure-Python libfranka client against the simulator.
+
+``python benchmarks/bench_client.py overhead [--ticks 5000] [--lockstep]``: per-tick
+client overhead, from the moment the newest state datagram has been read to the moment
+the command datagram has been sent (decode, RobotState, the callback, filter and rate
+limiter, encode, send), against a simulator on the wall clock (a robot's 1 kHz) or in
+lockstep, for protocol v5 and v10 and several control types.
+
+``python benchmarks/bench_client.py realtime [--seconds 60] [--no-burner]``: a torque
+loop against a simulator running on the wall clock (like a robot), beside a process that
+burns a CPU; the simulator's main thread and the control loop run under SCHED_FIFO when
+permitted. Prints the commands the simulator counted lost and the client's response time
+(state read -> command sent) and state period percentiles.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from panda_py import libfranka as lf
+from panda_py.sim import Simulator, free_loopback_host
+
+
+def _instrument(robot: lf.Robot, n: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Per command sent: the time since the newest state was read (``response``) and the
+    time that read happened (``t_read``)."""
+    net = robot._conn.net
+    response = np.zeros(n + 10)
+    t_read = np.zeros(n + 10)
+    last = [0.0]
+    count = [0]
+    clock = time.perf_counter
+    receive, send = net.receive_newest, net.send_udp
+
+    def receive_newest(last_id: int) -> bytes:
+        data = receive(last_id)
+        last[0] = clock()
+        return data
+
+    def send_udp(data: Any) -> None:
+        send(data)
+        i = count[0]
+        if i < len(response):
+            response[i] = clock() - last[0]
+            t_read[i] = last[0]
+        count[0] = i + 1
+
+    net.receive_newest = receive_newest  # type: ignore[method-assign]
+    net.send_udp = send_udp  # type: ignore[method-assign]
+    return response, t_read, count
+
+
+def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[Callable[..., Any], dict]:
+    q0, T0 = state0.q, state0.O_T_EE
+    n = [0]
+
+    def torque(s: lf.RobotState, dt: lf.Duration) -> lf.Torques:
+        n[0] += 1
+        out = lf.Torques(-2.0 * s.dq)  # a damping controller reading the state
+        out.motion_finished = n[0] >= ticks
+        return out
+
+    def joint(s: lf.RobotState, dt: lf.Duration) -> lf.JointPositions:
+        n[0] += 1
+        q = q0.copy()
+        q[0] += 0.05 * (1.0 - np.cos(2 * np.pi * n[0] / ticks)) / 2
+        out = lf.JointPositions(q)
+        out.motion_finished = n[0] >= ticks
+        return out
+
+    def cartesian(s: lf.RobotState, dt: lf.Duration) -> lf.CartesianPose:
+        n[0] += 1
+        T = T0.copy()
+        T[14] += 0.02 * (1.0 - np.cos(2 * np.pi * n[0] / ticks)) / 2
+        out = lf.CartesianPose(T)
+        out.motion_finished = n[0] >= ticks
+        return out
+
+    table = {
+        "torque": (torque, {}),
+        "joint_position": (joint, {"motion": lf.JointPositions}),
+        "cartesian_pose": (cartesian, {"motion": lf.CartesianPose}),
+    }
+    return table[kind]
+
+
+def overhead(ticks: int, lockstep: bool) -> None:
+    clock = "lockstep" if lockstep else "1 kHz wall-clock"
+    print(f"per-tick client overhead [us] over {ticks} ticks ({clock} simulator)")
+    print(f"{'version':>7} {'control':>15} {'mean':>7} {'p50':>7} {'p99':>7} {'worst':>8}")
+    with Simulator(free_loopback_host(), robot="fer", lockstep=lockstep) as sim:
+        for version in (5, 10):
+            for kind in ("torque", "joint_position", "cartesian_pose"):
+                with lf.Robot(sim.host, version=version, robot="fer") as robot:
+                    cb, kw = _callbacks(kind, robot.read_once(), ticks)
+                    response, _, count = _instrument(robot, ticks)
+                    gc.collect()
+                    robot.control(cb, **kw)
+                    # the last commands are the finish phase (no callback): leave them out
+                    us = response[: min(count[0], ticks) - 1] * 1e6
+                    print(
+                        f"{version:>7} {kind:>15} {us.mean():7.1f} {np.percentile(us, 50):7.1f} "
+                        f"{np.percentile(us, 99):7.1f} {us.max():8.1f}"
+                    )
+
+
+def realtime(seconds: float, burner: bool) -> None:
+    ticks = int(seconds * 1000)
+    with Simulator(free_loopback_host(), robot="fer", lockstep=False) as sim:
+        sim_fifo = True
+        try:  # the robot is a realtime system: give the simulator's tick thread FIFO too
+            pid = sim._process.pid
+            os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(50))
+        except (OSError, AttributeError):
+            sim_fifo = False
+        burn = None
+        if burner:
+            burn = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+        try:
+            config = lf.RealtimeConfig.kIgnore
+            if lf.set_current_thread_to_highest_priority() is not None:
+                config = lf.RealtimeConfig.kEnforce
+            with lf.Robot(sim.host, config, version=10, robot="fer") as robot:
+                cb, kw = _callbacks("torque", robot.read_once(), ticks)
+                response, t_read, count = _instrument(robot, ticks)
+                gc.collect()
+                gc.freeze()
+                gc.disable()
+                sim.reset_stats()
+                robot.control(cb, **kw)
+                gc.enable()
+                stats = sim.stats()
+        finally:
+            if burn is not None:
+                burn.kill()
+                burn.wait()
+        k = min(count[0], ticks) - 1
+        response = response[:k] * 1e6
+        period = np.diff(t_read[:k]) * 1e3
+        print(f"realtime torque loop, {k} ticks, burner={'on' if burner else 'off'}, "
+              f"client SCHED_FIFO={config == lf.RealtimeConfig.kEnforce}, "
+              f"simulator SCHED_FIFO={sim_fifo}")  # fmt: skip
+        print(f"  commands lost (simulator): {stats['commands_lost']} of "
+              f"{stats['commands_lost'] + stats['commands_received']}; late ticks "
+              f"{stats['late_ticks']}")  # fmt: skip
+        print(f"  response (state read -> command sent) [us]: p50 {np.percentile(response, 50):.1f}"
+              f" p99 {np.percentile(response, 99):.1f} worst {response.max():.1f}")  # fmt: skip
+        print(f"  state period [ms]: p50 {np.percentile(period, 50):.3f} p99 "
+              f"{np.percentile(period, 99):.3f} worst {period.max():.3f}")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    sub = parser.add_subparsers(dest="what", required=True)
+    p = sub.add_parser("overhead")
+    p.add_argument("--ticks", type=int, default=5000)
+    p.add_argument("--lockstep", action="store_true", help="simulated time per command")
+    p = sub.add_parser("realtime")
+    p.add_argument("--seconds", type=float, default=60.0)
+    p.add_argument("--no-burner", action="store_true")
+    args = parser.parse_args()
+    if args.what == "overhead":
+        overhead(args.ticks, args.lockstep)
+    else:
+        realtime(args.seconds, not args.no_burner)
+
+
+if __name__ == "__main__":
+    main()
