@@ -1,0 +1,205 @@
+"""Client-side rate limiter and low-pass filter: limits honoured, fast path = reference."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from panda_py import fci
+from panda_py import libfranka as lf
+from panda_py.libfranka import _fast
+from panda_py.libfranka import limits as lm
+from panda_py.libfranka._commander import Commander
+from panda_py.robots import FER, FR3, position_based_velocity_limits
+
+DT = 1e-3
+SLACK = 1e-6  # [relative] float round-off allowed on a limit
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, p
+    return T.reshape(16, order="F")
+
+
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_limited_joint_positions_respect_velocity_acceleration_and_jerk(robot):
+    """Closed loop as on the robot: the state echoes each limited command as q_d/dq_d/ddq_d."""
+    rng = np.random.default_rng(1)
+    lim = lm.RateLimits.for_robot(robot)
+    q = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+    dq = np.zeros(7)
+    ddq = np.zeros(7)
+    target = q.copy()
+    for k in range(3000):
+        if k % 500 == 0:  # wild steps: the limiter must make them feasible
+            target = q + rng.uniform(-0.8, 0.8, 7)
+        upper, lower = lim.joint_velocity_limits(q)
+        q_new = lm.limit_rate_joint_positions(
+            upper, lower, lim.max_joint_acceleration, lim.max_joint_jerk, target, q, dq, ddq
+        )
+        dq_new = (q_new - q) / DT
+        ddq_new = (dq_new - dq) / DT
+        jerk = (ddq_new - ddq) / DT
+        # A velocity above the limit (the FR3's limit shrinks as the joint moves) is driven
+        # back: its excess shrinks by (1 - jerk/acc * dt) or by acc * dt per tick.
+        shrink = 1.0 - lim.max_joint_jerk / lim.max_joint_acceleration * DT
+        step = lim.max_joint_acceleration * DT
+        for excess, new in ((dq - upper, dq_new - upper), (lower - dq, lower - dq_new)):
+            bound = np.maximum(0.0, np.maximum(shrink * excess, excess - step))
+            assert np.all(new <= bound + 1e-9)
+        assert np.all(np.abs(ddq_new) <= lim.max_joint_acceleration * (1 + SLACK) + 1e-9)
+        if not lim.position_based:  # a shrinking FR3 limit can clamp faster (as libfranka)
+            assert np.all(np.abs(jerk) <= lim.max_joint_jerk * (1 + SLACK) + 1e-6)
+        q, dq, ddq = q_new, dq_new, ddq_new
+
+
+def test_a_feasible_smooth_motion_passes_the_limiter_unchanged():
+    lim = lm.RateLimits.for_robot("fer")
+    q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
+    q, dq, ddq = q0.copy(), np.zeros(7), np.zeros(7)
+    for k in range(1, 1001):  # 0.2 rad in 1 s, cosine profile: far inside every limit
+        target = q0 + 0.1 * (1 - np.cos(np.pi * k / 1000))
+        upper, lower = lim.joint_velocity_limits(q)
+        out = lm.limit_rate_joint_positions(
+            upper, lower, lim.max_joint_acceleration, lim.max_joint_jerk, target, q, dq, ddq
+        )
+        np.testing.assert_allclose(out, target, atol=1e-12)
+        dq_new = (out - q) / DT
+        q, dq, ddq = out, dq_new, (dq_new - dq) / DT
+
+
+def test_fer_limits_are_libfranka_0_9s_constants():
+    lim = lm.RateLimits.for_robot("fer")
+    # kMaxJointVelocity = 2.175 - kLimitEps - 3 packets * 1 ms * (15 - kLimitEps)
+    assert lim.max_joint_velocity[0] == pytest.approx(2.175 - 1e-3 - 3e-3 * (15 - 1e-3))
+    assert lim.max_joint_jerk[1] == pytest.approx(3750 - 1e-3)
+    assert lim.translation[0] == pytest.approx(1.7 - 1e-3 - 3e-3 * (13 - 1e-3))
+    assert lf.MAX_TORQUE_RATE == pytest.approx([1000 - 1e-3] * 7)
+
+
+def test_fr3_velocity_limits_follow_the_position():
+    lim = lm.RateLimits.for_robot("fr3")
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        q = rng.uniform(FR3.joints.q_min, FR3.joints.q_max)
+        up, lo = position_based_velocity_limits(FR3, q)
+        upper, lower = lim.joint_velocity_limits(q)
+        np.testing.assert_allclose(upper, np.array(up) - lm.LIMIT_EPS, atol=1e-12)
+        np.testing.assert_allclose(lower, np.array(lo) + lm.LIMIT_EPS, atol=1e-12)
+
+
+def test_torque_rate_limit_and_lowpass_gain():
+    last = np.zeros(7)
+    out = lf.limit_rate(np.full(7, 1000.0), np.array([5, -5, 0.5, 0, 0, 0, 0.0]), last)
+    np.testing.assert_allclose(out, [1, -1, 0.5, 0, 0, 0, 0])
+    gain = DT / (DT + 1 / (2 * math.pi * 100.0))
+    assert lf.lowpass_filter(DT, 1.0, 0.0, 100.0) == pytest.approx(gain)
+    with pytest.raises(ValueError, match="cutoff_frequency"):
+        lf.lowpass_filter(DT, 1.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="infinite or NaN"):
+        lf.limit_rate(np.full(7, 1000.0), np.full(7, np.nan), last)
+
+
+def test_cartesian_lowpass_moves_along_the_shortest_arc():
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        R0, R1 = _random_rotation(rng), _random_rotation(rng)
+        T0, T1 = _pose(R0, rng.normal(size=3)), _pose(R1, rng.normal(size=3))
+        out = lf.cartesian_lowpass_filter(DT, T1, T0, 50.0)
+        gain = DT / (DT + 1 / (2 * math.pi * 50.0))
+        R = out.reshape(4, 4, order="F")[:3, :3]
+        angle_total = np.arccos(np.clip((np.trace(R0.T @ R1) - 1) / 2, -1, 1))
+        angle_step = np.arccos(np.clip((np.trace(R0.T @ R) - 1) / 2, -1, 1))
+        assert angle_step == pytest.approx(gain * angle_total, abs=1e-9)
+        np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+        np.testing.assert_allclose(out[12:15], T0[12:15] + gain * (T1[12:15] - T0[12:15]))
+
+
+def test_limited_cartesian_pose_respects_the_twist_limits():
+    rng = np.random.default_rng(4)
+    lim = lm.RateLimits.for_robot("fr3")
+    T = _pose(np.eye(3), np.array([0.3, 0.0, 0.5]))
+    v = np.zeros(6)
+    a = np.zeros(6)
+    goal = _pose(_random_rotation(rng), np.array([0.6, 0.3, 0.2]))
+    for _ in range(2000):
+        T_new = lm.limit_rate_cartesian_pose(lim.translation, lim.rotation, goal, T, v, a)
+        assert lf.is_homogeneous_transformation(T_new)
+        v_new = np.empty(6)
+        v_new[:3] = (T_new[12:15] - T[12:15]) / DT
+        R_prev, R_cur = T.reshape(4, 4, order="F")[:3, :3], T_new.reshape(4, 4, order="F")[:3, :3]
+        v_new[3:] = lm._log(R_cur @ R_prev.T) / DT
+        assert np.linalg.norm(v_new[:3]) <= lim.translation[0] * (1 + SLACK)
+        assert np.linalg.norm(v_new[3:]) <= 0.99 * lim.rotation[0] * (1 + 1e-6)
+        a_new = (v_new - v) / DT
+        assert np.linalg.norm(a_new[:3]) <= lim.translation[1] * (1 + 1e-6) + 1e-6
+        T, v, a = T_new, v_new, a_new
+
+
+def test_fast_math_equals_the_numpy_reference():
+    rng = np.random.default_rng(5)
+    lim = lm.RateLimits.for_robot("fr3")
+    for _ in range(200):
+        q_last = rng.uniform(FR3.joints.q_min, FR3.joints.q_max)
+        dq, ddq = rng.normal(0, 1, 7), rng.normal(0, 5, 7)
+        q = q_last + rng.normal(0, 0.01, 7)
+        up, lo = lim.joint_velocity_limits(q_last)
+        ref = lm.limit_rate_joint_positions(
+            up, lo, lim.max_joint_acceleration, lim.max_joint_jerk, q, q_last, dq, ddq
+        )
+        fast = _fast.joint_positions(
+            up.tolist(), lo.tolist(), lim.max_joint_acceleration.tolist(),
+            lim.max_joint_jerk.tolist(), q.tolist(), q_last.tolist(), dq.tolist(), ddq.tolist(),
+        )  # fmt: skip
+        np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-12)
+        T_last = _pose(_random_rotation(rng), rng.normal(size=3))
+        R_step = lm._exp(rng.normal(0, 0.01, 3))
+        T = _pose(R_step @ T_last.reshape(4, 4, order="F")[:3, :3], T_last[12:15] + 0.001)
+        v, a = rng.normal(0, 0.5, 6), rng.normal(0, 2, 6)
+        ref_T = lm.limit_rate_cartesian_pose(lim.translation, lim.rotation, T, T_last, v, a)
+        rot = [0.99 * x for x in lim.rotation]
+        fast_T = _fast.pose_limit(lim.translation, rot, T.tolist(), T_last.tolist(), v, a)
+        np.testing.assert_allclose(fast_T, ref_T, atol=1e-12)
+        ref_f = lf.cartesian_lowpass_filter(DT, T, T_last, 30.0)
+        gain = lm._gain(DT, 30.0)
+        np.testing.assert_allclose(_fast.pose_lowpass(gain, T, T_last), ref_f, atol=1e-12)
+    # a rotation by (almost) pi: the log map's special branch
+    R = lm._exp(np.array([0.0, math.pi - 1e-9, 0.0]))
+    np.testing.assert_allclose(_fast.log_so3(tuple(R.reshape(9))), lm._log(R), atol=1e-6)
+    np.testing.assert_allclose(np.abs(lm._log(R)), [0, math.pi, 0], atol=1e-6)
+
+
+def test_commander_filters_and_limits_torques_against_tau_J_d():
+    d = fci.dialect(5)
+    c = Commander(d, lm.RateLimits.for_robot(FER), True, 100.0)
+    state = d.new_state()
+    state["tau_J_d"] = np.arange(7.0)
+    c.torques(lf.Torques(np.arange(7.0) + 50.0), state[()])
+    gain = lm._gain(DT, 100.0)
+    step = min(gain * 50.0, 1.0 - 1e-6)  # limited to (1000 - eps) Nm/s * 1 ms
+    np.testing.assert_allclose(c.record["tau_J_d"], np.arange(7.0) + step, rtol=1e-12)
+    off = Commander(d, lm.RateLimits.for_robot(FER), False, 1000.0)  # both disabled
+    off.torques(lf.Torques(np.full(7, 50.0)), state[()])
+    np.testing.assert_array_equal(off.record["tau_J_d"], np.full(7, 50.0))
+    bad = lf.Torques(np.zeros(7))
+    bad.tau_J[2] = np.nan  # mutated after construction: still caught
+    with pytest.raises(ValueError, match="infinite or NaN"):
+        c.torques(bad, state[()])
+    with pytest.raises(ValueError, match="expected it to return Torques"):
+        c.torques(lf.JointPositions(np.zeros(7)), state[()])
