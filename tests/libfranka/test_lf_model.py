@@ -26,7 +26,7 @@ def _rpy(r: float, p: float, y: float) -> np.ndarray:
         math.sin(p),
         math.cos(y),
         math.sin(y),
-    )  # noqa: E501
+    )
     Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
@@ -97,7 +97,7 @@ def _rotvec(R: np.ndarray) -> np.ndarray:
         angle
         / (2 * math.sin(angle))
         * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    )  # noqa: E501
+    )
 
 
 @pytest.mark.parametrize("frame", list(F))
