@@ -146,7 +146,8 @@ def client_command(client: str, host: str, duration: float) -> list[str]:
     if client == "pylibfranka":
         return [str(peer_python("pylibfranka")), str(HERE / "sim_client_pylibfranka.py"), *args]
     if client == "panda_py.libfranka":
-        return [sys.executable, str(HERE / "sim_client_libfranka.py"), *args]
+        script = HERE / "sim_client_pylibfranka.py"
+        return [sys.executable, str(script), *args, "--library", "panda_py.libfranka"]
     raise ValueError(f"client: unknown workload {client!r}")
 
 
@@ -374,9 +375,6 @@ def profile_tick(robot: str, n: int = 3000) -> None:
 
 
 def libfranka_workload_available() -> bool:
-    script = HERE / "sim_client_libfranka.py"
-    if not script.exists():
-        return False
     try:
         import panda_py.libfranka  # noqa: F401
     except Exception:

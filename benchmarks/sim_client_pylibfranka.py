@@ -1,7 +1,8 @@
-"""A real libfranka client (pylibfranka 0.21.3, protocol v10) running a torque loop.
+"""A libfranka-API client running a torque loop: pylibfranka 0.21.3 (the real libfranka,
+protocol v10) or, with ``--library panda_py.libfranka``, our pure-Python libfranka.
 
-Runs inside the pylibfranka peer venv (``tests/peer_envs.py``), never imports panda_py.
-Connects with ``RealtimeConfig.kIgnore``, starts torque control and answers every
+For pylibfranka it runs inside the peer venv (``tests/peer_envs.py``) and never imports
+panda_py. Connects with ``RealtimeConfig.kIgnore``, starts torque control and answers every
 ``readOnce`` with the torques of a weak joint PD holding the start pose for ``--duration``
 wall seconds, then finishes the motion. Prints the same JSON summary as
 ``sim_client_fci.py`` (times in milliseconds; the simulated time comes from
@@ -14,13 +15,13 @@ from __future__ import annotations
 
 import argparse
 import gc
+import importlib
 import json
 import sys
 import time
 from typing import Any
 
 import numpy as np
-import pylibfranka as plf
 
 LATE_PERIOD = 1.5e-3  # [s] a state arriving this long after the previous one counts as late
 
@@ -37,7 +38,8 @@ def _summary(values_s: np.ndarray) -> dict[str, float]:
     }
 
 
-def run(host: str, duration: float, kp: float, kd: float) -> dict[str, Any]:
+def run(library: str, host: str, duration: float, kp: float, kd: float) -> dict[str, Any]:
+    plf: Any = importlib.import_module(library)
     robot = plf.Robot(host, plf.RealtimeConfig.kIgnore)
     q0 = np.array(robot.read_once().q)
     ctrl = robot.start_torque_control()
@@ -77,7 +79,7 @@ def run(host: str, duration: float, kp: float, kd: float) -> dict[str, Any]:
     wall = float(tr_a[-1] - tr_a[0]) if tr_a.size > 1 else 0.0
     sim_ms = int(id_a[-1] - id_a[0]) if id_a.size > 1 else 0
     return {
-        "client": "pylibfranka",
+        "client": library,
         "states": int(tr_a.size),
         "wall_s": wall,
         "sim_s": sim_ms / 1000.0,
@@ -97,13 +99,16 @@ def run(host: str, duration: float, kp: float, kd: float) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("host", help="robot address (a loopback address)")
+    parser.add_argument(
+        "--library", default="pylibfranka", choices=("pylibfranka", "panda_py.libfranka")
+    )
     parser.add_argument("--duration", type=float, default=10.0, help="control time [wall s]")
     parser.add_argument("--kp", type=float, default=10.0, help="PD stiffness [Nm/rad]")
     parser.add_argument("--kd", type=float, default=1.0, help="PD damping [Nm s/rad]")
     args = parser.parse_args()
     if not args.duration > 0:
         parser.error(f"--duration must be > 0 s, got {args.duration}")
-    json.dump(run(args.host, args.duration, args.kp, args.kd), sys.stdout)
+    json.dump(run(args.library, args.host, args.duration, args.kp, args.kd), sys.stdout)
     sys.stdout.write("\n")
 
 
