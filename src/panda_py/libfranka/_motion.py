@@ -198,6 +198,8 @@ class MotionSession:
             return
         self.done = True
         conn = self.conn
+        if conn.net.broken or conn.net.closed:
+            return  # the robot is gone: nothing to stop, nothing to wait for
         try:
             conn.execute(Command.STOP_MOVE, timeout=STOP_TIMEOUT)
         except FrankaException:

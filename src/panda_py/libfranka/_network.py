@@ -69,6 +69,7 @@ class Network:
         self._tcp_lock = threading.Lock()
         self._udp_peer: tuple[str, int] | None = None
         self._last_arrival = 0.0  # perf_counter of the last datagram read
+        self.broken = False  # the robot closed the TCP connection (or it failed)
         self.spin = True  # hybrid sleep/spin wait for states (False: sleep only)
         self._tcp: socket.socket | None = None
         self._udp: socket.socket | None = None
@@ -129,6 +130,7 @@ class Network:
                 return
             data = sock.recv(65536)
             if not data:
+                self.broken = True
                 raise NetworkException("libfranka: server closed connection")
             for msg in self._reader.feed(data):
                 self._responses.setdefault(msg.command_id, deque()).append(msg)
@@ -173,10 +175,12 @@ class Network:
         try:
             ready, _, _ = select.select([sock], [], [], 0.0)
             if ready and sock.recv(1, socket.MSG_PEEK) == b"":
+                self.broken = True
                 raise NetworkException("libfranka: server closed connection")
         except (BlockingIOError, InterruptedError):
             return
         except (OSError, ValueError) as exc:
+            self.broken = True
             raise translate(exc, "TCP receive") from exc
 
     # --- UDP --------------------------------------------------------------------------

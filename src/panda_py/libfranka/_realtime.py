@@ -11,7 +11,13 @@ from contextlib import contextmanager
 from panda_py.libfranka.errors import RealtimeException
 from panda_py.libfranka.types import RealtimeConfig
 
-__all__ = ["has_realtime_kernel", "realtime_scope", "set_current_thread_to_highest_priority"]
+__all__ = [
+    "check_realtime",
+    "fifo_permitted",
+    "has_realtime_kernel",
+    "realtime_scope",
+    "set_current_thread_to_highest_priority",
+]
 
 _warned = False
 
@@ -53,19 +59,26 @@ def _restore(previous: tuple[int, int]) -> None:
         pass
 
 
+def fifo_permitted() -> bool:
+    """True if this thread may switch to ``SCHED_FIFO`` (tried, then switched back)."""
+    previous = set_current_thread_to_highest_priority()
+    if previous is None:
+        return False
+    _restore(previous)
+    return True
+
+
 def check_realtime(config: RealtimeConfig) -> None:
     """With ``kEnforce``, raise :class:`RealtimeException` unless this thread may switch to
     ``SCHED_FIFO`` (checked by switching and switching back)."""
     if config != RealtimeConfig.kEnforce:
         return
-    previous = set_current_thread_to_highest_priority()
-    if previous is None:
+    if not fifo_permitted():
         raise RealtimeException(
             "libfranka: Running kernel does not have realtime capabilities "
             "(SCHED_FIFO not permitted). Use RealtimeConfig.kIgnore, or grant the "
             "permission (e.g. ulimit -r / CAP_SYS_NICE)."
         )
-    _restore(previous)
 
 
 @contextmanager
