@@ -63,6 +63,12 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[Callable[.
     q0, T0 = state0.q, state0.O_T_EE
     n = [0]
 
+    def bump(k: int) -> float:
+        """0 -> 1 -> 0 over the run, smooth up to the acceleration (a quintic up and down)."""
+        t = min(2.0 * k / ticks, 2.0)
+        t = t if t <= 1.0 else 2.0 - t
+        return t**3 * (10.0 - 15.0 * t + 6.0 * t * t)
+
     def torque(s: lf.RobotState, dt: lf.Duration) -> lf.Torques:
         n[0] += 1
         out = lf.Torques(-2.0 * s.dq)  # a damping controller reading the state
@@ -72,7 +78,7 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[Callable[.
     def joint(s: lf.RobotState, dt: lf.Duration) -> lf.JointPositions:
         n[0] += 1
         q = q0.copy()
-        q[0] += 0.05 * (1.0 - np.cos(2 * np.pi * n[0] / ticks)) / 2
+        q[0] += 0.05 * bump(n[0])
         out = lf.JointPositions(q)
         out.motion_finished = n[0] >= ticks
         return out
@@ -80,7 +86,7 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[Callable[.
     def cartesian(s: lf.RobotState, dt: lf.Duration) -> lf.CartesianPose:
         n[0] += 1
         T = T0.copy()
-        T[14] += 0.02 * (1.0 - np.cos(2 * np.pi * n[0] / ticks)) / 2
+        T[14] += 0.02 * bump(n[0])
         out = lf.CartesianPose(T)
         out.motion_finished = n[0] >= ticks
         return out

@@ -57,6 +57,12 @@ from panda_py.libfranka.types import (
     is_valid_elbow,
     motion_finished,
 )
+from panda_py.libfranka.vacuum import (
+    VacuumGripper,
+    VacuumGripperDeviceStatus,
+    VacuumGripperProductionSetupProfile,
+    VacuumGripperState,
+)
 
 #: panda-py 1.1.1's name of the torque-rate limit [Nm/s] (libfranka kMaxTorqueRate).
 MAX_TORQUE_RATE = RateLimits.for_robot("fer").max_torque_rate.tolist()
@@ -90,6 +96,10 @@ __all__ = [
     "RobotMode",
     "RobotState",
     "Torques",
+    "VacuumGripper",
+    "VacuumGripperDeviceStatus",
+    "VacuumGripperProductionSetupProfile",
+    "VacuumGripperState",
     "cartesian_lowpass_filter",
     "has_realtime_kernel",
     "is_homogeneous_transformation",

@@ -1,0 +1,91 @@
+"""VacuumGripper against a scripted Cobot Pump (the simulator has none)."""
+
+from __future__ import annotations
+
+import datetime
+import socket
+import threading
+
+import numpy as np
+import pytest
+
+from panda_py import fci
+from panda_py import libfranka as lf
+from panda_py.fci import vacuum as vp
+from panda_py.sim import free_loopback_host
+
+pytestmark = pytest.mark.timeout(30)
+
+
+ANSWERS = {
+    vp.VacuumCommand.VACUUM: vp.VacuumStatus.SUCCESS,
+    vp.VacuumCommand.DROP_OFF: vp.VacuumStatus.UNSUCCESSFUL,
+    vp.VacuumCommand.STOP: vp.VacuumStatus.FAIL,
+}
+
+
+class _FakePump:
+    """Connect, one state datagram, then answers Vacuum/DropOff/Stop with fixed statuses."""
+
+    def __init__(self) -> None:
+        self.host = free_loopback_host()
+        self.listener = socket.create_server((self.host, vp.VACUUM_COMMAND_PORT))
+        self.requests: list[tuple[vp.VacuumCommand, dict]] = []
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        conn, addr = self.listener.accept()
+        reader = fci.GripperMessageReader()
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        with conn, udp:
+            while True:
+                data = conn.recv(4096)
+                if not data:
+                    return
+                for msg in reader.feed(data):
+                    if msg.command == 0:
+                        cid, version, port = fci.decode_gripper_connect_request(msg.raw)
+                        assert version == vp.VACUUM_VERSION
+                        conn.sendall(fci.encode_gripper_connect_response(
+                            cid, fci.GripperConnectStatus.SUCCESS, version=1))  # fmt: skip
+                        state = np.zeros((), vp.VACUUM_STATE_DTYPE)
+                        state["message_id"], state["part_present"] = 7, True
+                        state["device_status"], state["vacuum"] = 1, 750
+                        udp.sendto(vp.encode_vacuum_state(state), (addr[0], port))
+                        continue
+                    command = vp.VacuumCommand(msg.command)
+                    self.requests.append((command, vp.VACUUM_REQUESTS[command].decode(msg.payload)))
+                    payload = vp.VACUUM_RESPONSE.encode(status=int(ANSWERS[command]))
+                    conn.sendall(vp.encode_vacuum_message(command, msg.command_id, payload))
+
+    def close(self) -> None:
+        self.listener.close()
+
+
+@pytest.fixture
+def pump():
+    p = _FakePump()
+    yield p
+    p.close()
+
+
+def test_vacuum_gripper_commands_state_and_statuses(pump):
+    with lf.VacuumGripper(pump.host) as g:
+        assert g.server_version() == 1
+        state = g.read_once()
+        assert state.part_present and state.vacuum == 750 and state.time.to_msec() == 7
+        assert state.device_status == lf.VacuumGripperDeviceStatus.kYellow
+        assert g.vacuum(100, datetime.timedelta(seconds=1.5),
+                        lf.VacuumGripperProductionSetupProfile.kP2) is True  # fmt: skip
+        assert g.drop_off(lf.Duration(200)) is False
+        with pytest.raises(lf.CommandException, match="Stop command failed"):
+            g.stop()
+        with pytest.raises(ValueError, match="vacuum"):
+            g.vacuum(300, 100)
+    assert pump.requests[0] == (
+        vp.VacuumCommand.VACUUM,
+        {"vacuum": 100, "profile": 2, "timeout": 1500},
+    )
+    assert pump.requests[1] == (vp.VacuumCommand.DROP_OFF, {"timeout": 200})
+    assert len(pump.requests) == 3  # the bad setpoint was never sent
