@@ -11,10 +11,20 @@ See :class:`Robot`, :class:`Gripper`, :class:`Model` and :class:`RobotState`.
 
 from __future__ import annotations
 
-from panda_py.libfranka._control import ActiveControl
+from panda_py.libfranka._active import ActiveControl
 from panda_py.libfranka._realtime import (
     has_realtime_kernel,
     set_current_thread_to_highest_priority,
+)
+from panda_py.libfranka.commands import (
+    CartesianPose,
+    CartesianVelocities,
+    JointPositions,
+    JointVelocities,
+    Torques,
+    is_homogeneous_transformation,
+    is_valid_elbow,
+    motion_finished,
 )
 from panda_py.libfranka.errors import (
     CommandException,
@@ -42,20 +52,12 @@ from panda_py.libfranka.model import Model
 from panda_py.libfranka.robot import Robot
 from panda_py.libfranka.state import GripperState, RobotState
 from panda_py.libfranka.types import (
-    CartesianPose,
-    CartesianVelocities,
     ControllerMode,
     Duration,
     Errors,
     Frame,
-    JointPositions,
-    JointVelocities,
     RealtimeConfig,
     RobotMode,
-    Torques,
-    is_homogeneous_transformation,
-    is_valid_elbow,
-    motion_finished,
 )
 from panda_py.libfranka.vacuum import (
     VacuumGripper,

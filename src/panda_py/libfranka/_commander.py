@@ -16,7 +16,7 @@ import numpy as np
 from panda_py.fci import Dialect
 from panda_py.libfranka import _fast
 from panda_py.libfranka import limits as lim
-from panda_py.libfranka.types import (
+from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
     JointPositions,

@@ -5,29 +5,26 @@ from __future__ import annotations
 
 import gc
 import typing
-from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from panda_py.fci import MoveControllerMode, MoveMotionGeneratorMode
+from panda_py.libfranka._active import ActiveControl, RobotBase
 from panda_py.libfranka._commander import Commander, check_cutoff
-from panda_py.libfranka._connection import RobotConnection
 from panda_py.libfranka._motion import MotionSession
 from panda_py.libfranka._realtime import check_realtime, realtime_scope
-from panda_py.libfranka.errors import InvalidOperationException
-from panda_py.libfranka.limits import RateLimits
-from panda_py.libfranka.state import RobotState
-from panda_py.libfranka.types import (
+from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
-    ControllerMode,
-    Duration,
     JointPositions,
     JointVelocities,
-    RealtimeConfig,
     Torques,
+)
+from panda_py.libfranka.errors import InvalidOperationException
+from panda_py.libfranka.state import RobotState
+from panda_py.libfranka.types import (
+    ControllerMode,
+    Duration,
 )
 
 __all__ = ["ActiveControl", "ControlMixin"]
@@ -66,108 +63,7 @@ def _callback_kind(callback: Any, explicit: type | None) -> type:
     return Torques
 
 
-class _RobotBase:
-    """What the control code needs of a Robot (declared for type checking)."""
-
-    _conn: RobotConnection
-    _limits: RateLimits
-    _log: deque[RobotState]
-    _realtime_config: RealtimeConfig
-    _session: MotionSession | None
-
-
-class ActiveControl:
-    """A running motion whose loop the caller drives: ``readOnce()`` -> ``(RobotState,
-    Duration)``, then ``writeOnce(command)`` once per state. A command marked
-    ``motion_finished`` ends the motion; so does leaving a ``with`` block (by StopMove)."""
-
-    def __init__(
-        self,
-        robot: _RobotBase,
-        session: MotionSession,
-        commander: Commander,
-        kind: type,
-        *,
-        control: bool,
-        motion: bool,
-    ) -> None:
-        self._robot = robot
-        self._session = session
-        self._commander = commander
-        self._convert = (
-            commander.torques if kind is Torques else getattr(commander, _MOTIONS[kind][1])
-        )
-        self._kind = kind
-        self._flags = (motion, control)
-        self._last_id: int | None = None
-        self._last_rec: np.void | None = None
-        self._finished = False
-
-    @property
-    def finished(self) -> bool:
-        return self._finished
-
-    def _check(self) -> None:
-        if self._finished:
-            raise InvalidOperationException("libfranka: this motion has already finished")
-
-    def _end(self) -> None:
-        self._finished = True
-        if self._robot._session is self._session:
-            self._robot._session = None
-
-    def readOnce(self) -> tuple[RobotState, Duration]:
-        """The newest robot state and the time since the previous read (0 at first)."""
-        self._check()
-        try:
-            rec = self._session.receive()
-        except BaseException:
-            self.cancel()
-            raise
-        state = RobotState(self._robot._conn.dialect, rec)
-        self._robot._log.append(state)
-        mid = int(rec["message_id"])
-        dt = Duration(0 if self._last_id is None else mid - self._last_id)
-        self._last_id = mid
-        self._last_rec = rec
-        return state, dt
-
-    def writeOnce(self, command: Any) -> None:
-        """Send ``command`` (of this motion's type) for the last state read."""
-        self._check()
-        rec = self._last_rec
-        if rec is None:
-            raise InvalidOperationException("libfranka: call readOnce() before writeOnce()")
-        try:
-            finished = self._convert(command, rec)
-            if finished:
-                self._session.finish(
-                    self._commander.record, motion=self._flags[0], control=self._flags[1]
-                )
-                self._end()
-            else:
-                self._session.send(self._commander.record)
-        except BaseException:
-            self.cancel()
-            raise
-
-    read_once = readOnce
-    write_once = writeOnce
-
-    def cancel(self) -> None:
-        """Stop the motion now (StopMove) if it still runs."""
-        if not self._finished:
-            self._session.cancel()
-            self._end()
-
-    def __enter__(self) -> ActiveControl:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.cancel()
-
-
-class ControlMixin(_RobotBase):
+class ControlMixin(RobotBase):
     """``Robot``'s control methods."""
 
     def _start(
@@ -318,7 +214,10 @@ class ControlMixin(_RobotBase):
         commander = Commander(self._conn.dialect, self._limits, limit_rate, cutoff_frequency)
         session = self._start(controller, generator)
         session.caller_driven = True
-        return ActiveControl(self, session, commander, kind, control=kind is Torques, motion=has_mg)
+        convert = commander.torques if kind is Torques else getattr(commander, _MOTIONS[kind][1])
+        return ActiveControl(
+            self, session, commander, convert, control=kind is Torques, motion=has_mg
+        )
 
     def start_torque_control(
         self, *, limit_rate: bool = False, cutoff_frequency: float = 1000.0

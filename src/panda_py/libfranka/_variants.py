@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 from panda_py.libfranka._control import Callback, ControlMixin
-from panda_py.libfranka.types import (
+from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
-    ControllerMode,
     JointPositions,
     JointVelocities,
+)
+from panda_py.libfranka.types import (
+    ControllerMode,
 )
 
 __all__ = ["NamedControlMixin"]

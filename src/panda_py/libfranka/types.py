@@ -1,5 +1,5 @@
-"""libfranka's value types: modes, :class:`Duration`, :class:`Errors` and the commands a
-control callback returns (:class:`Torques`, :class:`JointPositions`, ...).
+"""libfranka's value types: modes, :class:`Duration` and :class:`Errors` (the commands are
+in :mod:`.commands`).
 
 Enum members keep libfranka's ``k`` names (``RobotMode.kIdle``) so that code written for
 panda-py 1.1.1 or pylibfranka runs unchanged.
@@ -10,29 +10,20 @@ from __future__ import annotations
 import datetime
 import enum
 from collections.abc import Iterator, Sequence
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.fci import ERROR_NAMES, ERROR_STRINGS
-from panda_py.libfranka import _fast
 
 __all__ = [
-    "CartesianPose",
-    "CartesianVelocities",
     "ControllerMode",
     "Duration",
     "Errors",
     "Frame",
-    "JointPositions",
-    "JointVelocities",
     "RealtimeConfig",
     "RobotMode",
-    "Torques",
-    "is_homogeneous_transformation",
-    "is_valid_elbow",
-    "motion_finished",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -226,131 +217,3 @@ class Errors:
     joint_via_motion_generator_planning_joint_limit_violation = _flag(38)
     base_acceleration_initialization_timeout = _flag(39)
     base_acceleration_invalid_reading = _flag(40)
-
-
-# --- commands -----------------------------------------------------------------------
-
-
-def _vector(name: str, value: Any, n: int, unit: str) -> FloatArray:
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
-    if arr.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
-    s = float(arr.sum())
-    if s - s != 0.0:  # NaN or infinity somewhere
-        raise ValueError(f"{name}: Commanding value is infinite or NaN: {arr.tolist()}")
-    return arr
-
-
-def is_homogeneous_transformation(transform: Any) -> bool:
-    """True if ``transform`` (16 values, column-major) is a rigid transform as libfranka
-    checks it: last row exactly (0, 0, 0, 1), rotation rows and columns of unit norm."""
-    t = np.asarray(transform, dtype=np.float64).reshape(-1)
-    return t.shape == (16,) and _fast.is_pose(t.tolist())
-
-
-def is_valid_elbow(elbow: Any) -> bool:
-    """True if ``elbow[1]`` (the joint-4 flip sign) is exactly +1 or -1."""
-    e = np.asarray(elbow, dtype=np.float64).reshape(-1)
-    return e.shape == (2,) and (e[1] == 1.0 or e[1] == -1.0)
-
-
-def _pose(value: Any) -> FloatArray:
-    if getattr(value, "shape", None) == (4, 4):
-        value = np.asarray(value, dtype=np.float64).reshape(16, order="F")  # -> column-major
-    flat = _vector("O_T_EE", value, 16, "(column-major 4x4 transform)")
-    if not _fast.is_pose(flat.tolist()):
-        raise ValueError(
-            "O_T_EE: Attempt to set invalid transformation in motion generator. "
-            "Has to be column major!"
-        )
-    return flat
-
-
-def _elbow(value: Any) -> FloatArray | None:
-    if value is None:
-        return None
-    e = _vector("elbow", value, 2, "([rad], flip sign)")
-    if not is_valid_elbow(e):
-        raise ValueError(f"elbow: Invalid elbow configuration given: elbow[1] must be +1 or -1, "
-                         f"got {e[1]!r}")  # fmt: skip
-    return e
-
-
-class Torques:
-    """Joint torques ``tau_J`` (7,) [Nm] for the robot's external-controller mode, without
-    gravity (the robot compensates it)."""
-
-    __slots__ = ("motion_finished", "tau_J")
-
-    def __init__(self, tau_J: Any) -> None:
-        self.tau_J: FloatArray = _vector("tau_J", tau_J, 7, "[Nm]")
-        self.motion_finished = False
-
-
-class JointPositions:
-    """Joint positions ``q`` (7,) [rad] for the joint position motion generator."""
-
-    __slots__ = ("motion_finished", "q")
-
-    def __init__(self, q: Any) -> None:
-        self.q: FloatArray = _vector("q", q, 7, "[rad]")
-        self.motion_finished = False
-
-
-class JointVelocities:
-    """Joint velocities ``dq`` (7,) [rad/s] for the joint velocity motion generator."""
-
-    __slots__ = ("dq", "motion_finished")
-
-    def __init__(self, dq: Any) -> None:
-        self.dq: FloatArray = _vector("dq", dq, 7, "[rad/s]")
-        self.motion_finished = False
-
-
-class CartesianPose:
-    """End-effector pose ``O_T_EE`` (16 values column-major, or a 4x4 matrix) [m], with an
-    optional ``elbow`` (joint-3 position [rad], joint-4 flip sign +-1)."""
-
-    __slots__ = ("O_T_EE", "elbow", "motion_finished")
-
-    def __init__(self, O_T_EE: Any, elbow: Any = None) -> None:
-        self.O_T_EE: FloatArray = _pose(O_T_EE)
-        self.elbow: FloatArray | None = _elbow(elbow)
-        self.motion_finished = False
-
-    def has_elbow(self) -> bool:
-        return self.elbow is not None
-
-
-class CartesianVelocities:
-    """End-effector twist ``O_dP_EE`` (6,) [m/s, rad/s] in the base frame, with an
-    optional ``elbow`` (joint-3 velocity [rad/s], joint-4 flip sign +-1)."""
-
-    __slots__ = ("O_dP_EE", "elbow", "motion_finished")
-
-    def __init__(self, O_dP_EE: Any, elbow: Any = None) -> None:
-        self.O_dP_EE: FloatArray = _vector("O_dP_EE", O_dP_EE, 6, "[m/s, rad/s]")
-        self.elbow: FloatArray | None = _elbow(elbow)
-        self.motion_finished = False
-
-    def has_elbow(self) -> bool:
-        return self.elbow is not None
-
-
-MotionCommand = TypeVar(
-    "MotionCommand", Torques, JointPositions, JointVelocities, CartesianPose, CartesianVelocities
-)
-
-
-def motion_finished(command: MotionCommand) -> MotionCommand:
-    """Mark ``command`` as the last of its motion and return it (libfranka's
-    ``MotionFinished``)."""
-    if not isinstance(
-        command, (Torques, JointPositions, JointVelocities, CartesianPose, CartesianVelocities)
-    ):
-        raise ValueError(f"command: expected a libfranka command object, got {command!r}")
-    command.motion_finished = True
-    return command
