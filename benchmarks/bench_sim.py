@@ -256,11 +256,13 @@ def print_targets(rows: list[dict[str, Any]]) -> None:
         r = _find(rows, "realtime", "panda-sim", client)
         if r is None:
             continue
-        ok_rtf = abs(r["rtf"] - 1.0) < 0.005
+        resyncs = r["server"]["resyncs"]
+        ok_rtf = abs(r["rtf"] - 1.0) < 0.005 and resyncs == 0
         ok_late = r["late_tick_share"] <= 0.001
         ok_cpu = r["sim_cpu_share"] < 0.5
         print(
-            f"  realtime {client:12s}: RTF {r['rtf']:.4f} [{'ok' if ok_rtf else 'MISSED'}], "
+            f"  realtime {client:12s}: RTF {r['rtf']:.4f}, {resyncs} resyncs "
+            f"[{'ok' if ok_rtf else 'MISSED'}], "
             f"late ticks {100 * r['late_tick_share']:.3f} % "
             f"({r['server']['late_ticks']}/{r['server']['ticks']}) "
             f"[{'ok' if ok_late else 'MISSED'}], CPU {100 * r['sim_cpu_share']:.1f} % "
@@ -408,8 +410,14 @@ def main() -> None:
         profile_tick(args.robot)
         return
 
+    rev = subprocess.run(
+        ["git", "-C", str(REPO), "log", "-1", "--format=%h", "--", "src/panda_py/sim"],
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
     print(
-        f"bench_sim: {platform.node()}, {os.cpu_count()} CPUs, load average "
+        f"bench_sim: panda-sim at {rev or '?'}; {platform.node()}, {os.cpu_count()} CPUs, "
+        f"load average "
         f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, Python {platform.python_version()}; "
         f"realtime {duration:g} s, lockstep {lock_duration:g} s, panda-sim robot {args.robot}"
     )
