@@ -63,6 +63,10 @@ def test_every_version_connects_and_streams_its_layout(sim, version):
         T = np.asarray(s2["O_T_EE"], dtype=float).reshape(4, 4).T
         np.testing.assert_allclose(T[:3, 2], [0, 0, -1], atol=1e-6)
         assert T[2, 3] == pytest.approx(0.4869, abs=1e-3)
+        if version >= 10:  # accelerometers at rest read gravity in each link frame
+            acc = np.asarray(s2["accelerometer_top"], dtype=float).reshape(6, 3)
+            np.testing.assert_allclose(acc[0], [0, 0, 9.81], atol=1e-5)
+            np.testing.assert_allclose(np.linalg.norm(acc, axis=1), 9.81, atol=1e-5)
     finally:
         c.close()
 

@@ -35,7 +35,10 @@ class SimulatorError(RuntimeError):
 
 def _child_main(config: SimConfig, conn: Any, log_level: str) -> None:
     logging.basicConfig(level=log_level, format="panda-sim %(levelname)s: %(message)s")
-    from panda_py.sim.server import SimServer
+    from panda_py.sim.server import SimServer, raise_priority
+
+    if not config.lockstep:
+        raise_priority()
 
     try:
         server = SimServer(config)

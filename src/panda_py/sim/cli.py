@@ -78,6 +78,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     def stop(signum: int, frame: FrameType | None) -> None:
         server.shutdown()
 
+    if not args.lockstep:
+        from panda_py.sim.server import raise_priority
+
+        raise_priority()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
     if args.viewer:

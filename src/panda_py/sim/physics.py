@@ -74,6 +74,7 @@ class Physics:
         self.link_body = [
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}") for i in range(8)
         ]
+        self._links_1_6 = np.array(self.link_body[1:7])
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
         self._M = np.zeros((m.nv, m.nv))
@@ -146,8 +147,9 @@ class Physics:
         sl = slice(self.v0, self.v0 + 7)
         return np.vstack((self._jacp[:, sl], self._jacr[:, sl]))
 
-    def link_rotation(self, i: int) -> np.ndarray:
-        return self.data.xmat[self.link_body[i]].reshape(3, 3)
+    def link_z_rows(self) -> np.ndarray:
+        """Third rows of the rotations of links 1..6 (6x3): base z in each link frame."""
+        return self.data.xmat[self._links_1_6, 6:9]
 
     def contact_torques(self) -> np.ndarray:
         """Joint torques that contacts with the robot exert on the arm [Nm] (tau_ext)."""

@@ -190,6 +190,7 @@ class RobotCore:
         self.lost_total = 0
         self.received_total = 0
         self.success = np.ones(SUCCESS_WINDOW, dtype=bool)
+        self.success_count = SUCCESS_WINDOW
         self.success_i = 0
         self.success_rate = 0.0
         self.pending_final: MoveStatus | None = None
@@ -250,6 +251,7 @@ class RobotCore:
         self.first_command = True
         self.consecutive_lost = 0
         self.success[:] = True
+        self.success_count = SUCCESS_WINDOW
         self.pending_final = None
         self.joint.reset(q)
         self.q_hold = q
@@ -503,9 +505,11 @@ class RobotCore:
         return tau
 
     def _record_success(self, ok: bool) -> None:
-        self.success[self.success_i] = ok
-        self.success_i = (self.success_i + 1) % SUCCESS_WINDOW
-        self.success_rate = float(self.success.mean())
+        i = self.success_i
+        self.success_count += int(ok) - int(self.success[i])
+        self.success[i] = ok
+        self.success_i = (i + 1) % SUCCESS_WINDOW
+        self.success_rate = self.success_count / SUCCESS_WINDOW
 
     def _extrapolate(self) -> None:
         mg = self.mg_mode
@@ -668,24 +672,29 @@ class RobotCore:
         s["O_ddP_EE_c"][:] = self.cart.a if moving_cart else 0.0
         s["theta"][:] = q
         s["dtheta"][:] = dq
-        # Accelerometers of joints 1..6 (v10): specific force at rest, in each link frame.
-        g = -np.asarray(GRAVITY)
-        for i in range(6):
-            s["accelerometer_top"][i] = ph.link_rotation(i + 1).T @ g
+        # Accelerometers of joints 1..6 (v10): specific force at rest in each link frame,
+        # R_i^T (0, 0, g) = g times the third row of each rotation.
+        s["accelerometer_top"][:] = ph.link_z_rows() * -GRAVITY[2]
         s["accelerometer_bottom"][:] = s["accelerometer_top"]
 
     def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
         s, t = self.state, self.thresholds
         raw = self.physics.contact_torques()
-        self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
-        if not raw.any() and not self.tau_ext.any():
+        if not self.tau_ext.any() and not raw.any():
+            return  # no contact now or lately: the zeros from last time stand
             for name in ("joint_contact", "joint_collision", "tau_ext_hat_filtered",
                          "cartesian_contact", "cartesian_collision", "O_F_ext_hat_K",
                          "K_F_ext_hat_K"):  # fmt: skip
                 s[name][:] = 0.0
             return
-        if np.all(np.abs(self.tau_ext) < 1e-9):
+        self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
+        if not raw.any() and np.abs(self.tau_ext).max() < 1e-9:
             self.tau_ext[:] = 0.0
+            for name in ("joint_contact", "joint_collision", "tau_ext_hat_filtered",
+                         "cartesian_contact", "cartesian_collision", "O_F_ext_hat_K",
+                         "K_F_ext_hat_K"):  # fmt: skip
+                s[name][:] = 0.0
+            return
         tau = self.tau_ext
         s["tau_ext_hat_filtered"][:] = tau
         s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom

@@ -869,6 +869,24 @@ class SimServer:
         return [float(x) for x in self.physics.data.xpos[bid]]
 
 
+# SCHED_FIFO priority of a realtime simulator: above ordinary processes, below the
+# kernel's own threads and below clients that ask for 99 (libfranka's control thread).
+SIM_PRIORITY = 20
+
+
+def raise_priority() -> bool:
+    """Run this process under SCHED_FIFO when permitted (a robot keeps 1 kHz whatever
+    else the machine does); otherwise stay as is. Returns whether it took effect."""
+    import os
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(SIM_PRIORITY))
+    except (AttributeError, PermissionError, OSError):
+        log.info("no realtime priority for the simulator (SCHED_FIFO not permitted)")
+        return False
+    return True
+
+
 def run(config: SimConfig, control: Any = None, ready: Any = None) -> None:
     """Build a server from ``config`` and serve until stopped (process entry point)."""
     server = SimServer(config)
