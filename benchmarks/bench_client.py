@@ -99,6 +99,15 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[Callable[.
     return table[kind]
 
 
+def _fifo_simulator(sim: Simulator) -> bool:
+    """Give the simulator's tick thread SCHED_FIFO (a robot is a realtime system)."""
+    try:
+        os.sched_setscheduler(sim._process.pid, os.SCHED_FIFO, os.sched_param(50))
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
 def overhead(ticks: int, lockstep: bool) -> None:
     clock = "lockstep" if lockstep else "1 kHz wall-clock"
     print(f"per-tick client overhead [us] over {ticks} ticks ({clock} simulator)")
@@ -122,12 +131,7 @@ def overhead(ticks: int, lockstep: bool) -> None:
 def realtime(seconds: float, burner: bool) -> None:
     ticks = int(seconds * 1000)
     with Simulator(free_loopback_host(), robot="fer", lockstep=False) as sim:
-        sim_fifo = True
-        try:  # the robot is a realtime system: give the simulator's tick thread FIFO too
-            pid = sim._process.pid
-            os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(50))
-        except (OSError, AttributeError):
-            sim_fifo = False
+        sim_fifo = _fifo_simulator(sim)
         burn = None
         if burner:
             burn = subprocess.Popen([sys.executable, "-c", "while True: pass"])
