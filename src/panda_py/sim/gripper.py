@@ -178,7 +178,8 @@ class GripperCore:
             self._finish(GripperStatus.UNSUCCESSFUL)
 
     def _finish(self, status: GripperStatus) -> None:
-        assert self.action is not None
+        if self.action is None:
+            return
         self.completed.append((self.action.command_id, status))
         self.action = None
 

@@ -184,7 +184,6 @@ class RobotCore:
         self.tau_prev_J = np.zeros(7)
         self.tau_ext = np.zeros(7)
         self.q_hold = q.copy()
-        self.move_active = False
         self.first_command = True
         self.consecutive_lost = 0
         self.lost_total = 0
@@ -247,7 +246,6 @@ class RobotCore:
         self.robot_mode = RobotMode.MOVE
         self.mg_mode = _MG_FROM_MOVE[mg]
         self.ctrl_mode = ControllerMode(int(ctrl))
-        self.move_active = True
         self.first_command = True
         self.consecutive_lost = 0
         self.success[:] = True
@@ -308,25 +306,21 @@ class RobotCore:
         self.thresholds = CollisionThresholds(*arrays)
         return GetterSetterStatus.SUCCESS
 
-    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
-        K = np.asarray(K_theta, dtype=float)
+    def _set_stiffness(self, attr: str, values: np.ndarray) -> GetterSetterStatus:
+        K = np.asarray(values, dtype=float)
         bad = self._setter_check(K)
         if bad is not None:
             return bad
         if np.any(K < 0):
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.K_theta = K
+        setattr(self, attr, K)
         return GetterSetterStatus.SUCCESS
 
+    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
+        return self._set_stiffness("K_theta", K_theta)
+
     def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
-        K = np.asarray(K_x, dtype=float)
-        bad = self._setter_check(K)
-        if bad is not None:
-            return bad
-        if np.any(K < 0):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.K_x = K
-        return GetterSetterStatus.SUCCESS
+        return self._set_stiffness("K_x", K_x)
 
     def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
         bad = self._setter_check()
@@ -434,7 +428,6 @@ class RobotCore:
         # A finished motion generator holds its last target; after a torque-controlled
         # motion (whose generator only idles at its start) the robot holds where it is.
         tracked = self.ctrl_mode != ControllerMode.EXTERNAL_CONTROLLER
-        self.move_active = False
         self.robot_mode = RobotMode.IDLE
         self.mg_mode = MotionGeneratorMode.IDLE
         self.ctrl_mode = ControllerMode.JOINT_IMPEDANCE
