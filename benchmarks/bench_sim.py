@@ -292,6 +292,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
 
     from panda_py import fci
     from panda_py.sim.server import SimConfig, SimServer, _RobotConnection
+    from panda_py.sim.wire import CommandWire, StateWire
 
     host = free_loopback_host()
     srv = SimServer(SimConfig(host=host, robot=robot))
@@ -304,10 +305,9 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     tx.bind((host, 0))
     conn = _RobotConnection(socket.socket(), (host, 0))
-    conn.dialect, conn.record = d, d.new_state()
+    conn.dialect = d
+    conn.state_wire, conn.command_wire = StateWire(d, core), CommandWire(d)
     conn.udp, conn.udp_target = tx, sink.getsockname()
-    names = set(d.state_dtype.names or ())
-    conn.fields = [k for k in core.state if k in names]
     srv.robot_conn = conn
     # The server's own UDP reader decodes the command datagrams: feed it through a pair.
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)

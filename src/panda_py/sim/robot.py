@@ -53,6 +53,12 @@ _EXT_FILTER = 0.1
 _DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)  # [Nm]
 _DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)  # [N, Nm]
 
+_JOINT_GENERATORS = (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY)
+_CARTESIAN_GENERATORS = (
+    MotionGeneratorMode.CARTESIAN_POSITION,
+    MotionGeneratorMode.CARTESIAN_VELOCITY,
+)
+
 _MG_FROM_MOVE = {
     MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
     MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
@@ -62,9 +68,23 @@ _MG_FROM_MOVE = {
 }
 
 
-def col_major(T: np.ndarray) -> np.ndarray:
-    """4x4 -> the 16-vector libfranka puts on the wire (column-major)."""
-    return T.T.reshape(16)
+# The state's float fields in the order every wire layout has them (v5+; older layouts
+# lack some): name -> number of float64 values.
+_STATE_SIZES = {
+    "O_T_EE": 16, "O_T_EE_d": 16, "F_T_EE": 16, "EE_T_K": 16, "F_T_NE": 16, "NE_T_EE": 16,
+    "m_ee": 1, "I_ee": 9, "F_x_Cee": 3, "m_load": 1, "I_load": 9, "F_x_Cload": 3,
+    "elbow": 2, "elbow_d": 2, "tau_J": 7, "tau_J_d": 7, "dtau_J": 7, "q": 7, "q_d": 7,
+    "dq": 7, "dq_d": 7, "ddq_d": 7, "joint_contact": 7, "cartesian_contact": 6,
+    "joint_collision": 7, "cartesian_collision": 6, "tau_ext_hat_filtered": 7,
+    "O_F_ext_hat_K": 6, "K_F_ext_hat_K": 6, "O_dP_EE_d": 6, "O_ddP_O": 3, "elbow_c": 2,
+    "delbow_c": 2, "ddelbow_c": 2, "O_T_EE_c": 16, "O_dP_EE_c": 6, "O_ddP_EE_c": 6,
+    "theta": 7, "dtheta": 7, "accelerometer_top": 18, "accelerometer_bottom": 18,
+}  # fmt: skip
+# Fields that hold contact estimates (zero without contact).
+_CONTACT_FIELDS = (
+    "joint_contact", "joint_collision", "tau_ext_hat_filtered", "cartesian_contact",
+    "cartesian_collision", "O_F_ext_hat_K", "K_F_ext_hat_K",
+)  # fmt: skip
 
 
 def from_col_major(v: np.ndarray) -> np.ndarray:
@@ -72,7 +92,7 @@ def from_col_major(v: np.ndarray) -> np.ndarray:
 
 
 def _finite(*arrays: np.ndarray) -> bool:
-    return all(bool(np.all(np.isfinite(a))) for a in arrays)
+    return all(np.isfinite(a).all() for a in arrays)
 
 
 @dataclass
@@ -123,29 +143,37 @@ class RobotCore:
         self._tau_max = np.asarray(spec.joints.tau_max)
         self._dtau_max = np.asarray(spec.joints.dtau_max)
         self._K_default = np.asarray(spec.default_K_theta)
+        # Measured-state limits with the robot's tolerance, and the torque change per tick.
+        self._q_lo = self._q_min - 1e-3
+        self._q_hi = self._q_max + 1e-3
+        self._dq_hi = self._dq_max * 1.05
+        self._dtau_step = (self._dtau_max * (1 + 1e-6) + 1e-6) * DT
         # The hand's TCP kinematics, fast generated fk (O_T_EE of the nominal EE).
         self._kin = get_kinematics(spec, F_T_EE=physics.F_T_NE)
-        self.state = self._new_state()
+        self._new_state()
         self.reset(q_start)
 
     # -- setup ---------------------------------------------------------------------------
 
-    @staticmethod
-    def _new_state() -> dict[str, np.ndarray]:
-        sizes = {
-            "O_T_EE": 16, "O_T_EE_d": 16, "F_T_EE": 16, "EE_T_K": 16, "F_T_NE": 16,
-            "NE_T_EE": 16, "m_ee": 1, "I_ee": 9, "F_x_Cee": 3, "m_load": 1, "I_load": 9,
-            "F_x_Cload": 3, "elbow": 2, "elbow_d": 2, "tau_J": 7, "tau_J_d": 7, "dtau_J": 7,
-            "q": 7, "q_d": 7, "dq": 7, "dq_d": 7, "ddq_d": 7, "joint_contact": 7,
-            "cartesian_contact": 6, "joint_collision": 7, "cartesian_collision": 6,
-            "tau_ext_hat_filtered": 7, "O_F_ext_hat_K": 6, "K_F_ext_hat_K": 6,
-            "O_dP_EE_d": 6, "O_ddP_O": 3, "elbow_c": 2, "delbow_c": 2, "ddelbow_c": 2,
-            "O_T_EE_c": 16, "O_dP_EE_c": 6, "O_ddP_EE_c": 6, "theta": 7, "dtheta": 7,
+    def _new_state(self) -> None:
+        """The state: named float64 views into one buffer laid out in the wire's field
+        order (see :mod:`panda_py.sim.wire`), so a connection copies it in a few blocks."""
+        total = sum(_STATE_SIZES.values())
+        self.state_buffer = np.zeros(total)
+        self.state_offsets: dict[str, tuple[int, int]] = {}
+        self.state: dict[str, np.ndarray] = {}
+        start = 0
+        for name, n in _STATE_SIZES.items():
+            self.state_offsets[name] = (start, start + n)
+            view = self.state_buffer[start : start + n]
+            self.state[name] = view.reshape(6, 3) if name.startswith("accelerometer") else view
+            start += n
+        # 4x4 views onto the column-major transforms: writing T there stores T's columns.
+        self._T_view = {
+            name: self.state[name].reshape(4, 4).T
+            for name in ("O_T_EE", "O_T_EE_d", "F_T_EE", "EE_T_K", "F_T_NE", "NE_T_EE",
+                         "O_T_EE_c")
         }  # fmt: skip
-        state = {name: np.zeros(n) for name, n in sizes.items()}
-        state["accelerometer_top"] = np.zeros((6, 3))  # 6 sensors (joints 1..6) x xyz
-        state["accelerometer_bottom"] = np.zeros((6, 3))
-        return state
 
     def reset(self, q: np.ndarray) -> None:
         """Power-up state at joint positions ``q`` [rad]: idle, no errors, defaults set."""
@@ -173,6 +201,7 @@ class RobotCore:
         self.m_load = 0.0
         self.I_load = np.zeros((3, 3))
         self.F_x_Cload = np.zeros(3)
+        self._fill_static()
         self.joint = JointSignal()
         self.joint.reset(q)
         self.cart = CartesianSignal()
@@ -183,6 +212,7 @@ class RobotCore:
         self.tau_J_d = np.zeros(7)
         self.tau_prev_J = np.zeros(7)
         self.tau_ext = np.zeros(7)
+        self.contact_active = False
         self.q_hold = q.copy()
         self.first_command = True
         self.consecutive_lost = 0
@@ -194,11 +224,26 @@ class RobotCore:
         self.success_rate = 0.0
         self.pending_final: MoveStatus | None = None
         self.finger_force = 0.0  # [N] set by the gripper each tick
+        for name in _CONTACT_FIELDS:
+            self.state[name][:] = 0.0
         self._fill_state()
 
-    @property
-    def F_T_EE(self) -> np.ndarray:
-        return self.F_T_NE @ self.NE_T_EE
+    def _fill_static(self) -> None:
+        """The state fields only setters change (end effector, load, gravity)."""
+        s, T = self.state, self._T_view
+        self.F_T_EE = self.F_T_NE @ self.NE_T_EE
+        self._NE_identity = bool(np.array_equal(self.NE_T_EE, np.eye(4)))
+        T["F_T_EE"][:] = self.F_T_EE
+        T["EE_T_K"][:] = self.EE_T_K
+        T["F_T_NE"][:] = self.F_T_NE
+        T["NE_T_EE"][:] = self.NE_T_EE
+        s["m_ee"][0] = self.m_ee
+        s["I_ee"][:] = self.I_ee.T.reshape(9)
+        s["F_x_Cee"][:] = self.F_x_Cee
+        s["m_load"][0] = self.m_load
+        s["I_load"][:] = self.I_load.T.reshape(9)
+        s["F_x_Cload"][:] = self.F_x_Cload
+        s["O_ddP_O"][:] = GRAVITY
 
     def _elbow_sign(self, q4: float) -> float:
         # libfranka: elbow[1] is the flip direction of joint 4 relative to q_elbow-flip.
@@ -338,6 +383,7 @@ class RobotCore:
         if not is_valid_transform(T):
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         setattr(self, attr, T)
+        self._fill_static()
         return GetterSetterStatus.SUCCESS
 
     def set_ee_to_k(self, EE_T_K: np.ndarray) -> GetterSetterStatus:
@@ -355,6 +401,7 @@ class RobotCore:
         if not is_valid_transform(T):
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         self.NE_T_EE = np.linalg.inv(self.F_T_NE) @ T
+        self._fill_static()
         return GetterSetterStatus.SUCCESS
 
     def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
@@ -366,6 +413,7 @@ class RobotCore:
         if m < 0 or not np.allclose(I_m, I_m.T, atol=1e-9):
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
+        self._fill_static()
         return GetterSetterStatus.SUCCESS
 
     def set_filters(self, frequencies: np.ndarray) -> GetterSetterStatus:
@@ -478,24 +526,37 @@ class RobotCore:
         if self.robot_mode != RobotMode.MOVE:
             return np.zeros(7)
         # Measured-state checks during motion.
-        flags = []
-        if np.any(ph.q < self._q_min - 1e-3) or np.any(ph.q > self._q_max + 1e-3):
-            flags.append("joint_position_limits_violation")
-        if np.any(np.abs(ph.dq) > self._dq_max * 1.05):
-            flags.append("joint_velocity_violation")
-        if np.any(np.abs(self.tau_ext) > self.thresholds.upper_torque_nom):
-            flags.append("joint_reflex")
-        if np.any(self.state["cartesian_collision"]):
-            flags.append("cartesian_reflex")
-        if flags:
-            self._reflex(flags)
-            return np.zeros(7)
+        q = ph.q
+        if (
+            (q < self._q_lo).any()
+            or (q > self._q_hi).any()
+            or (np.abs(ph.dq) > self._dq_hi).any()
+            or self.contact_active
+        ):
+            flags = self._measured_violations()
+            if flags:
+                self._reflex(flags)
+                return np.zeros(7)
         if self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER:
             return self.tau_J_d.copy()
         scale = np.maximum(self.K_theta / self._K_default, 1e-3)
         tau = ph.joint_tracking_torque(self.joint.q, self.joint.dq, self.joint.ddq, scale)
         self.tau_J_d[:] = tau
         return tau
+
+    def _measured_violations(self) -> list[str]:
+        """Flags of the checks on the measured state (position, velocity, contact)."""
+        ph = self.physics
+        flags = []
+        if (ph.q < self._q_lo).any() or (ph.q > self._q_hi).any():
+            flags.append("joint_position_limits_violation")
+        if (np.abs(ph.dq) > self._dq_hi).any():
+            flags.append("joint_velocity_violation")
+        if (np.abs(self.tau_ext) > self.thresholds.upper_torque_nom).any():
+            flags.append("joint_reflex")
+        if self.state["cartesian_collision"].any():
+            flags.append("cartesian_reflex")
+        return flags
 
     def _record_success(self, ok: bool) -> None:
         i = self.success_i
@@ -516,16 +577,18 @@ class RobotCore:
     def _accept(self, c: Command) -> MoveStatus | None:
         """Apply one received command; returns a final status if the motion ended."""
         mg = self.mg_mode
-        fields = [c.tau_J_d]
+        external = self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
         if mg == MotionGeneratorMode.JOINT_POSITION:
-            fields.append(c.q_c)
+            finite = _finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
-            fields.append(c.dq_c)
+            finite = _finite(c.dq_c)
         elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
-            fields += [c.O_T_EE_c, c.elbow_c]
+            finite = _finite(c.O_T_EE_c, c.elbow_c)
         elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
-            fields += [c.O_dP_EE_c, c.elbow_c]
-        if not _finite(*fields):
+            finite = _finite(c.O_dP_EE_c, c.elbow_c)
+        else:
+            finite = True
+        if not finite or (external and not _finite(c.tau_J_d)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
             return MoveStatus.INPUT_ERROR_ABORTED
@@ -540,25 +603,23 @@ class RobotCore:
             flags += self.joint.violations(self.spec, cartesian=False)
         elif mg in (MotionGeneratorMode.CARTESIAN_POSITION, MotionGeneratorMode.CARTESIAN_VELOCITY):
             flags += self._accept_cartesian(c)
-        if self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER:
-            rate = np.abs(c.tau_J_d - self.tau_J_d) / DT
-            if np.any(rate > self._dtau_max * (1 + 1e-6) + 1e-6):
+        if external:
+            tau = c.tau_J_d
+            if (np.abs(tau - self.tau_J_d) > self._dtau_step).any():
                 flags.append("controller_torque_discontinuity")
-            if np.any(np.abs(c.tau_J_d) > self._tau_max):
+            if (np.abs(tau) > self._tau_max).any():
                 flags.append("tau_J_range_violation")
-            self.tau_J_d[:] = c.tau_J_d
+            self.tau_J_d[:] = tau
         self.first_command = False
         if flags:
             self._reflex(flags)
             return MoveStatus.REFLEX_ABORTED
         finished = (
             c.motion_generation_finished
-            if mg not in (MotionGeneratorMode.NONE,)
+            if mg != MotionGeneratorMode.NONE
             else c.torque_command_finished
         )
-        if finished or (
-            c.torque_command_finished and self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
-        ):
+        if finished or (c.torque_command_finished and external):
             self._end_motion(MoveStatus.SUCCESS)
             return MoveStatus.SUCCESS
         return None
@@ -610,84 +671,78 @@ class RobotCore:
         self._fill_state()
 
     def _fill_state(self) -> None:
-        ph, s = self.physics, self.state
+        """The per-tick fields (the static ones are written by :meth:`_fill_static`)."""
+        ph, s, Tv = self.physics, self.state, self._T_view
         q, dq = ph.q, ph.dq
-        F_T_EE = self.F_T_EE
-        O_T_F = ph.flange_pose()
-        O_T_EE = O_T_F @ F_T_EE
-        s["O_T_EE"][:] = col_major(O_T_EE)
-        moving_joint = self.mg_mode in (
-            MotionGeneratorMode.JOINT_POSITION,
-            MotionGeneratorMode.JOINT_VELOCITY,
-        )
-        moving_cart = self.mg_mode in (
-            MotionGeneratorMode.CARTESIAN_POSITION,
-            MotionGeneratorMode.CARTESIAN_VELOCITY,
-        )
+        mg = self.mg_mode
+        moving_cart = mg in _CARTESIAN_GENERATORS
+        moving = moving_cart or mg in _JOINT_GENERATORS
+        O_T_EE = Tv["O_T_EE"]
+        np.matmul(ph.flange_pose(), self.F_T_EE, out=O_T_EE)
+        joint = self.joint
         if moving_cart:
-            s["O_T_EE_d"][:] = col_major(self.cart.T)
+            Tv["O_T_EE_d"][:] = self.cart.T
+        elif self._NE_identity:
+            Tv["O_T_EE_d"][:] = self._kin.fk(joint.q)
         else:
-            s["O_T_EE_d"][:] = col_major(self._kin.fk(self.joint.q) @ self.NE_T_EE)
-        s["F_T_EE"][:] = col_major(F_T_EE)
-        s["EE_T_K"][:] = col_major(self.EE_T_K)
-        s["F_T_NE"][:] = col_major(self.F_T_NE)
-        s["NE_T_EE"][:] = col_major(self.NE_T_EE)
-        s["m_ee"][0] = self.m_ee
-        s["I_ee"][:] = self.I_ee.T.reshape(9)
-        s["F_x_Cee"][:] = self.F_x_Cee
-        s["m_load"][0] = self.m_load
-        s["I_load"][:] = self.I_load.T.reshape(9)
-        s["F_x_Cload"][:] = self.F_x_Cload
-        s["elbow"][:] = (q[2], self._elbow_sign(q[3]))
-        s["elbow_d"][:] = (self.joint.q[2], self._elbow_sign(self.joint.q[3]))
+            np.matmul(self._kin.fk(joint.q), self.NE_T_EE, out=Tv["O_T_EE_d"])
+        flip = self.spec.elbow_flip_q
+        s["elbow"][:] = (q[2], 1.0 if q[3] > flip else -1.0)
+        elbow_d = s["elbow_d"]
+        elbow_d[:] = (joint.q[2], 1.0 if joint.q[3] > flip else -1.0)
         if moving_cart:
             s["elbow_c"][:] = self.elbow_c
             s["delbow_c"][:] = self.delbow_c
             s["ddelbow_c"][:] = self.ddelbow_c
+            Tv["O_T_EE_c"][:] = self.cart.T
+            s["O_dP_EE_d"][:] = self.cart.v
+            s["O_dP_EE_c"][:] = self.cart.v
+            s["O_ddP_EE_c"][:] = self.cart.a
         else:
-            s["elbow_c"][:] = s["elbow_d"]
+            s["elbow_c"][:] = elbow_d
             s["delbow_c"][:] = 0.0
             s["ddelbow_c"][:] = 0.0
+            s["O_T_EE_c"][:] = s["O_T_EE_d"]
+            s["O_dP_EE_d"][:] = 0.0
+            s["O_dP_EE_c"][:] = 0.0
+            s["O_ddP_EE_c"][:] = 0.0
         tau_J = ph.tau_applied + ph.gravity_torque() - self.tau_ext
-        s["dtau_J"][:] = (tau_J - s["tau_J"]) / DT
+        np.subtract(tau_J, s["tau_J"], out=s["dtau_J"])
+        s["dtau_J"] *= 1.0 / DT
         s["tau_J"][:] = tau_J
         s["tau_J_d"][:] = self.tau_J_d
         s["q"][:] = q
         s["dq"][:] = dq
-        s["q_d"][:] = self.joint.q if (moving_joint or moving_cart) else self.q_hold
-        s["dq_d"][:] = self.joint.dq if (moving_joint or moving_cart) else 0.0
-        s["ddq_d"][:] = self.joint.ddq if (moving_joint or moving_cart) else 0.0
-        self._fill_contacts(O_T_EE)
-        s["O_dP_EE_d"][:] = self.cart.v if moving_cart else 0.0
-        s["O_ddP_O"][:] = GRAVITY
-        s["O_T_EE_c"][:] = col_major(self.cart.T) if moving_cart else s["O_T_EE_d"]
-        s["O_dP_EE_c"][:] = self.cart.v if moving_cart else 0.0
-        s["O_ddP_EE_c"][:] = self.cart.a if moving_cart else 0.0
         s["theta"][:] = q
         s["dtheta"][:] = dq
+        if moving:
+            s["q_d"][:] = joint.q
+            s["dq_d"][:] = joint.dq
+            s["ddq_d"][:] = joint.ddq
+        else:
+            s["q_d"][:] = self.q_hold
+            s["dq_d"][:] = 0.0
+            s["ddq_d"][:] = 0.0
+        self._fill_contacts(O_T_EE)
         # Accelerometers of joints 1..6 (v10): specific force at rest in each link frame,
         # R_i^T (0, 0, g) = g times the third row of each rotation.
-        s["accelerometer_top"][:] = ph.link_z_rows() * -GRAVITY[2]
-        s["accelerometer_bottom"][:] = s["accelerometer_top"]
+        top = s["accelerometer_top"]
+        np.multiply(ph.link_z_rows(), -GRAVITY[2], out=top)
+        s["accelerometer_bottom"][:] = top
 
     def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
         s, t = self.state, self.thresholds
         raw = self.physics.contact_torques()
-        if not self.tau_ext.any() and not raw.any():
-            return  # no contact now or lately: the zeros from last time stand
-            for name in ("joint_contact", "joint_collision", "tau_ext_hat_filtered",
-                         "cartesian_contact", "cartesian_collision", "O_F_ext_hat_K",
-                         "K_F_ext_hat_K"):  # fmt: skip
-                s[name][:] = 0.0
-            return
+        if not self.contact_active and not raw.any():
+            return  # no contact now or lately: the zeros written last time stand
         self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
         if not raw.any() and np.abs(self.tau_ext).max() < 1e-9:
             self.tau_ext[:] = 0.0
-            for name in ("joint_contact", "joint_collision", "tau_ext_hat_filtered",
-                         "cartesian_contact", "cartesian_collision", "O_F_ext_hat_K",
-                         "K_F_ext_hat_K"):  # fmt: skip
+            self.contact_active = False
+            for name in _CONTACT_FIELDS:
                 s[name][:] = 0.0
             return
+        self.contact_active = True
         tau = self.tau_ext
         s["tau_ext_hat_filtered"][:] = tau
         s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom

@@ -37,6 +37,7 @@ from panda_py.sim.gripper import GripperCore
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.robot import RobotCore
+from panda_py.sim.wire import CommandWire, StateWire
 
 log = logging.getLogger("panda_py.sim")
 
@@ -99,8 +100,8 @@ class _RobotConnection:
         self.dialect: fci.Dialect | None = None
         self.udp: socket.socket | None = None
         self.udp_target: tuple[str, int] | None = None
-        self.record: np.ndarray | None = None
-        self.fields: list[str] = []
+        self.state_wire: StateWire | None = None
+        self.command_wire: CommandWire | None = None
         self.move_id: int | None = None
         self.last_sent_id = -1
         self.command: RobotCommand | None = None  # newest fresh command since last tick
@@ -465,9 +466,8 @@ class SimServer:
         conn.udp = udp
         conn.udp_target = (conn.addr[0], udp_port)
         conn.dialect = d
-        conn.record = d.new_state()
-        names = set(d.state_dtype.names or ())
-        conn.fields = [n for n in self.core.state if n in names]
+        conn.state_wire = StateWire(d, self.core)
+        conn.command_wire = CommandWire(d)
         self._sel.register(udp, selectors.EVENT_READ, ("robot-udp", conn))
         self._send_tcp(
             conn, fci.encode_connect_response(msg.command_id, ConnectStatus.SUCCESS, version)
@@ -600,76 +600,49 @@ class SimServer:
     # -- robot UDP ---------------------------------------------------------------------
 
     def _read_robot_udp(self, conn: _RobotConnection) -> None:
-        d = conn.dialect
-        if conn.udp is None or d is None:
+        wire, udp = conn.command_wire, conn.udp
+        if udp is None or wire is None:
             return
-        size = d.command_size
         while True:
             try:
-                data = conn.udp.recv(2048)
+                size, mid = wire.receive(udp)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError:
                 return  # e.g. ICMP port unreachable from a vanished client
-            if len(data) != size:
+            if size != wire.size:
                 self.stats.bad_datagrams += 1
                 if self.stats.bad_datagrams <= 3 or self.stats.bad_datagrams % 1000 == 0:
                     log.warning(
                         "dropping a %d-byte command datagram (protocol v%d expects %d)",
-                        len(data),
-                        d.version,
                         size,
+                        conn.dialect.version if conn.dialect else 0,
+                        wire.size,
                     )
                 continue
             if self.drop_commands > 0:
                 self.drop_commands -= 1
                 continue
-            rec = np.frombuffer(data, d.command_dtype, count=1)[0]
-            mid = int(rec["message_id"])
             if mid < conn.last_sent_id:
                 continue  # late: answers a state older than the newest one sent
-            conn.command = RobotCommand(
-                message_id=mid,
-                q_c=np.array(rec["q_c"]),
-                dq_c=np.array(rec["dq_c"]),
-                O_T_EE_c=np.array(rec["O_T_EE_c"]),
-                O_dP_EE_c=np.array(rec["O_dP_EE_c"]),
-                elbow_c=np.array(rec["elbow_c"]),
-                valid_elbow=bool(rec["valid_elbow"]),
-                motion_generation_finished=bool(rec["motion_generation_finished"]),
-                tau_J_d=np.array(rec["tau_J_d"]),
-                torque_command_finished=bool(rec["torque_command_finished"])
-                if "torque_command_finished" in (d.command_dtype.names or ())
-                else False,
-            )
+            conn.command = wire.accept(mid)
 
     def _send_state(self, conn: _RobotConnection) -> None:
-        d, rec = conn.dialect, conn.record
-        if d is None or rec is None or conn.udp is None or conn.udp_target is None:
+        wire = conn.state_wire
+        if wire is None or conn.udp is None or conn.udp_target is None:
             return
-        s = self.core.state
-        for name in conn.fields:
-            rec[name] = s[name]
-        mg, ctrl, mode = self.core.state_modes()
+        core = self.core
+        moving = core.robot_mode == RobotMode.MOVE
         mid = self.tick_count + 1  # ms since power-up; never 0, strictly increasing
-        rec["message_id"] = mid
-        rec["motion_generator_mode"] = mg
-        rec["controller_mode"] = ctrl
-        rec["robot_mode"] = mode
-        n = d.errors_count
-        rec["errors"] = self.core.errors[:n]
-        rec["reflex_reason"] = self.core.reflex_reason[:n]
-        rec["control_command_success_rate"] = (
-            self.core.success_rate if mode == RobotMode.MOVE else 0.0
-        )
+        data = wire.fill(mid, core.success_rate if moving else 0.0)
         try:
-            conn.udp.sendto(rec.tobytes(), conn.udp_target)
+            conn.udp.sendto(data, conn.udp_target)
         except OSError:
             pass  # the client's socket is gone; the TCP side will tell
         conn.last_sent_id = mid
         # libfranka answers states only once its control loop runs: it skips the state that
         # first shows the motion's modes. Await commands (lockstep) once one has arrived.
-        conn.awaiting = mode == RobotMode.MOVE and not self.core.first_command
+        conn.awaiting = moving and not core.first_command
 
     # -- gripper -------------------------------------------------------------------------
 

@@ -1,0 +1,140 @@
+"""Per-connection datagram buffers of the simulated robot: the state it sends and the
+command it receives, each one preallocated buffer with typed views onto its fields.
+
+The robot core keeps its state as float64 views into one buffer laid out in the wire's
+field order (:attr:`RobotCore.state_buffer`), so filling a state datagram is a handful of
+block copies (one on v5..v9; one with a cast to float32 on v10; a few on the older
+layouts, which lack some fields) plus the modes, errors and message id. A command datagram
+is received into a scratch buffer and, once accepted, copied into the buffer the
+:class:`Command` views read, so the robot sees a stable command until the next one.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+
+import numpy as np
+
+from panda_py import fci
+from panda_py.sim.robot import Command, RobotCore
+
+_U64 = struct.Struct("<Q")
+
+
+class StateWire:
+    """One dialect's state datagram, filled from a :class:`RobotCore`'s state."""
+
+    def __init__(self, d: fci.Dialect, core: RobotCore) -> None:
+        dt = d.state_dtype
+        self.buffer = bytearray(d.state_size)
+        self._core = core
+        self._copies: list[tuple[np.ndarray, np.ndarray]] = []
+        run: list[int] | None = None  # [wire offset, wire end, state start, state end]
+        runs: list[tuple[list[int], np.dtype]] = []
+        for name in dt.names or ():
+            if name not in core.state_offsets:
+                run = None
+                continue
+            field, offset = dt.fields[name][:2]  # type: ignore[index]
+            start, stop = core.state_offsets[name]
+            size = (stop - start) * field.base.itemsize
+            if int(np.prod(field.shape)) != stop - start:
+                raise RuntimeError(f"state field {name}: wire shape {field.shape} mismatch")
+            if (
+                run is not None
+                and runs[-1][1] == field.base
+                and run[1] == offset
+                and run[3] == start
+            ):
+                run[1] += size
+                run[3] = stop
+            else:
+                run = [offset, offset + size, start, stop]
+                runs.append((run, field.base))
+        for (offset, _, start, stop), base in runs:
+            wire = np.ndarray((stop - start,), base, buffer=self.buffer, offset=offset)
+            self._copies.append((wire, core.state_buffer[start:stop]))
+        # The tail: motion generator and controller modes, errors, reflex reasons, robot
+        # mode and command success rate, contiguous in every layout.
+        n = d.errors_count
+        first = dt.fields["motion_generator_mode"][1]  # type: ignore[index]
+        rate = dt.fields["control_command_success_rate"][0]  # type: ignore[index]
+        if dt.fields["control_command_success_rate"][1] != first + 3 + 2 * n:  # type: ignore[index]
+            raise RuntimeError("unexpected state layout: the tail is not contiguous")
+        self._tail = struct.Struct(f"<BB{n}s{n}sB{'f' if rate.itemsize == 4 else 'd'}")
+        self._tail_offset = first
+        self._n_errors = n
+
+    def fill(self, message_id: int, success_rate: float) -> bytearray:
+        """Write the core's current state with ``message_id``; returns the datagram."""
+        for wire, master in self._copies:
+            wire[:] = master
+        core, n = self._core, self._n_errors
+        _U64.pack_into(self.buffer, 0, message_id)
+        self._tail.pack_into(
+            self.buffer,
+            self._tail_offset,
+            core.mg_mode,
+            core.ctrl_mode,
+            core.errors[:n].tobytes(),
+            core.reflex_reason[:n].tobytes(),
+            core.robot_mode,
+            success_rate,
+        )
+        return self.buffer
+
+
+class CommandWire:
+    """One dialect's command datagrams: receive, validate size and id, accept."""
+
+    def __init__(self, d: fci.Dialect) -> None:
+        dt = d.command_dtype
+        self.size = d.command_size
+        self._scratch = bytearray(max(2048, 2 * self.size))
+        self._scratch_view = memoryview(self._scratch)
+        self._buffer = bytearray(self.size)
+        self._view = memoryview(self._buffer)
+
+        def view(name: str) -> np.ndarray:
+            field, offset = dt.fields[name][:2]  # type: ignore[index]
+            out = np.ndarray(field.shape, field.base, buffer=self._buffer, offset=offset)
+            out.flags.writeable = False
+            return out
+
+        names = dt.names or ()
+        self._flag_offsets = tuple(
+            dt.fields[n][1] if n in names else -1  # type: ignore[index]
+            for n in ("valid_elbow", "motion_generation_finished", "torque_command_finished")
+        )
+        self.command = Command(
+            message_id=0,
+            q_c=view("q_c"),
+            dq_c=view("dq_c"),
+            O_T_EE_c=view("O_T_EE_c"),
+            O_dP_EE_c=view("O_dP_EE_c"),
+            elbow_c=view("elbow_c"),
+            valid_elbow=False,
+            motion_generation_finished=False,
+            tau_J_d=view("tau_J_d"),
+            torque_command_finished=False,
+        )
+
+    def receive(self, sock: socket.socket) -> tuple[int, int]:
+        """Read one datagram into the scratch buffer: (its size, its message id or -1);
+        raises BlockingIOError when none is queued."""
+        n = sock.recv_into(self._scratch)
+        if n != self.size:
+            return n, -1
+        return n, _U64.unpack_from(self._scratch)[0]
+
+    def accept(self, message_id: int) -> Command:
+        """Make the datagram last received the command the robot reads."""
+        self._view[:] = self._scratch_view[: self.size]
+        c, buf = self.command, self._buffer
+        ov, om, ot = self._flag_offsets
+        c.message_id = message_id
+        c.valid_elbow = buf[ov] != 0
+        c.motion_generation_finished = buf[om] != 0
+        c.torque_command_finished = ot >= 0 and buf[ot] != 0
+        return c
