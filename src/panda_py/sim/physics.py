@@ -74,11 +74,24 @@ class Physics:
         self.link_body = [
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}") for i in range(8)
         ]
-        self._links_1_6 = np.array(self.link_body[1:7])
+        links = self.link_body[1:7]
+        # Consecutive bodies (as generated): a slice, i.e. a view, not a gathered copy.
+        self._links_1_6: slice | np.ndarray = (
+            slice(links[0], links[0] + 6) if links == list(range(links[0], links[0] + 6))
+            else np.array(links)
+        )  # fmt: skip
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
         self._M = np.zeros((m.nv, m.nv))
         self.tau_applied = np.zeros(7)  # last gravity-free torque applied [Nm]
+        # Views onto MjData's arrays (MuJoCo never reallocates them).
+        sl = slice(self.v0, self.v0 + 7)
+        self._qpos_arm = self.data.qpos[self.q0 : self.q0 + 7]
+        self._qvel_arm = self.data.qvel[sl]
+        self._gravcomp_arm = self.data.qfrc_gravcomp[sl]
+        self._applied_arm = self.data.qfrc_applied[sl]
+        # Contact pairs last seen without the robot in them (most ticks: cube on table).
+        self._quiet_contacts = b""
         self.F_T_NE = _tcp_transform()
 
     def _descends(self, body: int, root: int) -> bool:
@@ -92,11 +105,13 @@ class Physics:
 
     @property
     def q(self) -> np.ndarray:
-        return self.data.qpos[self.q0 : self.q0 + 7]
+        """Arm joint positions [rad] (a live view)."""
+        return self._qpos_arm
 
     @property
     def dq(self) -> np.ndarray:
-        return self.data.qvel[self.v0 : self.v0 + 7]
+        """Arm joint velocities [rad/s] (a live view)."""
+        return self._qvel_arm
 
     @property
     def time(self) -> float:
@@ -120,7 +135,7 @@ class Physics:
 
     def gravity_torque(self) -> np.ndarray:
         """Torque the robot spends holding the arm and hand against gravity [Nm]."""
-        return self.data.qfrc_gravcomp[self.v0 : self.v0 + 7]
+        return self._gravcomp_arm
 
     def coriolis(self) -> np.ndarray:
         """C(q, dq) dq of the arm [Nm] (the bias force less gravity)."""
@@ -157,11 +172,16 @@ class Physics:
         tau = np.zeros(7)
         if d.ncon == 0:
             return tau
-        # Most ticks only the cube rests on the table: select robot contacts vectorised.
-        on1 = self._robot_geom[d.contact.geom1]
-        on2 = self._robot_geom[d.contact.geom2]
-        hits = np.flatnonzero(on1 != on2)
+        # Most ticks only the cube rests on the table: the same pairs as last tick need
+        # no look; otherwise select robot contacts vectorised.
+        geom = d.contact.geom
+        pairs = geom.tobytes()
+        if pairs == self._quiet_contacts:
+            return tau
+        on = self._robot_geom[geom]
+        hits = np.flatnonzero(on[:, 0] != on[:, 1])
         if hits.size == 0:
+            self._quiet_contacts = pairs
             return tau
         f6 = np.zeros(6)
         sl = slice(self.v0, self.v0 + 7)
@@ -185,7 +205,7 @@ class Physics:
         """Advance one tick with gravity-free arm torques ``tau`` [Nm] and the hand's motor
         force ``finger_force`` [N] (positive opens)."""
         d = self.data
-        d.qfrc_applied[self.v0 : self.v0 + 7] = tau
+        self._applied_arm[:] = tau
         d.ctrl[self.finger_act] = finger_force
         self.tau_applied[:] = tau
         mujoco.mj_step(self.model, d)

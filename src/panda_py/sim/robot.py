@@ -218,7 +218,7 @@ class RobotCore:
         self.consecutive_lost = 0
         self.lost_total = 0
         self.received_total = 0
-        self.success = np.ones(SUCCESS_WINDOW, dtype=bool)
+        self.success = bytearray(b"\x01" * SUCCESS_WINDOW)
         self.success_count = SUCCESS_WINDOW
         self.success_i = 0
         self.success_rate = 0.0
@@ -226,6 +226,7 @@ class RobotCore:
         self.finger_force = 0.0  # [N] set by the gripper each tick
         for name in _CONTACT_FIELDS:
             self.state[name][:] = 0.0
+        self._filled_mode: MotionGeneratorMode | None = None  # all fields to be written
         self._fill_state()
 
     def _fill_static(self) -> None:
@@ -293,7 +294,7 @@ class RobotCore:
         self.ctrl_mode = ControllerMode(int(ctrl))
         self.first_command = True
         self.consecutive_lost = 0
-        self.success[:] = True
+        self.success[:] = b"\x01" * SUCCESS_WINDOW
         self.success_count = SUCCESS_WINDOW
         self.pending_final = None
         self.joint.reset(q)
@@ -490,10 +491,11 @@ class RobotCore:
     def tick(self, command: Command | None) -> None:
         """Advance one tick. ``command`` is the client's answer to the last state (None
         when it was lost or outside a motion)."""
-        torque = np.zeros(7)
         if self.robot_mode == RobotMode.MOVE:
             torque = self._motion_tick(command)
-        if self.robot_mode != RobotMode.MOVE:
+            if self.robot_mode != RobotMode.MOVE:
+                torque = self._hold_torque()
+        else:
             torque = self._hold_torque()
         self._apply(torque)
 
@@ -560,7 +562,7 @@ class RobotCore:
 
     def _record_success(self, ok: bool) -> None:
         i = self.success_i
-        self.success_count += int(ok) - int(self.success[i])
+        self.success_count += ok - self.success[i]
         self.success[i] = ok
         self.success_i = (i + 1) % SUCCESS_WINDOW
         self.success_rate = self.success_count / SUCCESS_WINDOW
@@ -588,7 +590,14 @@ class RobotCore:
             finite = _finite(c.O_dP_EE_c, c.elbow_c)
         else:
             finite = True
-        if not finite or (external and not _finite(c.tau_J_d)):
+        # NaN fails every <= test: a torque command that is within its range and its
+        # rate is finite, so one test each covers both on the common path.
+        tau = c.tau_J_d
+        tau_ok = not external or (
+            (np.abs(tau) <= self._tau_max).all()
+            and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
+        )
+        if not finite or (not tau_ok and not _finite(tau)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
             return MoveStatus.INPUT_ERROR_ABORTED
@@ -604,11 +613,11 @@ class RobotCore:
         elif mg in (MotionGeneratorMode.CARTESIAN_POSITION, MotionGeneratorMode.CARTESIAN_VELOCITY):
             flags += self._accept_cartesian(c)
         if external:
-            tau = c.tau_J_d
-            if (np.abs(tau - self.tau_J_d) > self._dtau_step).any():
-                flags.append("controller_torque_discontinuity")
-            if (np.abs(tau) > self._tau_max).any():
-                flags.append("tau_J_range_violation")
+            if not tau_ok:
+                if (np.abs(tau - self.tau_J_d) > self._dtau_step).any():
+                    flags.append("controller_torque_discontinuity")
+                if (np.abs(tau) > self._tau_max).any():
+                    flags.append("tau_J_range_violation")
             self.tau_J_d[:] = tau
         self.first_command = False
         if flags:
@@ -677,15 +686,20 @@ class RobotCore:
         mg = self.mg_mode
         moving_cart = mg in _CARTESIAN_GENERATORS
         moving = moving_cart or mg in _JOINT_GENERATORS
+        # O_T_EE of the measured joints: the arm's own kinematics (the same as MuJoCo's
+        # flange site times F_T_EE, to rounding; the tests hold them together).
+        kin, joint = self._kin, self.joint
         O_T_EE = Tv["O_T_EE"]
-        np.matmul(ph.flange_pose(), self.F_T_EE, out=O_T_EE)
-        joint = self.joint
+        if self._NE_identity:
+            O_T_EE[:] = kin.fk(q)
+        else:
+            np.matmul(kin.fk(q), self.NE_T_EE, out=O_T_EE)
         if moving_cart:
             Tv["O_T_EE_d"][:] = self.cart.T
         elif self._NE_identity:
-            Tv["O_T_EE_d"][:] = self._kin.fk(joint.q)
+            Tv["O_T_EE_d"][:] = kin.fk(joint.q)
         else:
-            np.matmul(self._kin.fk(joint.q), self.NE_T_EE, out=Tv["O_T_EE_d"])
+            np.matmul(kin.fk(joint.q), self.NE_T_EE, out=Tv["O_T_EE_d"])
         flip = self.spec.elbow_flip_q
         s["elbow"][:] = (q[2], 1.0 if q[3] > flip else -1.0)
         elbow_d = s["elbow_d"]
@@ -700,12 +714,10 @@ class RobotCore:
             s["O_ddP_EE_c"][:] = self.cart.a
         else:
             s["elbow_c"][:] = elbow_d
-            s["delbow_c"][:] = 0.0
-            s["ddelbow_c"][:] = 0.0
             s["O_T_EE_c"][:] = s["O_T_EE_d"]
-            s["O_dP_EE_d"][:] = 0.0
-            s["O_dP_EE_c"][:] = 0.0
-            s["O_ddP_EE_c"][:] = 0.0
+            if self._filled_mode != mg:  # zeros stand until a Cartesian motion
+                for name in ("delbow_c", "ddelbow_c", "O_dP_EE_d", "O_dP_EE_c", "O_ddP_EE_c"):
+                    s[name][:] = 0.0
         tau_J = ph.tau_applied + ph.gravity_torque() - self.tau_ext
         np.subtract(tau_J, s["tau_J"], out=s["dtau_J"])
         s["dtau_J"] *= 1.0 / DT
@@ -721,8 +733,10 @@ class RobotCore:
             s["ddq_d"][:] = joint.ddq
         else:
             s["q_d"][:] = self.q_hold
-            s["dq_d"][:] = 0.0
-            s["ddq_d"][:] = 0.0
+            if self._filled_mode != mg:
+                s["dq_d"][:] = 0.0
+                s["ddq_d"][:] = 0.0
+        self._filled_mode = mg
         self._fill_contacts(O_T_EE)
         # Accelerometers of joints 1..6 (v10): specific force at rest in each link frame,
         # R_i^T (0, 0, g) = g times the third row of each rotation.
