@@ -90,6 +90,9 @@ class Physics:
         self._qvel_arm = self.data.qvel[sl]
         self._gravcomp_arm = self.data.qfrc_gravcomp[sl]
         self._applied_arm = self.data.qfrc_applied[sl]
+        self._bias_arm = self.data.qfrc_bias[sl]
+        self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        self._xmat = self.data.xmat
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
         self.F_T_NE = _tcp_transform()
@@ -128,10 +131,11 @@ class Physics:
         self.tau_applied[:] = 0.0
 
     def gripper_width(self) -> float:
-        return float(self.data.qpos[self.finger_q] + self.data.qpos[self.finger_q2])
+        qpos = self._qpos
+        return float(qpos[self.finger_q] + qpos[self.finger_q2])
 
     def gripper_speed(self) -> float:
-        return float(2.0 * self.data.qvel[self.finger_v])
+        return 2.0 * float(self._qvel[self.finger_v])
 
     def gravity_torque(self) -> np.ndarray:
         """Torque the robot spends holding the arm and hand against gravity [Nm]."""
@@ -139,9 +143,7 @@ class Physics:
 
     def coriolis(self) -> np.ndarray:
         """C(q, dq) dq of the arm [Nm] (the bias force less gravity)."""
-        d = self.data
-        sl = slice(self.v0, self.v0 + 7)
-        return d.qfrc_bias[sl] - d.qfrc_gravcomp[sl]
+        return self._bias_arm - self._gravcomp_arm
 
     def mass_matrix(self) -> np.ndarray:
         mujoco.mj_fullM(self.model, self.data, self._M)
@@ -164,7 +166,7 @@ class Physics:
 
     def link_z_rows(self) -> np.ndarray:
         """Third rows of the rotations of links 1..6 (6x3): base z in each link frame."""
-        return self.data.xmat[self._links_1_6, 6:9]
+        return self._xmat[self._links_1_6, 6:9]
 
     def contact_torques(self) -> np.ndarray:
         """Joint torques that contacts with the robot exert on the arm [Nm] (tau_ext)."""
@@ -204,11 +206,10 @@ class Physics:
     def step(self, tau: np.ndarray, finger_force: float) -> None:
         """Advance one tick with gravity-free arm torques ``tau`` [Nm] and the hand's motor
         force ``finger_force`` [N] (positive opens)."""
-        d = self.data
         self._applied_arm[:] = tau
-        d.ctrl[self.finger_act] = finger_force
+        self._ctrl[self.finger_act] = finger_force
         self.tau_applied[:] = tau
-        mujoco.mj_step(self.model, d)
+        mujoco.mj_step(self.model, self.data)
 
     # -- internal controllers -----------------------------------------------------------
 
