@@ -12,6 +12,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from panda_py.kinematics import get_kinematics
 from panda_py.robots.mjcf import model_xml
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
 
@@ -23,6 +24,7 @@ _OMEGA = 60.0  # [rad/s]
 # Joint-space gains of the null-space posture task used by differential IK.
 _IK_ITERATIONS = 3
 _IK_DAMPING = 1e-6
+_ELBOW_HELD = np.array([0, 1, 3, 4, 5, 6])  # the joints IK moves when joint 3 is commanded
 
 
 def _tcp_transform() -> np.ndarray:
@@ -93,6 +95,9 @@ class Physics:
         self._bias_arm = self.data.qfrc_bias[sl]
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         self._xmat = self.data.xmat
+        # Scratch of the robot's IK (flange kinematics of the same parameters).
+        self._flange_kin = get_kinematics(spec, F_T_EE=np.eye(4))
+        self._ik_err, self._ik_y, self._ik_JJt = np.zeros(6), np.zeros(6), np.zeros((6, 6))
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
         self.F_T_NE = _tcp_transform()
@@ -230,28 +235,35 @@ class Physics:
     def solve_ik(self, O_T_F: np.ndarray, q_seed: np.ndarray, elbow_q3: float | None) -> np.ndarray:
         """Joint positions placing the flange at ``O_T_F``: a few damped Newton steps from
         ``q_seed`` (the last desired configuration), with joint 3 held at ``elbow_q3`` when
-        given (the commanded elbow) and the minimum-norm change otherwise."""
-        m, kin = self.model, self.kin
+        given (the commanded elbow) and the minimum-norm change otherwise. The arm's
+        analytic kinematics (equal to this model's to 1e-15) and MuJoCo's Cholesky keep a
+        step at a few microseconds."""
+        kin, err, JJt, y = self._flange_kin, self._ik_err, self._ik_JJt, self._ik_y
         q = np.array(q_seed, dtype=float)
-        cols = [0, 1, 3, 4, 5, 6] if elbow_q3 is not None else list(range(7))
+        cols = _ELBOW_HELD if elbow_q3 is not None else None
         if elbow_q3 is not None:
             q[2] = elbow_q3
+        p, R = O_T_F[:3, 3], O_T_F[:3, :3]
         for _ in range(_IK_ITERATIONS):
-            kin.qpos[self.q0 : self.q0 + 7] = q
-            mujoco.mj_kinematics(m, kin)
-            mujoco.mj_comPos(m, kin)
-            T = self.flange_pose(kin)
-            err = np.empty(6)
-            err[:3] = O_T_F[:3, 3] - T[:3, 3]
-            Re = O_T_F[:3, :3] @ T[:3, :3].T
-            err[3:] = 0.5 * np.array(
-                [Re[2, 1] - Re[1, 2], Re[0, 2] - Re[2, 0], Re[1, 0] - Re[0, 1]]
-            )
+            T = kin.fk(q)
+            err[:3] = p - T[:3, 3]
+            Re = R @ T[:3, :3].T
+            err[3] = 0.5 * (Re[2, 1] - Re[1, 2])
+            err[4] = 0.5 * (Re[0, 2] - Re[2, 0])
+            err[5] = 0.5 * (Re[1, 0] - Re[0, 1])
             if float(np.abs(err).max()) < 1e-12:
                 break
-            J = self.flange_jacobian(kin)[:, cols]
-            JJt = J @ J.T + _IK_DAMPING * np.eye(6)
-            q[cols] += J.T @ np.linalg.solve(JJt, err)
+            J = kin.zero_jacobian(q)
+            if cols is not None:
+                J = J[:, cols]
+            np.matmul(J, J.T, out=JJt)
+            JJt.flat[::7] += _IK_DAMPING
+            mujoco.mju_cholFactor(JJt, 0.0)
+            mujoco.mju_cholSolve(y, JJt, err)
+            if cols is None:
+                q += J.T @ y
+            else:
+                q[cols] += J.T @ y
         return q
 
     def flange_pose_at(self, q: np.ndarray) -> np.ndarray:

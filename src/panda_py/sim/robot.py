@@ -233,6 +233,7 @@ class RobotCore:
         """The state fields only setters change (end effector, load, gravity)."""
         s, T = self.state, self._T_view
         self.F_T_EE = self.F_T_NE @ self.NE_T_EE
+        self._EE_T_F = np.linalg.inv(self.F_T_EE)
         self._NE_identity = bool(np.array_equal(self.NE_T_EE, np.eye(4)))
         T["F_T_EE"][:] = self.F_T_EE
         T["EE_T_K"][:] = self.EE_T_K
@@ -668,7 +669,7 @@ class RobotCore:
 
     def _track_cartesian(self, *, valid_elbow: bool) -> None:
         """Joint targets of the commanded pose: the robot's own IK from the last targets."""
-        O_T_F = self.cart.T @ np.linalg.inv(self.F_T_EE)
+        O_T_F = self.cart.T @ self._EE_T_F
         q3 = float(self.elbow_c[0]) if valid_elbow else None
         q = self.physics.solve_ik(O_T_F, self.joint.q, q3)
         self.joint.push_position(q)

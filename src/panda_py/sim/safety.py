@@ -8,6 +8,8 @@ raised, by name as in libfranka's ``Errors``.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from panda_py.robots.params import RobotSpec
@@ -118,18 +120,24 @@ _CARTESIAN_JOINT_FLAGS = (
 
 def pose_error(T_a: np.ndarray, T_b: np.ndarray) -> np.ndarray:
     """Twist [m, rad] taking pose ``T_a`` to ``T_b``, both in the base frame."""
-    out = np.empty(6)
-    out[:3] = T_b[:3, 3] - T_a[:3, 3]
-    R = T_b[:3, :3] @ T_a[:3, :3].T
-    cos = min(1.0, max(-1.0, (np.trace(R) - 1.0) / 2.0))
-    angle = float(np.arccos(cos))
-    axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    s = np.sin(angle)
-    if s > 1e-9:
-        out[3:] = axis * (angle / (2.0 * s))
-    else:
-        out[3:] = axis / 2.0
-    return out
+    # On floats: a 3x3 product and an angle cost far less than NumPy calls on tiny arrays.
+    a0, a1, a2, ax, a3, a4, a5, ay, a6, a7, a8, az = T_a[:3].ravel().tolist()
+    b0, b1, b2, bx, b3, b4, b5, by, b6, b7, b8, bz = T_b[:3].ravel().tolist()
+    # R = R_b R_a^T: only the trace and the skew part are needed.
+    r00 = b0 * a0 + b1 * a1 + b2 * a2
+    r11 = b3 * a3 + b4 * a4 + b5 * a5
+    r22 = b6 * a6 + b7 * a7 + b8 * a8
+    r21 = b6 * a3 + b7 * a4 + b8 * a5
+    r12 = b3 * a6 + b4 * a7 + b5 * a8
+    r02 = b0 * a6 + b1 * a7 + b2 * a8
+    r20 = b6 * a0 + b7 * a1 + b8 * a2
+    r10 = b3 * a0 + b4 * a1 + b5 * a2
+    r01 = b0 * a3 + b1 * a4 + b2 * a5
+    cos = min(1.0, max(-1.0, (r00 + r11 + r22 - 1.0) / 2.0))
+    angle = math.acos(cos)
+    s = math.sin(angle)
+    k = angle / (2.0 * s) if s > 1e-9 else 0.5
+    return np.array((bx - ax, by - ay, bz - az, (r21 - r12) * k, (r02 - r20) * k, (r10 - r01) * k))
 
 
 class CartesianSignal:
@@ -167,18 +175,22 @@ class CartesianSignal:
     def violations(self, spec: RobotSpec) -> list[str]:
         c = spec.cartesian
         out = []
-        if np.linalg.norm(self.v[:3]) > c.translation_velocity * (1 + _REL) or np.linalg.norm(
-            self.v[3:]
-        ) > c.rotation_velocity * (1 + _REL):
-            out.append("cartesian_motion_generator_velocity_limits_violation")
-        if np.linalg.norm(self.a[:3]) > c.translation_acceleration * (1 + _REL) or np.linalg.norm(
-            self.a[3:]
-        ) > c.rotation_acceleration * (1 + _REL):
-            out.append("cartesian_motion_generator_velocity_discontinuity")
-        if np.linalg.norm(self.j[:3]) > c.translation_jerk * (1 + _REL) or np.linalg.norm(
-            self.j[3:]
-        ) > c.rotation_jerk * (1 + _REL):
-            out.append("cartesian_motion_generator_acceleration_discontinuity")
+        checks = (
+            (self.v, c.translation_velocity, c.rotation_velocity,
+             "cartesian_motion_generator_velocity_limits_violation"),
+            (self.a, c.translation_acceleration, c.rotation_acceleration,
+             "cartesian_motion_generator_velocity_discontinuity"),
+            (self.j, c.translation_jerk, c.rotation_jerk,
+             "cartesian_motion_generator_acceleration_discontinuity"),
+        )  # fmt: skip
+        for signal, translation, rotation, flag in checks:
+            x, y, z, wx, wy, wz = signal.tolist()
+            # not (<=): a NaN fails the test
+            if not (
+                math.hypot(x, y, z) <= translation * (1 + _REL)
+                and math.hypot(wx, wy, wz) <= rotation * (1 + _REL)
+            ):
+                out.append(flag)
         return out
 
 
@@ -197,11 +209,16 @@ def integrate_twist(T: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
 
 
 def is_valid_transform(T: np.ndarray) -> bool:
-    """libfranka's test: last row exactly (0,0,0,1), rotation rows/columns of unit norm."""
-    if not np.all(np.isfinite(T)) or not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
+    """libfranka's test: last row exactly (0,0,0,1), rotation rows/columns of unit norm
+    (within 1e-5), every entry finite."""
+    r0, r1, r2, x, r3, r4, r5, y, r6, r7, r8, z, *last = T.ravel().tolist()
+    if last != [0.0, 0.0, 0.0, 1.0] or not (
+        math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+    ):
         return False
-    R = T[:3, :3]
-    return bool(
-        np.all(np.abs(np.linalg.norm(R, axis=0) - 1.0) <= 1e-5)
-        and np.all(np.abs(np.linalg.norm(R, axis=1) - 1.0) <= 1e-5)
-    )
+    norms = (
+        math.hypot(r0, r1, r2), math.hypot(r3, r4, r5), math.hypot(r6, r7, r8),
+        math.hypot(r0, r3, r6), math.hypot(r1, r4, r7), math.hypot(r2, r5, r8),
+    )  # fmt: skip
+    # a NaN or an infinity fails abs(n - 1) <= tol
+    return all(abs(n - 1.0) <= 1e-5 for n in norms)

@@ -9,6 +9,7 @@ version in its Connect request.
 
 from __future__ import annotations
 
+import gc
 import logging
 import selectors
 import socket
@@ -202,6 +203,10 @@ class SimServer:
     # -- the loop ------------------------------------------------------------------------
 
     def serve_forever(self) -> None:
+        # Everything built so far (MuJoCo, numpy, the model) lives as long as the server:
+        # out of the collector's sight, a full collection no longer walks it mid-tick.
+        gc.collect()
+        gc.freeze()
         next_tick = time.monotonic()
         lockstep_deadline = 0.0
         try:
