@@ -98,6 +98,8 @@ class Physics:
         # Scratch of the robot's IK (flange kinematics of the same parameters).
         self._flange_kin = get_kinematics(spec, F_T_EE=np.eye(4))
         self._ik_err, self._ik_y, self._ik_JJt = np.zeros(6), np.zeros(6), np.zeros((6, 6))
+        # Load (or compile, with numba) its kernels now, not at the first Cartesian tick.
+        self._flange_kin.zero_jacobian(np.zeros(7))
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
         self.F_T_NE = _tcp_transform()
