@@ -2,8 +2,12 @@
 vectorised NumPy versions there are the reference; tests check these against them).
 
 Seven joints or one 3x3 rotation are too small for NumPy to pay off: each ufunc call costs
-about a microsecond, a float operation in Python some tens of nanoseconds. Rotations are
-row-major 9-tuples here; poses arrive and leave as libfranka's column-major 16 lists.
+about a microsecond (ten times that with cold caches), a float operation in Python some
+tens of nanoseconds. For the same reason two-argument ``min``/``max`` are written as
+conditional expressions (a builtin call costs more than the arithmetic around it); each
+keeps the builtin's operand order, so results are the builtin's, bit for bit.
+Rotations are row-major 9-tuples here; poses arrive and leave as libfranka's column-major
+16-sequences.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ _NORM_EPS = 2.220446049250313e-16
 ORTHONORMAL_THRESHOLD = 1e-5
 
 Rot = tuple[float, float, float, float, float, float, float, float, float]
+_sqrt = math.sqrt
 
 
 def joint_velocities(
@@ -42,9 +47,12 @@ def joint_velocities(
         jerk = ((v[i] - lvi) / DT - lai) / DT
         acc = lai + (jm if jerk > jm else -jm if jerk < -jm else jerk) * DT
         r = jm / am
-        smax = min(r * (upper[i] - lvi), am)
-        smin = max(r * (lower[i] - lvi), -am)
-        out.append(lvi + max(min(acc, smax), smin) * DT)
+        x = r * (upper[i] - lvi)
+        smax = am if am < x else x  # min(x, am)
+        x = r * (lower[i] - lvi)
+        smin = -am if -am > x else x  # max(x, -am)
+        x = smax if smax < acc else acc  # min(acc, smax)
+        out.append(lvi + (smin if smin > x else x) * DT)  # max(x, smin)
     return out
 
 
@@ -54,32 +62,44 @@ def joint_positions(
     la: Sequence[float],
 ) -> list[float]:  # fmt: skip
     """Joint positions whose finite-difference velocity is limited as above."""
-    v = [(q[i] - lq[i]) / DT for i in range(len(q))]
-    vl = joint_velocities(upper, lower, max_acc, max_jerk, v, lv, la)
-    return [lq[i] + vl[i] * DT for i in range(len(q))]
+    out = []
+    for i in range(len(q)):
+        lqi, lvi, lai, am, jm = lq[i], lv[i], la[i], max_acc[i], max_jerk[i]
+        jerk = (((q[i] - lqi) / DT - lvi) / DT - lai) / DT
+        acc = lai + (jm if jerk > jm else -jm if jerk < -jm else jerk) * DT
+        r = jm / am
+        x = r * (upper[i] - lvi)
+        smax = am if am < x else x
+        x = r * (lower[i] - lvi)
+        smin = -am if -am > x else x
+        x = smax if smax < acc else acc
+        out.append(lqi + (lvi + (smin if smin > x else x) * DT) * DT)
+    return out
 
 
 def _vec_limit(
-    max_v: float, max_a: float, max_j: float, v: Sequence[float], lv: Sequence[float],
-    la: Sequence[float],
-) -> list[float]:  # fmt: skip
-    jx = ((v[0] - lv[0]) / DT - la[0]) / DT
-    jy = ((v[1] - lv[1]) / DT - la[1]) / DT
-    jz = ((v[2] - lv[2]) / DT - la[2]) / DT
-    ax, ay, az = la[0], la[1], la[2]
-    jn = math.sqrt(jx * jx + jy * jy + jz * jz)
+    max_v: float, max_a: float, max_j: float, vx: float, vy: float, vz: float, lx: float,
+    ly: float, lz: float, ax: float, ay: float, az: float,
+) -> tuple[float, float, float]:  # fmt: skip
+    """One 3-vector of a twist limited in the norms of jerk, acceleration, velocity."""
+    jx = ((vx - lx) / DT - ax) / DT
+    jy = ((vy - ly) / DT - ay) / DT
+    jz = ((vz - lz) / DT - az) / DT
+    jn = _sqrt(jx * jx + jy * jy + jz * jz)
     if jn > _NORM_EPS:
-        k = min(jn, max_j) * DT / jn
+        k = (max_j if max_j < jn else jn) * DT / jn  # min(jn, max_j)
         ax, ay, az = ax + jx * k, ay + jy * k, az + jz * k
-    an = math.sqrt(ax * ax + ay * ay + az * az)
+    an = _sqrt(ax * ax + ay * ay + az * az)
     if an <= _NORM_EPS:
-        return [lv[0], lv[1], lv[2]]
+        return (lx, ly, lz)
     ux, uy, uz = ax / an, ay / an, az / an
-    dot = ux * lv[0] + uy * lv[1] + uz * lv[2]
-    lv2 = lv[0] * lv[0] + lv[1] * lv[1] + lv[2] * lv[2]
-    distance = -dot + math.sqrt(max(0.0, dot * dot - lv2 + max_v * max_v))
-    step = min(an, min(max_j / max_a * distance, max_a)) * DT
-    return [lv[0] + ux * step, lv[1] + uy * step, lv[2] + uz * step]
+    dot = ux * lx + uy * ly + uz * lz
+    t = dot * dot - (lx * lx + ly * ly + lz * lz) + max_v * max_v
+    distance = -dot + _sqrt(t if t > 0.0 else 0.0)  # max(0.0, t)
+    s = max_j / max_a * distance
+    s = max_a if max_a < s else s  # min(s, max_a)
+    step = (s if s < an else an) * DT  # min(an, s)
+    return (lx + ux * step, ly + uy * step, lz + uz * step)
 
 
 def twist_limit(
@@ -87,8 +107,15 @@ def twist_limit(
     lv: Sequence[float], la: Sequence[float],
 ) -> list[float]:  # fmt: skip
     """A twist (6) limited as ``limit_rate_cartesian_velocity``."""
-    return _vec_limit(translation[0], translation[1], translation[2], v[:3], lv[:3], la[:3]) + \
-        _vec_limit(rotation[0], rotation[1], rotation[2], v[3:], lv[3:], la[3:])  # fmt: skip
+    tx, ty, tz = _vec_limit(
+        translation[0], translation[1], translation[2], v[0], v[1], v[2], lv[0], lv[1], lv[2],
+        la[0], la[1], la[2],
+    )  # fmt: skip
+    rx, ry, rz = _vec_limit(
+        rotation[0], rotation[1], rotation[2], v[3], v[4], v[5], lv[3], lv[4], lv[5], la[3],
+        la[4], la[5],
+    )  # fmt: skip
+    return [tx, ty, tz, rx, ry, rz]
 
 
 def rot_of(T: Sequence[float]) -> Rot:
@@ -110,11 +137,13 @@ def transpose(a: Rot) -> Rot:
     return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
 
 
-def log_so3(R: Rot) -> tuple[float, float, float]:
-    """Rotation vector (axis * angle in [0, pi]) of a rotation matrix."""
-    cos = min(1.0, max(-1.0, (R[0] + R[4] + R[8] - 1.0) / 2.0))
+def log_so3(R: Sequence[float]) -> tuple[float, float, float]:
+    """Rotation vector (axis * angle in [0, pi]) of a rotation matrix (row-major 9)."""
+    c = (R[0] + R[4] + R[8] - 1.0) / 2.0
+    c = c if c > -1.0 else -1.0  # max(-1.0, c)
+    cos = c if c < 1.0 else 1.0  # min(1.0, c)
     vx, vy, vz = (R[7] - R[5]) / 2.0, (R[2] - R[6]) / 2.0, (R[3] - R[1]) / 2.0
-    sin = math.sqrt(vx * vx + vy * vy + vz * vz)
+    sin = _sqrt(vx * vx + vy * vy + vz * vz)
     angle = math.atan2(sin, cos)
     if sin > 1e-6:
         k = angle / sin
@@ -125,7 +154,7 @@ def log_so3(R: Rot) -> tuple[float, float, float]:
     d = ((R[0] + 1.0) / 2.0, (R[4] + 1.0) / 2.0, (R[8] + 1.0) / 2.0)
     k = d.index(max(d))
     col = ((R[k] + (k == 0)) / 2.0, (R[3 + k] + (k == 1)) / 2.0, (R[6 + k] + (k == 2)) / 2.0)
-    n = math.sqrt(max(d[k], _NORM_EPS))
+    n = _sqrt(max(d[k], _NORM_EPS))
     ax, ay, az = col[0] / n, col[1] / n, col[2] / n
     if vx * ax + vy * ay + vz * az < 0.0:
         ax, ay, az = -ax, -ay, -az
@@ -134,7 +163,7 @@ def log_so3(R: Rot) -> tuple[float, float, float]:
 
 def exp_so3(wx: float, wy: float, wz: float) -> Rot:
     """Rotation matrix of a rotation vector (Rodrigues)."""
-    theta = math.sqrt(wx * wx + wy * wy + wz * wz)
+    theta = _sqrt(wx * wx + wy * wy + wz * wz)
     if theta <= _NORM_EPS:
         return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
     x, y, z = wx / theta, wy / theta, wz / theta
@@ -158,25 +187,41 @@ def is_pose(T: Sequence[float]) -> bool:
     if T[3] != 0.0 or T[7] != 0.0 or T[11] != 0.0 or T[15] != 1.0:
         return False
     tol = ORTHONORMAL_THRESHOLD
-    for j in range(3):
-        a, b, c = T[4 * j], T[4 * j + 1], T[4 * j + 2]
-        if abs(math.sqrt(a * a + b * b + c * c) - 1.0) > tol:
-            return False
-        a, b, c = T[j], T[4 + j], T[8 + j]
-        if abs(math.sqrt(a * a + b * b + c * c) - 1.0) > tol:
-            return False
-    return True
+    a, b, c, d, e, f, g, h, i = T[0], T[1], T[2], T[4], T[5], T[6], T[8], T[9], T[10]
+    # "not (... > tol)": a NaN norm passes, as in libfranka
+    return not (
+        abs(_sqrt(a * a + b * b + c * c) - 1.0) > tol  # column 0, row 0, column 1, ...
+        or abs(_sqrt(a * a + d * d + g * g) - 1.0) > tol
+        or abs(_sqrt(d * d + e * e + f * f) - 1.0) > tol
+        or abs(_sqrt(b * b + e * e + h * h) - 1.0) > tol
+        or abs(_sqrt(g * g + h * h + i * i) - 1.0) > tol
+        or abs(_sqrt(c * c + f * f + i * i) - 1.0) > tol
+    )
 
 
 def pose_lowpass(gain: float, T: Sequence[float], T_last: Sequence[float]) -> list[float]:
     """Translation low-passed, orientation moved along the shortest arc by ``gain``."""
-    R_last = rot_of(T_last)
-    w = log_so3(matmul(transpose(R_last), rot_of(T)))
-    R = matmul(R_last, exp_so3(gain * w[0], gain * w[1], gain * w[2]))
+    L, N = T_last, T
+    # R_last^T R: column i of T_last dotted with column j of T
+    w = log_so3((
+        L[0] * N[0] + L[1] * N[1] + L[2] * N[2], L[0] * N[4] + L[1] * N[5] + L[2] * N[6],
+        L[0] * N[8] + L[1] * N[9] + L[2] * N[10], L[4] * N[0] + L[5] * N[1] + L[6] * N[2],
+        L[4] * N[4] + L[5] * N[5] + L[6] * N[6], L[4] * N[8] + L[5] * N[9] + L[6] * N[10],
+        L[8] * N[0] + L[9] * N[1] + L[10] * N[2], L[8] * N[4] + L[9] * N[5] + L[10] * N[6],
+        L[8] * N[8] + L[9] * N[9] + L[10] * N[10],
+    ))  # fmt: skip
+    E = exp_so3(gain * w[0], gain * w[1], gain * w[2])
     g1 = 1.0 - gain
-    p = [gain * T[12] + g1 * T_last[12], gain * T[13] + g1 * T_last[13],
-         gain * T[14] + g1 * T_last[14]]  # fmt: skip
-    return pose_list(R, p)
+    # column-major R_last E: entry (i, j) = row i of R_last dotted with column j of E
+    return [
+        L[0] * E[0] + L[4] * E[3] + L[8] * E[6], L[1] * E[0] + L[5] * E[3] + L[9] * E[6],
+        L[2] * E[0] + L[6] * E[3] + L[10] * E[6], 0.0,
+        L[0] * E[1] + L[4] * E[4] + L[8] * E[7], L[1] * E[1] + L[5] * E[4] + L[9] * E[7],
+        L[2] * E[1] + L[6] * E[4] + L[10] * E[7], 0.0,
+        L[0] * E[2] + L[4] * E[5] + L[8] * E[8], L[1] * E[2] + L[5] * E[5] + L[9] * E[8],
+        L[2] * E[2] + L[6] * E[5] + L[10] * E[8], 0.0,
+        gain * N[12] + g1 * L[12], gain * N[13] + g1 * L[13], gain * N[14] + g1 * L[14], 1.0,
+    ]  # fmt: skip
 
 
 def pose_limit(
@@ -184,11 +229,32 @@ def pose_limit(
     T_last: Sequence[float], lv: Sequence[float], la: Sequence[float],
 ) -> list[float]:  # fmt: skip
     """A pose whose finite-difference twist is limited (``rotation`` already scaled)."""
-    R_last = rot_of(T_last)
-    w = log_so3(matmul(rot_of(T), transpose(R_last)))
-    twist = [(T[12] - T_last[12]) / DT, (T[13] - T_last[13]) / DT, (T[14] - T_last[14]) / DT,
-             w[0] / DT, w[1] / DT, w[2] / DT]  # fmt: skip
-    dx = twist_limit(translation, rotation, twist, lv, la)
-    R = matmul(exp_so3(dx[3] * DT, dx[4] * DT, dx[5] * DT), R_last)
-    p = [T_last[12] + dx[0] * DT, T_last[13] + dx[1] * DT, T_last[14] + dx[2] * DT]
-    return pose_list(R, p)
+    L, N = T_last, T
+    # R R_last^T: row i of R dotted with row j of R_last
+    w = log_so3((
+        N[0] * L[0] + N[4] * L[4] + N[8] * L[8], N[0] * L[1] + N[4] * L[5] + N[8] * L[9],
+        N[0] * L[2] + N[4] * L[6] + N[8] * L[10], N[1] * L[0] + N[5] * L[4] + N[9] * L[8],
+        N[1] * L[1] + N[5] * L[5] + N[9] * L[9], N[1] * L[2] + N[5] * L[6] + N[9] * L[10],
+        N[2] * L[0] + N[6] * L[4] + N[10] * L[8], N[2] * L[1] + N[6] * L[5] + N[10] * L[9],
+        N[2] * L[2] + N[6] * L[6] + N[10] * L[10],
+    ))  # fmt: skip
+    px, py, pz = L[12], L[13], L[14]
+    tx, ty, tz = _vec_limit(
+        translation[0], translation[1], translation[2], (N[12] - px) / DT, (N[13] - py) / DT,
+        (N[14] - pz) / DT, lv[0], lv[1], lv[2], la[0], la[1], la[2],
+    )  # fmt: skip
+    rx, ry, rz = _vec_limit(
+        rotation[0], rotation[1], rotation[2], w[0] / DT, w[1] / DT, w[2] / DT, lv[3], lv[4],
+        lv[5], la[3], la[4], la[5],
+    )  # fmt: skip
+    E = exp_so3(rx * DT, ry * DT, rz * DT)
+    # column-major E R_last: entry (i, j) = row i of E dotted with column j of R_last
+    return [
+        E[0] * L[0] + E[1] * L[1] + E[2] * L[2], E[3] * L[0] + E[4] * L[1] + E[5] * L[2],
+        E[6] * L[0] + E[7] * L[1] + E[8] * L[2], 0.0,
+        E[0] * L[4] + E[1] * L[5] + E[2] * L[6], E[3] * L[4] + E[4] * L[5] + E[5] * L[6],
+        E[6] * L[4] + E[7] * L[5] + E[8] * L[6], 0.0,
+        E[0] * L[8] + E[1] * L[9] + E[2] * L[10], E[3] * L[8] + E[4] * L[9] + E[5] * L[10],
+        E[6] * L[8] + E[7] * L[9] + E[8] * L[10], 0.0,
+        px + tx * DT, py + ty * DT, pz + tz * DT, 1.0,
+    ]  # fmt: skip
