@@ -190,16 +190,143 @@ def test_commander_filters_and_limits_torques_against_tau_J_d():
     c = Commander(d, lm.RateLimits.for_robot(FER), True, 100.0)
     state = d.new_state()
     state["tau_J_d"] = np.arange(7.0)
-    c.torques(lf.Torques(np.arange(7.0) + 50.0), state[()])
+    data = d.encode_state(state)
+    c.torques(lf.Torques(np.arange(7.0) + 50.0), data)
     gain = lm._gain(DT, 100.0)
     step = min(gain * 50.0, 1.0 - 1e-6)  # limited to (1000 - eps) Nm/s * 1 ms
     np.testing.assert_allclose(c.record["tau_J_d"], np.arange(7.0) + step, rtol=1e-12)
+    assert bytes(c.buffer) == d.encode_command(c.record)  # the record views the datagram
     off = Commander(d, lm.RateLimits.for_robot(FER), False, 1000.0)  # both disabled
-    off.torques(lf.Torques(np.full(7, 50.0)), state[()])
+    off.torques(lf.Torques(np.full(7, 50.0)), data)
     np.testing.assert_array_equal(off.record["tau_J_d"], np.full(7, 50.0))
     bad = lf.Torques(np.zeros(7))
     bad.tau_J[2] = np.nan  # mutated after construction: still caught
     with pytest.raises(ValueError, match="infinite or NaN"):
-        c.torques(bad, state[()])
+        c.torques(bad, data)
+    bad.tau_J = np.zeros(8)  # replaced by a wrong shape: a clear error, not a struct one
+    with pytest.raises(ValueError, match="expected 7 numbers"):
+        c.torques(bad, data)
     with pytest.raises(ValueError, match="expected it to return Torques"):
-        c.torques(lf.JointPositions(np.zeros(7)), state[()])
+        c.torques(lf.JointPositions(np.zeros(7)), data)
+    pose = lf.CartesianPose(np.eye(4))
+    pose.O_T_EE[0] = 2.0  # no longer a rotation
+    with pytest.raises(ValueError, match="invalid transformation"):
+        c.cartesian_pose(pose, data)
+
+
+def _reference_command(
+    kind: type, lim: lm.RateLimits, limit: bool, cutoff: float, out, rec, first: bool
+) -> dict[str, np.ndarray]:
+    """What the Commander must write, from the NumPy reference of :mod:`limits`."""
+    f = lambda name: np.array(rec[name], dtype=np.float64)  # noqa: E731
+    filt = cutoff < lm.MAX_CUTOFF_FREQUENCY
+    if kind is lf.Torques:
+        tau = out.tau_J
+        if filt:
+            tau = lm.lowpass_filter(DT, tau, f("tau_J_d"), cutoff)
+        if limit:
+            tau = lm.limit_rate(lim.max_torque_rate, tau, f("tau_J_d"))
+        return {"tau_J_d": tau}
+    if kind is lf.JointPositions or kind is lf.JointVelocities:
+        up, lo = lim.joint_velocity_limits(f("q_d"))
+        acc, jerk = lim.max_joint_acceleration, lim.max_joint_jerk
+        if kind is lf.JointPositions:
+            q = out.q
+            if filt and not first:
+                q = lm.lowpass_filter(DT, q, f("q_d"), cutoff)
+            if limit:
+                q = lm.limit_rate_joint_positions(
+                    up, lo, acc, jerk, q, f("q_d"), f("dq_d"), f("ddq_d")
+                )
+            return {"q_c": q}
+        dq = out.dq
+        if filt:
+            dq = lm.lowpass_filter(DT, dq, f("dq_d"), cutoff)
+        if limit:
+            dq = lm.limit_rate_joint_velocities(up, lo, acc, jerk, dq, f("dq_d"), f("ddq_d"))
+        return {"dq_c": dq}
+    e0, sign = out.elbow
+    last_e = f("elbow_c")[0]
+    if kind is lf.CartesianPose:
+        T = out.O_T_EE
+        if filt and not first:
+            T = lm.cartesian_lowpass_filter(DT, T, f("O_T_EE_c"), cutoff)
+            e0 = lm.lowpass_filter(DT, e0, last_e, cutoff)
+        if limit:
+            T = lm.limit_rate_cartesian_pose(
+                lim.translation, lim.rotation, T, f("O_T_EE_c"), f("O_dP_EE_c"),
+                f("O_ddP_EE_c"),
+            )  # fmt: skip
+        value = {"O_T_EE_c": T}
+    else:
+        v = out.O_dP_EE
+        if filt:
+            v = lm.lowpass_filter(DT, v, f("O_dP_EE_c"), cutoff)
+            e0 = lm.lowpass_filter(DT, e0, last_e, cutoff)
+        if limit:
+            v = lm.limit_rate_cartesian_velocity(
+                lim.translation, lim.rotation, v, f("O_dP_EE_c"), f("O_ddP_EE_c")
+            )
+        value = {"O_dP_EE_c": v}
+    if limit:
+        e0 = lm.limit_rate_position(lim.elbow, e0, last_e, f("delbow_c")[0], f("ddelbow_c")[0])
+    value["elbow_c"] = np.array([e0, sign])
+    return value
+
+
+@pytest.mark.parametrize("version", [5, 10])  # float64 and float32 states
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_commander_equals_the_numpy_reference_on_random_states(version, robot):
+    """The per-tick path (struct reads of the state datagram, float math, a packed
+    datagram) writes what the NumPy reference computes, to 1e-12, for every command type,
+    with and without filter and rate limiter."""
+    rng = np.random.default_rng(version * 10 + len(robot))
+    d = fci.dialect(version)
+    spec = FER if robot == "fer" else FR3
+    lim = lm.RateLimits.for_robot(robot)
+    kinds = [lf.Torques, lf.JointPositions, lf.JointVelocities, lf.CartesianPose,
+             lf.CartesianVelocities]  # fmt: skip
+    convert = {lf.Torques: "torques", lf.JointPositions: "joint_positions",
+               lf.JointVelocities: "joint_velocities", lf.CartesianPose: "cartesian_pose",
+               lf.CartesianVelocities: "cartesian_velocities"}  # fmt: skip
+    for i in range(150):
+        state = d.new_state()
+        q_d = rng.uniform(spec.joints.q_min, spec.joints.q_max)
+        state["q_d"], state["dq_d"], state["ddq_d"] = q_d, rng.normal(0, 1, 7), rng.normal(0, 5, 7)
+        state["tau_J_d"] = rng.normal(0, 5, 7)
+        T_last = _pose(_random_rotation(rng), rng.normal(0, 0.5, 3))
+        state["O_T_EE_c"] = T_last
+        state["O_dP_EE_c"], state["O_ddP_EE_c"] = rng.normal(0, 0.3, 6), rng.normal(0, 3, 6)
+        state["elbow_c"] = [rng.uniform(-2, 2), 1.0]
+        state["delbow_c"], state["ddelbow_c"] = rng.normal(0, 0.5, 2), rng.normal(0, 3, 2)
+        data = d.encode_state(state)
+        rec = d.decode_state(data)  # float32 fields in v10: the reference reads the same
+        T_now = np.array(rec["O_T_EE_c"], dtype=np.float64).reshape(4, 4, order="F")
+        small = 10.0 ** rng.uniform(-6, -2)  # within and far beyond the limits
+        R = lm._exp(rng.normal(0, small, 3)) @ T_now[:3, :3]
+        commands = {
+            lf.Torques: lf.Torques(rec["tau_J_d"] + rng.normal(0, 100 * small, 7)),
+            lf.JointPositions: lf.JointPositions(rec["q_d"] + rng.normal(0, small, 7)),
+            lf.JointVelocities: lf.JointVelocities(rec["dq_d"] + rng.normal(0, 100 * small, 7)),
+            lf.CartesianPose: lf.CartesianPose(
+                _pose(R, T_now[:3, 3] + rng.normal(0, small, 3)),
+                [rec["elbow_c"][0] + rng.normal(0, small), -1.0],
+            ),
+            lf.CartesianVelocities: lf.CartesianVelocities(
+                rec["O_dP_EE_c"] + rng.normal(0, 100 * small, 6),
+                [rec["elbow_c"][0] + rng.normal(0, small), 1.0],
+            ),
+        }
+        limit = bool(i % 4 != 3)
+        cutoff = (1000.0, 100.0, 30.0)[i % 3]
+        for kind in kinds:
+            c = Commander(d, lim, limit, cutoff)
+            c.initialized = bool(i % 2)  # position filters skip the first command
+            first = not c.initialized
+            getattr(c, convert[kind])(commands[kind], data)
+            expected = _reference_command(kind, lim, limit, cutoff, commands[kind], rec, first)
+            for name, value in expected.items():
+                np.testing.assert_allclose(c.record[name], value, rtol=0, atol=1e-12,
+                                           err_msg=f"{kind.__name__} {name} case {i}")  # fmt: skip
+            if kind in (lf.CartesianPose, lf.CartesianVelocities):
+                assert bool(c.record["valid_elbow"])

@@ -7,8 +7,6 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from panda_py.libfranka._commander import Commander
 from panda_py.libfranka._connection import RobotConnection
 from panda_py.libfranka._motion import MotionSession
@@ -40,7 +38,7 @@ class ActiveControl:
         robot: RobotBase,
         session: MotionSession,
         commander: Commander,
-        convert: Callable[[Any, np.void], bool],
+        convert: Callable[[Any, bytes], bool],
         *,
         control: bool,
         motion: bool,
@@ -51,7 +49,7 @@ class ActiveControl:
         self._convert = convert  # the Commander method for this motion's command type
         self._flags = (motion, control)
         self._last_id: int | None = None
-        self._last_rec: np.void | None = None
+        self._last_data: bytes | None = None
         self._finished = False
 
     @property
@@ -71,33 +69,34 @@ class ActiveControl:
         """The newest robot state and the time since the previous read (0 at first)."""
         self._check()
         try:
-            rec = self._session.receive()
+            data = self._session.receive()
         except BaseException:
             self.cancel()
             raise
-        state = RobotState(self._robot._conn.dialect, rec)
+        conn = self._robot._conn
+        state = RobotState(conn.dialect, data)
         self._robot._log.append(state)
-        mid = int(rec["message_id"])
+        mid = conn.last_id
         dt = Duration(0 if self._last_id is None else mid - self._last_id)
         self._last_id = mid
-        self._last_rec = rec
+        self._last_data = data
         return state, dt
 
     def writeOnce(self, command: Any) -> None:
         """Send ``command`` (of this motion's type) for the last state read."""
         self._check()
-        rec = self._last_rec
-        if rec is None:
+        data = self._last_data
+        if data is None:
             raise InvalidOperationException("libfranka: call readOnce() before writeOnce()")
         try:
-            finished = self._convert(command, rec)
+            finished = self._convert(command, data)
             if finished:
                 self._session.finish(
-                    self._commander.record, motion=self._flags[0], control=self._flags[1]
+                    self._commander.buffer, motion=self._flags[0], control=self._flags[1]
                 )
                 self._end()
             else:
-                self._session.send(self._commander.record)
+                self._session.send(self._commander.buffer)
         except BaseException:
             self.cancel()
             raise

@@ -2,13 +2,15 @@
 checks, the optional low-pass filter and rate limiter (referenced to the desired/commanded
 values in the robot's last state, as libfranka's ``ControlLoop::convertMotion``).
 
-This runs once per 1 ms tick, so it works on Python floats (:mod:`._fast`) and writes into
-one pre-allocated record; :mod:`.limits` holds the NumPy reference of the same math.
+This runs once per 1 ms tick, so it reads the state datagram with ``struct`` (:mod:`._wire`),
+works on Python floats (:mod:`._fast`) and packs into one pre-allocated datagram;
+:mod:`.limits` holds the NumPy reference of the same math.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -16,6 +18,7 @@ import numpy as np
 from panda_py.fci import Dialect
 from panda_py.libfranka import _fast
 from panda_py.libfranka import limits as lim
+from panda_py.libfranka._wire import layout
 from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
@@ -45,36 +48,53 @@ def check_cutoff(limit_rate: Any, cutoff_frequency: Any) -> tuple[bool, float]:
     return bool(limit_rate), f
 
 
+def _values(name: str, values: Any, n: int) -> list[float]:
+    """``values`` (a command's NumPy array) as ``n`` floats, checked finite."""
+    try:
+        out = values.tolist()
+        s = sum(out)
+    except (AttributeError, TypeError) as exc:
+        raise ValueError(f"{name}: expected {n} numbers, got {values!r}") from exc
+    if len(out) != n:
+        raise ValueError(f"{name}: expected {n} numbers, got {len(out)}")
+    if s - s != 0.0:  # a NaN or an infinity makes this NaN
+        raise ValueError(f"{name}: Commanding value is infinite or NaN.")
+    return out
+
+
 def _finite(name: str, values: list[float]) -> None:
     s = sum(values)
-    if s - s != 0.0:  # a NaN or an infinity makes this NaN
+    if s - s != 0.0:
         raise ValueError(f"{name}: Commanding value is infinite or NaN.")
 
 
 def _expect(out: Any, kind: type) -> None:
-    if type(out) is not kind and not isinstance(out, kind):
+    if not isinstance(out, kind):
         raise ValueError(
             f"callback: expected it to return {kind.__name__}, got {type(out).__name__}"
         )
 
 
 class Commander:
-    """Holds the pre-allocated command record of one motion and fills it each tick."""
+    """Holds the pre-allocated RobotCommand datagram of one motion and fills it each tick
+    from a callback's command and the robot's last state (a datagram's ``bytes``)."""
 
     def __init__(
         self, dialect: Dialect, limits: lim.RateLimits, limit_rate: bool, cutoff_frequency: float
     ) -> None:
-        self.record = dialect.new_command()
-        rec = self.record
-        self._q_c = rec["q_c"]
-        self._dq_c = rec["dq_c"]
-        self._O_T_EE_c = rec["O_T_EE_c"]
-        self._O_dP_EE_c = rec["O_dP_EE_c"]
-        self._elbow_c = rec["elbow_c"]
-        self._tau = rec["tau_J_d"]
+        w = layout(dialect)
+        #: The RobotCommand datagram, sent as is (``message_id`` is set by the session).
+        self.buffer = bytearray(w.command_size)
+        #: A NumPy record viewing :attr:`buffer`.
+        self.record = np.ndarray((), dialect.command_dtype, buffer=self.buffer)
+        self._tau_J_d, self._joint, self._elbow_s = w.tau_J_d, w.joint, w.elbow
+        self._pose, self._twist = w.pose, w.twist
+        self._c_tau, self._c_q, self._c_dq = w.c_tau, w.c_q, w.c_dq
+        self._c_pose, self._c_twist, self._c_elbow = w.c_pose, w.c_twist, w.c_elbow
         self.limits = limits
         self.limit_rate = limit_rate
         self.filter = cutoff_frequency < lim.MAX_CUTOFF_FREQUENCY
+        self._process = self.filter or self.limit_rate
         self.gain = lim._gain(lim.DELTA_T, cutoff_frequency) if self.filter else 1.0
         self.initialized = False  # position/pose filters start from the first command
         L = limits
@@ -97,7 +117,7 @@ class Commander:
         f = lim.POSE_ROTATION_FACTOR
         self._pose_rotation = (f * L.rotation[0], f * L.rotation[1], f * L.rotation[2])
 
-    def _velocity_limits(self, q_d: list[float]) -> tuple[list[float], list[float]]:
+    def _velocity_limits(self, q_d: Sequence[float]) -> tuple[list[float], list[float]]:
         """``RateLimits.joint_velocity_limits`` on floats."""
         if not self.limits.position_based:
             return self._vmax, self._vmin
@@ -113,144 +133,120 @@ class Commander:
 
     # --- torques --------------------------------------------------------------------
 
-    def torques(self, out: Any, state: np.void) -> bool:
-        _expect(out, Torques)
-        tau = out.tau_J.tolist()
-        _finite("tau_J", tau)
-        if self.filter or self.limit_rate:
-            last = state["tau_J_d"].tolist()
+    def torques(self, out: Any, state: bytes) -> bool:
+        if type(out) is not Torques:
+            _expect(out, Torques)
+        tau = _values("tau_J", out.tau_J, 7)
+        if self._process:
+            last = self._tau_J_d.unpack(state)
             g = self.gain
-            step = self._tau_step
-            for i in range(7):
-                d = g * (tau[i] - last[i])
-                if self.limit_rate:
+            if self.limit_rate:
+                step = self._tau_step
+                for i in range(7):
+                    d = g * (tau[i] - last[i])
                     s = step[i]
-                    d = s if d > s else -s if d < -s else d
-                tau[i] = last[i] + d
+                    tau[i] = last[i] + (s if d > s else -s if d < -s else d)
+            else:
+                for i in range(7):
+                    tau[i] = last[i] + g * (tau[i] - last[i])
             _finite("tau_J", tau)
-        self._tau[:] = tau
+        self._c_tau.pack(self.buffer, *tau)
         return bool(out.motion_finished)
 
     # --- motion generators ------------------------------------------------------------
 
-    def joint_positions(self, out: Any, state: np.void) -> bool:
-        _expect(out, JointPositions)
-        q = out.q.tolist()
-        _finite("q", q)
-        if self.filter or self.limit_rate:
-            q_d = state["q_d"].tolist()
+    def joint_positions(self, out: Any, state: bytes) -> bool:
+        if type(out) is not JointPositions:
+            _expect(out, JointPositions)
+        q = _values("q", out.q, 7)
+        if self._process:
+            s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
+            q_d = s[:7]
             if self.filter and self.initialized:
                 g = self.gain
                 q = [q_d[i] + g * (q[i] - q_d[i]) for i in range(7)]
             if self.limit_rate:
                 upper, lower = self._velocity_limits(q_d)
                 q = _fast.joint_positions(
-                    upper,
-                    lower,
-                    self._acc,
-                    self._jerk,
-                    q,
-                    q_d,
-                    state["dq_d"].tolist(),
-                    state["ddq_d"].tolist(),
+                    upper, lower, self._acc, self._jerk, q, q_d, s[7:14], s[14:21]
                 )
             _finite("q", q)
         self.initialized = True
-        self._q_c[:] = q
+        self._c_q.pack(self.buffer, *q)
         return bool(out.motion_finished)
 
-    def joint_velocities(self, out: Any, state: np.void) -> bool:
-        _expect(out, JointVelocities)
-        dq = out.dq.tolist()
-        _finite("dq", dq)
-        if self.filter or self.limit_rate:
-            dq_d = state["dq_d"].tolist()
+    def joint_velocities(self, out: Any, state: bytes) -> bool:
+        if type(out) is not JointVelocities:
+            _expect(out, JointVelocities)
+        dq = _values("dq", out.dq, 7)
+        if self._process:
+            s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
+            dq_d = s[7:14]
             if self.filter:
                 g = self.gain
                 dq = [dq_d[i] + g * (dq[i] - dq_d[i]) for i in range(7)]
             if self.limit_rate:
-                upper, lower = self._velocity_limits(state["q_d"].tolist())
-                dq = _fast.joint_velocities(
-                    upper, lower, self._acc, self._jerk, dq, dq_d, state["ddq_d"].tolist()
-                )
+                upper, lower = self._velocity_limits(s[:7])
+                dq = _fast.joint_velocities(upper, lower, self._acc, self._jerk, dq, dq_d, s[14:21])
             _finite("dq", dq)
-        self._dq_c[:] = dq
+        self._c_dq.pack(self.buffer, *dq)
         return bool(out.motion_finished)
 
-    def _elbow(self, elbow: Any, state: np.void, first: bool) -> None:
+    def _elbow(self, elbow: Any, state: bytes, first: bool) -> None:
         if elbow is None:
-            self.record["valid_elbow"] = False
-            self._elbow_c[:] = 0.0
+            self._c_elbow.pack(self.buffer, 0.0, 0.0, False)
             return
-        e0 = float(elbow[0])
-        sign = float(elbow[1])
+        e0, sign = elbow.tolist()
         if sign != 1.0 and sign != -1.0:
             raise ValueError(f"elbow: elbow[1] must be +1 or -1, got {sign!r}")
-        last = float(state["elbow_c"][0])
+        s = self._elbow_s.unpack(state)  # elbow_c, delbow_c, ddelbow_c
+        last = s[0]
         if self.filter and not first:
             e0 = last + self.gain * (e0 - last)
         if self.limit_rate:
             v, a, j = self.limits.elbow
-            e0 = _fast.joint_positions(
-                [v],
-                [-v],
-                [a],
-                [j],
-                [e0],
-                [last],
-                [float(state["delbow_c"][0])],
-                [float(state["ddelbow_c"][0])],
-            )[0]
+            e0 = _fast.joint_positions([v], [-v], [a], [j], [e0], [last], [s[2]], [s[4]])[0]
         if not math.isfinite(e0):
             raise ValueError("elbow: Commanding value is infinite or NaN.")
-        self.record["valid_elbow"] = True
-        self._elbow_c[0] = e0
-        self._elbow_c[1] = sign
+        self._c_elbow.pack(self.buffer, e0, sign, True)
 
-    def cartesian_pose(self, out: Any, state: np.void) -> bool:
-        _expect(out, CartesianPose)
-        T = out.O_T_EE.tolist()
-        _finite("O_T_EE", T)
+    def cartesian_pose(self, out: Any, state: bytes) -> bool:
+        if type(out) is not CartesianPose:
+            _expect(out, CartesianPose)
+        T = _values("O_T_EE", out.O_T_EE, 16)
         if not _fast.is_pose(T):
             raise ValueError(_INVALID_POSE)
         first = not self.initialized
         self.initialized = True
-        if self.filter or self.limit_rate:
-            last = state["O_T_EE_c"].tolist()
+        if self._process:
+            s = self._pose.unpack(state)  # O_T_EE_c, O_dP_EE_c, O_ddP_EE_c
+            last = s[:16]
             if self.filter and not first:
                 T = _fast.pose_lowpass(self.gain, T, last)
             if self.limit_rate:
                 T = _fast.pose_limit(
-                    self.limits.translation,
-                    self._pose_rotation,
-                    T,
-                    last,
-                    state["O_dP_EE_c"].tolist(),
-                    state["O_ddP_EE_c"].tolist(),
+                    self.limits.translation, self._pose_rotation, T, last, s[16:22], s[22:28]
                 )
             _finite("O_T_EE", T)
-        self._O_T_EE_c[:] = T
+        self._c_pose.pack(self.buffer, *T)
         self._elbow(out.elbow, state, first)
         return bool(out.motion_finished)
 
-    def cartesian_velocities(self, out: Any, state: np.void) -> bool:
-        _expect(out, CartesianVelocities)
-        v = out.O_dP_EE.tolist()
-        _finite("O_dP_EE", v)
-        if self.filter or self.limit_rate:
-            last = state["O_dP_EE_c"].tolist()
+    def cartesian_velocities(self, out: Any, state: bytes) -> bool:
+        if type(out) is not CartesianVelocities:
+            _expect(out, CartesianVelocities)
+        v = _values("O_dP_EE", out.O_dP_EE, 6)
+        if self._process:
+            s = self._twist.unpack(state)  # O_dP_EE_c, O_ddP_EE_c
+            last = s[:6]
             if self.filter:
                 g = self.gain
                 v = [last[i] + g * (v[i] - last[i]) for i in range(6)]
             if self.limit_rate:
                 v = _fast.twist_limit(
-                    self.limits.translation,
-                    self.limits.rotation,
-                    v,
-                    last,
-                    state["O_ddP_EE_c"].tolist(),
+                    self.limits.translation, self.limits.rotation, v, last, s[6:12]
                 )
             _finite("O_dP_EE", v)
-        self._O_dP_EE_c[:] = v
+        self._c_twist.pack(self.buffer, *v)
         self._elbow(out.elbow, state, False)
         return bool(out.motion_finished)

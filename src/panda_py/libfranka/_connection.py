@@ -11,6 +11,7 @@ import numpy as np
 from panda_py import fci
 from panda_py.fci import Command, ConnectStatus, Dialect, RobotMode
 from panda_py.libfranka._network import TCP_TIMEOUT, Network, translate
+from panda_py.libfranka._wire import layout
 from panda_py.libfranka.errors import (
     CommandException,
     IncompatibleVersionException,
@@ -80,8 +81,12 @@ class RobotConnection:
             udp_size=self.dialect.state_size,
             timeout=timeout,
         )
+        self.layout = layout(self.dialect)
+        self._header = self.layout.header.struct_.unpack_from  # the header is at offset 0
         self._next_id = 0
-        self.last: np.void | None = None  # newest RobotState record
+        self.last_data = b""  # newest RobotState datagram (empty before the first)
+        #: (message_id, motion_generator_mode, controller_mode, robot_mode) of last_data
+        self.last_header: tuple[int, int, int, int] = (0, 0, 0, 0)
         self.last_id = 0
         try:
             self._connect(version)
@@ -146,7 +151,7 @@ class RobotConnection:
         cid = self.send_request(command, **fields)
         status, out = self.response(command, cid, timeout)
         if status.value != "kSuccess":
-            mode = int(self.last["robot_mode"]) if self.last is not None else None
+            mode = self.last_header[3] if self.last_data else None
             raise CommandException(
                 status_message(command, status, mode), command=command.value, status=status
             )
@@ -154,13 +159,18 @@ class RobotConnection:
 
     # --- UDP ----------------------------------------------------------------------------
 
-    def receive_state(self) -> np.void:
-        """The newest RobotState record newer than the last one (waits up to 1 s)."""
+    def receive_state(self) -> bytes:
+        """The newest RobotState datagram newer than the last one (waits up to 1 s); its
+        header is in :attr:`last_header`."""
         data = self.net.receive_newest(self.last_id)
-        rec = self.dialect.decode_state(data)
-        self.last = rec
-        self.last_id = int(rec["message_id"])
-        return rec
+        header = self._header(data)
+        self.last_data = data
+        self.last_header = header
+        self.last_id = header[0]
+        return data
 
-    def send_command(self, record: np.ndarray) -> None:
-        self.net.send_udp(record.tobytes())
+    @property
+    def last(self) -> np.void | None:
+        """The newest RobotState as a record (None before the first)."""
+        data = self.last_data
+        return self.dialect.decode_state(data) if data else None

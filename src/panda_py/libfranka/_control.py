@@ -166,34 +166,37 @@ class ControlMixin(RobotBase):
         commander = Commander(d, self._limits, limit_rate, cutoff_frequency)
         torque = commander.torques
         convert = None if motion_cb is None else getattr(commander, _MOTIONS[kind][1])
-        record = commander.record
+        command = commander.buffer
         log = self._log
         gc_was_enabled = gc.isenabled()
         with realtime_scope(self._realtime_config):
             session = self._start(controller, generator)
+            send, receive = session.send, session.receive
             # No cyclic garbage collection inside the loop: a collection pass costs more
             # than a tick; cycles the callbacks create are collected after the motion.
             gc.disable()
             try:
-                rec = session.receive()  # libfranka skips the state that shows the modes
-                prev = int(rec["message_id"])
+                data = receive()  # libfranka skips the state that shows the modes
+                prev = conn.last_id
+                # Between reading a state and sending its command only what the answer
+                # needs runs (logging waits until the command is out).
                 while True:
-                    state = RobotState(d, rec)
-                    log.append(state)
-                    mid = int(rec["message_id"])
+                    state = RobotState(d, data)
+                    mid = conn.last_id
                     dt = Duration(mid - prev)
                     prev = mid
-                    finished = False
                     if control_cb is not None:
-                        finished = torque(control_cb(state, dt), rec)
-                    if convert is not None and not finished:
-                        assert motion_cb is not None
-                        finished = convert(motion_cb(state, dt), rec)
-                    if finished:
-                        break
-                    session.send(record)
-                    rec = session.receive()
-                session.finish(record, motion=has_mg, control=control_cb is not None)
+                        if torque(control_cb(state, dt), data):
+                            log.append(state)
+                            break
+                    if convert is not None:
+                        if convert(motion_cb(state, dt), data):  # type: ignore[misc]
+                            log.append(state)
+                            break
+                    send(command)
+                    log.append(state)
+                    data = receive()
+                session.finish(command, motion=has_mg, control=control_cb is not None)
             except BaseException:
                 session.cancel()
                 raise

@@ -47,14 +47,16 @@ _EXTERNAL = int(ControllerMode.EXTERNAL_CONTROLLER)
 _MOVE = int(RobotMode.MOVE)
 
 
-def motion_running(rec: np.void | None) -> bool:
-    """libfranka's ``motionGeneratorRunning() || controllerRunning()`` for a state record."""
-    if rec is None:
+def motion_running(header: tuple[int, int, int, int] | None) -> bool:
+    """libfranka's ``motionGeneratorRunning() || controllerRunning()`` for a state header
+    (:attr:`RobotConnection.last_header`)."""
+    if header is None:
         return False
-    return (
-        int(rec["motion_generator_mode"]) not in _IDLE_MG
-        or int(rec["controller_mode"]) == _EXTERNAL
-    )
+    return header[1] not in _IDLE_MG or header[2] == _EXTERNAL
+
+
+def _header(conn: RobotConnection) -> tuple[int, int, int, int] | None:
+    return conn.last_header if conn.last_data else None
 
 
 class MotionSession:
@@ -69,13 +71,14 @@ class MotionSession:
         generator: MoveMotionGeneratorMode,
         log: deque[RobotState],
     ) -> None:
-        if motion_running(conn.last):
+        if motion_running(_header(conn)):
             raise InvalidOperationException("libfranka: Attempted to start multiple motions!")
         self.conn = conn
         self.log = log
         self.done = False  # finished or cancelled: nothing left to clean up
         self.final_received = False  # the second Move response has been taken
         self.caller_driven = False  # an ActiveControl (the caller's thread) runs the loop
+        self._pack_id = conn.layout.c_message_id.struct_.pack_into  # at offset 0
         self.expect_mg = int(_STATE_MG[generator])
         self.expect_ctrl = int(controller)
         d = conn.dialect
@@ -98,16 +101,13 @@ class MotionSession:
         deadline = time.monotonic() + START_TIMEOUT
         try:
             while True:
-                rec = conn.receive_state()
-                if (
-                    int(rec["robot_mode"]) == _MOVE
-                    and int(rec["motion_generator_mode"]) == self.expect_mg
-                    and int(rec["controller_mode"]) == self.expect_ctrl
-                ):
+                data = conn.receive_state()
+                _, mg, ctrl, mode = conn.last_header
+                if mode == _MOVE and mg == self.expect_mg and ctrl == self.expect_ctrl:
                     break
                 final = conn.poll(Command.MOVE, self.move_id)
                 if final is not None:
-                    self._raise_final(final[0], rec)
+                    self._raise_final(final[0], data)
                 if time.monotonic() > deadline:
                     raise ControlException("libfranka: the robot did not start the motion")
         except BaseException:
@@ -115,37 +115,38 @@ class MotionSession:
             raise
 
     def _mode(self) -> int | None:
-        last = self.conn.last
-        return None if last is None else int(last["robot_mode"])
+        header = _header(self.conn)
+        return None if header is None else header[3]
 
     # --- per tick ---------------------------------------------------------------------
 
-    def receive(self) -> np.void:
-        """Check the TCP connection, take the newest state, raise if the motion ended."""
+    def receive(self) -> bytes:
+        """Check the TCP connection, take the newest state datagram, raise if the motion
+        ended."""
         conn = self.conn
         conn.net.check_closed()
-        rec = conn.receive_state()
-        if (
-            int(rec["robot_mode"]) != _MOVE
-            or int(rec["motion_generator_mode"]) != self.expect_mg
-            or int(rec["controller_mode"]) != self.expect_ctrl
-        ):
-            self._abort(rec)
-        return rec
+        data = conn.receive_state()
+        _, mg, ctrl, mode = conn.last_header
+        if mode != _MOVE or mg != self.expect_mg or ctrl != self.expect_ctrl:
+            self._abort(data)
+        return data
 
-    def send(self, record: np.ndarray) -> None:
-        """Send ``record`` as the answer to the newest state."""
-        record["message_id"] = self.conn.last_id
-        self.conn.send_command(record)
+    def send(self, command: bytearray) -> None:
+        """Send the RobotCommand datagram ``command`` as the answer to the newest state
+        (its ``message_id`` is set here)."""
+        conn = self.conn
+        self._pack_id(command, 0, conn.last_id)
+        conn.net.send_udp(command)
 
     # --- ending -----------------------------------------------------------------------
 
-    def _abort(self, rec: np.void) -> None:
+    def _abort(self, data: bytes) -> None:
         """The robot left the motion: collect the final Move response and raise."""
         status, _ = self.conn.response(Command.MOVE, self.move_id)
-        self._raise_final(status, rec)
+        self._raise_final(status, data)
 
-    def _raise_final(self, status: Any, rec: np.void) -> None:
+    def _raise_final(self, status: Any, data: bytes) -> None:
+        rec = self.conn.dialect.decode_state(data)
         self.final_received = True
         if status == MoveStatus.SUCCESS:
             raise ControlException(
@@ -164,32 +165,35 @@ class MotionSession:
             message, log=self.log, reflex_reason=reasons, status=status, success_rate=rate
         )
 
-    def finish(self, record: np.ndarray, *, motion: bool, control: bool) -> None:
-        """Send ``record`` flagged as the last command until the robot is idle, then take
-        the final Move response (raise unless success)."""
+    def finish(self, command: bytearray, *, motion: bool, control: bool) -> None:
+        """Send the datagram ``command`` flagged as the last command until the robot is
+        idle, then take the final Move response (raise unless success)."""
+        conn = self.conn
+        record = np.ndarray((), conn.dialect.command_dtype, buffer=command)  # a view
         if motion:
             record["motion_generation_finished"] = True
-        if control and self.conn.dialect.has_torque_command_finished:
+        if control and conn.dialect.has_torque_command_finished:
             record["torque_command_finished"] = True
-        conn = self.conn
-        rec = conn.last
-        while motion_running(rec) and int(rec["robot_mode"]) == _MOVE:  # type: ignore[index]
+        header = _header(conn)
+        while motion_running(header) and header[3] == _MOVE:  # type: ignore[index]
             conn.net.check_closed()
-            self.send(record)
-            rec = conn.receive_state()
+            self.send(command)
+            conn.receive_state()
+            header = conn.last_header
         status, _ = conn.response(Command.MOVE, self.move_id)
         self.final_received = True
         if status == MoveStatus.SUCCESS:
             self.done = True
             return
+        rec = conn.dialect.decode_state(conn.last_data)
         if status == MoveStatus.REFLEX_ABORTED:
-            errors = Errors(rec["reflex_reason"])  # type: ignore[index]
+            errors = Errors(rec["reflex_reason"])
             raise ControlException(
                 "libfranka: Move command aborted: Motion finished commanded, but the robot is "
                 f"still moving! {errors}", log=self.log, reflex_reason=errors.active,
                 status=status,
             )  # fmt: skip
-        self._raise_final(status, rec)  # type: ignore[arg-type]
+        self._raise_final(status, conn.last_data)
 
     def cancel(self) -> None:
         """StopMove, wait for idle modes and swallow the pending Move response (errors
@@ -206,7 +210,7 @@ class MotionSession:
             pass
         try:
             deadline = time.monotonic() + STOP_TIMEOUT
-            while motion_running(conn.last) and time.monotonic() < deadline:
+            while motion_running(_header(conn)) and time.monotonic() < deadline:
                 conn.receive_state()
             if not self.final_received:
                 self.final_received = True

@@ -26,17 +26,23 @@ __all__ = [
 FloatArray = NDArray[np.float64]
 
 
-def _vector(name: str, value: Any, n: int, unit: str) -> FloatArray:
+def _checked(name: str, value: Any, n: int, unit: str) -> tuple[FloatArray, list[float]]:
+    """``value`` as a new float64 array of shape ``(n,)`` and as a list, checked finite."""
     try:
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
     if arr.shape != (n,):
         raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
-    s = float(arr.sum())
+    values = arr.tolist()
+    s = sum(values)  # a builtin sum of floats: cheaper than a NumPy reduction
     if s - s != 0.0:  # NaN or infinity somewhere
-        raise ValueError(f"{name}: Commanding value is infinite or NaN: {arr.tolist()}")
-    return arr
+        raise ValueError(f"{name}: Commanding value is infinite or NaN: {values}")
+    return arr, values
+
+
+def _vector(name: str, value: Any, n: int, unit: str) -> FloatArray:
+    return _checked(name, value, n, unit)[0]
 
 
 def is_homogeneous_transformation(transform: Any) -> bool:
@@ -55,8 +61,8 @@ def is_valid_elbow(elbow: Any) -> bool:
 def _pose(value: Any) -> FloatArray:
     if getattr(value, "shape", None) == (4, 4):
         value = np.asarray(value, dtype=np.float64).reshape(16, order="F")  # -> column-major
-    flat = _vector("O_T_EE", value, 16, "(column-major 4x4 transform)")
-    if not _fast.is_pose(flat.tolist()):
+    flat, values = _checked("O_T_EE", value, 16, "(column-major 4x4 transform)")
+    if not _fast.is_pose(values):
         raise ValueError(
             "O_T_EE: Attempt to set invalid transformation in motion generator. "
             "Has to be column major!"

@@ -1,11 +1,12 @@
-"""``RobotState`` and ``GripperState``: thin, lazy views over a decoded wire record.
+"""``RobotState`` and ``GripperState``: thin, lazy views over a received datagram.
 
-Decoding a datagram is one ``numpy.frombuffer`` (see :meth:`panda_py.fci.Dialect.decode_state`);
-each attribute converts its field to a float64 NumPy array only when read, so a control
-loop pays only for the fields its callback uses. Transforms are flat 16-vectors in
-column-major order and inertia tensors flat 9-vectors, exactly as libfranka's
-``std::array``s. Fields missing from older protocol versions read as libfranka documents
-them (``O_ddP_O`` = (0, 0, -9.81), ``NE_T_EE`` = identity, accelerometers zero).
+A ``RobotState`` keeps the datagram's ``bytes``; each attribute converts its field to a
+float64 NumPy array only when read (one ``frombuffer`` at the field's offset), so a
+control loop pays only for the fields its callback uses and nothing is decoded up front.
+Transforms are flat 16-vectors in column-major order and inertia tensors flat 9-vectors,
+exactly as libfranka's ``std::array``s. Fields missing from older protocol versions read as
+libfranka documents them (``O_ddP_O`` = (0, 0, -9.81), ``NE_T_EE`` = identity,
+accelerometers zero).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.fci import Dialect
+from panda_py.libfranka._wire import Layout, layout
 from panda_py.libfranka.types import Duration, Errors, RobotMode
 from panda_py.robots.params import GRAVITY
 
@@ -28,14 +30,14 @@ _IDENTITY16 = np.eye(4).reshape(16)
 
 def _array(name: str, doc: str) -> Any:
     def get(self: RobotState) -> FloatArray:
-        return np.array(self._record[name], dtype=np.float64)
+        return self._field(name)
 
     return property(get, doc=doc)
 
 
 def _scalar(name: str, doc: str) -> Any:
     def get(self: RobotState) -> float:
-        return float(self._record[name])
+        return float(self._layout.scalars[name].unpack(self._data)[0])
 
     return property(get, doc=doc)
 
@@ -80,16 +82,41 @@ class RobotState:
     :class:`Errors`.
     """
 
-    __slots__ = ("_dialect", "_record")
+    __slots__ = ("_data", "_dialect", "_layout")
 
-    def __init__(self, dialect: Dialect, record: np.void) -> None:
+    def __init__(self, dialect: Dialect, data: bytes | np.void | np.ndarray) -> None:
+        """A state of ``dialect``'s layout from a datagram's ``bytes`` (or a state record
+        of ``dialect.state_dtype``)."""
+        if type(data) is not bytes:
+            if isinstance(data, (np.void, np.ndarray)):
+                data = dialect.encode_state(data)
+            else:
+                data = bytes(data)
+            if len(data) < dialect.state_size:
+                raise ValueError(
+                    f"data: expected a RobotState v{dialect.version} of {dialect.state_size} "
+                    f"bytes, got {len(data)} bytes"
+                )
         self._dialect = dialect
-        self._record = record
+        self._layout: Layout = layout(dialect)
+        self._data: bytes = data
 
     @classmethod
     def from_bytes(cls, dialect: Dialect, data: bytes) -> RobotState:
-        """Decode one RobotState datagram of ``dialect``'s layout."""
-        return cls(dialect, dialect.decode_state(data))
+        """Decode one RobotState datagram of ``dialect``'s layout (raises
+        ``ProtocolError`` if it is too short)."""
+        dialect.decode_state(data)  # the size check
+        return cls(dialect, bytes(data))
+
+    @property
+    def _record(self) -> np.void:
+        """The whole state as a (read-only) record of ``dialect.state_dtype``."""
+        return self._dialect.decode_state(self._data)
+
+    def _field(self, name: str) -> FloatArray:
+        f = self._layout.fields[name]
+        out = np.frombuffer(self._data, f.dtype, f.count, f.offset).astype(np.float64)
+        return out.reshape(f.shape) if len(f.shape) > 1 else out
 
     @property
     def version(self) -> int:
@@ -99,16 +126,16 @@ class RobotState:
     @property
     def message_id(self) -> int:
         """The robot's tick counter [ms]."""
-        return int(self._record["message_id"])
+        return int(self._layout.header.unpack(self._data)[0])
 
     @property
     def time(self) -> Duration:
         """Robot time since power-up, from the tick counter [ms]."""
-        return Duration(int(self._record["message_id"]))
+        return Duration(self.message_id)
 
     @property
     def robot_mode(self) -> RobotMode:
-        return RobotMode(int(self._record["robot_mode"]))
+        return RobotMode(self._layout.header.unpack(self._data)[3])
 
     @property
     def current_errors(self) -> Errors:
@@ -123,59 +150,58 @@ class RobotState:
     @property
     def motion_generator_mode(self) -> int:
         """Wire value of the motion generator (:class:`panda_py.fci.MotionGeneratorMode`)."""
-        return int(self._record["motion_generator_mode"])
+        return int(self._layout.header.unpack(self._data)[1])
 
     @property
     def controller_mode(self) -> int:
         """Wire value of the active controller (:class:`panda_py.fci.ControllerMode`)."""
-        return int(self._record["controller_mode"])
+        return int(self._layout.header.unpack(self._data)[2])
 
     @property
     def F_T_NE(self) -> FloatArray:
         """Flange -> nominal end effector (16,) column-major [m]; ``F_T_EE`` before v4."""
         if self._dialect.has_F_T_NE:
-            return np.array(self._record["F_T_NE"], dtype=np.float64)
-        return np.array(self._record["F_T_EE"], dtype=np.float64)
+            return self._field("F_T_NE")
+        return self._field("F_T_EE")
 
     @property
     def NE_T_EE(self) -> FloatArray:
         """Nominal end effector -> end effector (16,) column-major [m]; identity before v4."""
         if self._dialect.has_F_T_NE:
-            return np.array(self._record["NE_T_EE"], dtype=np.float64)
+            return self._field("NE_T_EE")
         return _IDENTITY16.copy()
 
     @property
     def O_ddP_O(self) -> FloatArray:
         """Base acceleration (3,) [m/s^2]; (0, 0, -9.81) before protocol v5."""
         if self._dialect.has_O_ddP_O:
-            return np.array(self._record["O_ddP_O"], dtype=np.float64)
+            return self._field("O_ddP_O")
         return np.array(GRAVITY, dtype=np.float64)
 
     @property
     def accelerometer_top(self) -> FloatArray:
         """(6, 3) [m/s^2] per joint 1..6 (protocol v10; zeros before)."""
         if self._dialect.has_accelerometers:
-            return np.array(self._record["accelerometer_top"], dtype=np.float64)
+            return self._field("accelerometer_top")
         return np.zeros((6, 3))
 
     @property
     def accelerometer_bottom(self) -> FloatArray:
         """(6, 3) [m/s^2] per joint 1..6 (protocol v10; zeros before)."""
         if self._dialect.has_accelerometers:
-            return np.array(self._record["accelerometer_bottom"], dtype=np.float64)
+            return self._field("accelerometer_bottom")
         return np.zeros((6, 3))
 
     def _total(self) -> tuple[float, FloatArray, FloatArray]:
-        r = self._record
         return combine_load(
-            float(r["m_ee"]), r["F_x_Cee"], r["I_ee"], float(r["m_load"]), r["F_x_Cload"],
-            r["I_load"],
+            self.m_ee, self._field("F_x_Cee"), self._field("I_ee"), self.m_load,
+            self._field("F_x_Cload"), self._field("I_load"),
         )  # fmt: skip
 
     @property
     def m_total(self) -> float:
         """End effector plus load mass [kg]."""
-        return float(self._record["m_ee"]) + float(self._record["m_load"])
+        return self.m_ee + self.m_load
 
     @property
     def F_x_Ctotal(self) -> FloatArray:
