@@ -196,6 +196,12 @@ def test_commander_filters_and_limits_torques_against_tau_J_d():
     step = min(gain * 50.0, 1.0 - 1e-6)  # limited to (1000 - eps) Nm/s * 1 ms
     np.testing.assert_allclose(c.record["tau_J_d"], np.arange(7.0) + step, rtol=1e-12)
     assert bytes(c.buffer) == d.encode_command(c.record)  # the record views the datagram
+    again = lf.Torques(np.arange(7.0) + 50.0)
+    c.torques(again, data)
+    first = bytes(c.buffer)
+    c.torques(again, data)  # the same object returned twice: the same command
+    assert bytes(c.buffer) == first
+    np.testing.assert_array_equal(again.tau_J, np.arange(7.0) + 50.0)  # not filtered in place
     off = Commander(d, lm.RateLimits.for_robot(FER), False, 1000.0)  # both disabled
     off.torques(lf.Torques(np.full(7, 50.0)), data)
     np.testing.assert_array_equal(off.record["tau_J_d"], np.full(7, 50.0))

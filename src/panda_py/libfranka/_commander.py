@@ -134,21 +134,23 @@ class Commander:
     # --- torques --------------------------------------------------------------------
 
     def torques(self, out: Any, state: bytes) -> bool:
-        if type(out) is not Torques:
+        tau = out._values if type(out) is Torques else None  # checked by the constructor
+        if tau is None:
             _expect(out, Torques)
-        tau = _values("tau_J", out.tau_J, 7)
+            tau = _values("tau_J", out.tau_J, 7)
         if self._process:
             last = self._tau_J_d.unpack(state)
             g = self.gain
             if self.limit_rate:
                 step = self._tau_step
+                limited = []
                 for i in range(7):
                     d = g * (tau[i] - last[i])
                     s = step[i]
-                    tau[i] = last[i] + (s if d > s else -s if d < -s else d)
+                    limited.append(last[i] + (s if d > s else -s if d < -s else d))
+                tau = limited
             else:
-                for i in range(7):
-                    tau[i] = last[i] + g * (tau[i] - last[i])
+                tau = [last[i] + g * (tau[i] - last[i]) for i in range(7)]
             _finite("tau_J", tau)
         self._c_tau.pack(self.buffer, *tau)
         return bool(out.motion_finished)
@@ -156,9 +158,10 @@ class Commander:
     # --- motion generators ------------------------------------------------------------
 
     def joint_positions(self, out: Any, state: bytes) -> bool:
-        if type(out) is not JointPositions:
+        q = out._values if type(out) is JointPositions else None
+        if q is None:
             _expect(out, JointPositions)
-        q = _values("q", out.q, 7)
+            q = _values("q", out.q, 7)
         if self._process:
             s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
             q_d = s[:7]
@@ -176,9 +179,10 @@ class Commander:
         return bool(out.motion_finished)
 
     def joint_velocities(self, out: Any, state: bytes) -> bool:
-        if type(out) is not JointVelocities:
+        dq = out._values if type(out) is JointVelocities else None
+        if dq is None:
             _expect(out, JointVelocities)
-        dq = _values("dq", out.dq, 7)
+            dq = _values("dq", out.dq, 7)
         if self._process:
             s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
             dq_d = s[7:14]
@@ -211,11 +215,12 @@ class Commander:
         self._c_elbow.pack(self.buffer, e0, sign, True)
 
     def cartesian_pose(self, out: Any, state: bytes) -> bool:
-        if type(out) is not CartesianPose:
+        T = out._values if type(out) is CartesianPose else None  # a checked pose
+        if T is None:
             _expect(out, CartesianPose)
-        T = _values("O_T_EE", out.O_T_EE, 16)
-        if not _fast.is_pose(T):
-            raise ValueError(_INVALID_POSE)
+            T = _values("O_T_EE", out.O_T_EE, 16)
+            if not _fast.is_pose(T):
+                raise ValueError(_INVALID_POSE)
         first = not self.initialized
         self.initialized = True
         if self._process:
@@ -233,9 +238,10 @@ class Commander:
         return bool(out.motion_finished)
 
     def cartesian_velocities(self, out: Any, state: bytes) -> bool:
-        if type(out) is not CartesianVelocities:
+        v = out._values if type(out) is CartesianVelocities else None
+        if v is None:
             _expect(out, CartesianVelocities)
-        v = _values("O_dP_EE", out.O_dP_EE, 6)
+            v = _values("O_dP_EE", out.O_dP_EE, 6)
         if self._process:
             s = self._twist.unpack(state)  # O_dP_EE_c, O_ddP_EE_c
             last = s[:6]

@@ -76,12 +76,18 @@ class Layout:
         self.version = dialect.version
         self.fields: dict[str, Field] = {}
         self.scalars: dict[str, Block] = {}
+        #: array field -> (unpack_from, offset, shape if not 1-D)
+        self.arrays: dict[str, tuple[Any, int, tuple[int, ...] | None]] = {}
         for name in sd.names or ():
             sub, offset = sd.fields[name][:2]  # type: ignore[index]
             count = int(np.prod(sub.shape)) if sub.shape else 1
             self.fields[name] = Field(offset, sub.base, count, sub.shape)
+            block = _block(sd, (name,))
             if not sub.shape:
-                self.scalars[name] = _block(sd, (name,))
+                self.scalars[name] = block
+            else:
+                shape = sub.shape if len(sub.shape) > 1 else None
+                self.arrays[name] = (block.struct_.unpack_from, offset, shape)
         # state: (message_id, motion_generator_mode, controller_mode, robot_mode)
         self.header = _block(
             sd, ("message_id", "motion_generator_mode", "controller_mode", "robot_mode")

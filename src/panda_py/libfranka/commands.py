@@ -58,7 +58,7 @@ def is_valid_elbow(elbow: Any) -> bool:
     return e.shape == (2,) and (e[1] == 1.0 or e[1] == -1.0)
 
 
-def _pose(value: Any) -> FloatArray:
+def _pose(value: Any) -> tuple[FloatArray, list[float]]:
     if getattr(value, "shape", None) == (4, 4):
         value = np.asarray(value, dtype=np.float64).reshape(16, order="F")  # -> column-major
     flat, values = _checked("O_T_EE", value, 16, "(column-major 4x4 transform)")
@@ -67,7 +67,7 @@ def _pose(value: Any) -> FloatArray:
             "O_T_EE: Attempt to set invalid transformation in motion generator. "
             "Has to be column major!"
         )
-    return flat
+    return flat, values
 
 
 def _elbow(value: Any) -> FloatArray | None:
@@ -80,47 +80,72 @@ def _elbow(value: Any) -> FloatArray | None:
     return e
 
 
+def _value(name: str, doc: str) -> Any:
+    """The public value attribute of a command: its float64 array. The constructor's checked
+    list of the same numbers rides along in ``_values`` for the 1 kHz path, which then
+    needs no NumPy call and no second check; it is dropped as soon as the array is handed
+    out (it may then be changed in place) or replaced, and the path reads the array."""
+
+    def get(self: Any) -> FloatArray:
+        self._values = None
+        return self._array
+
+    def set(self: Any, value: Any) -> None:
+        self._values = None
+        self._array = value
+
+    return property(get, set, doc=doc)
+
+
 class Torques:
     """Joint torques ``tau_J`` (7,) [Nm] for the robot's external-controller mode, without
     gravity (the robot compensates it)."""
 
-    __slots__ = ("motion_finished", "tau_J")
+    __slots__ = ("_array", "_values", "motion_finished")
 
     def __init__(self, tau_J: Any) -> None:
-        self.tau_J: FloatArray = _vector("tau_J", tau_J, 7, "[Nm]")
+        self._array, self._values = _checked("tau_J", tau_J, 7, "[Nm]")
         self.motion_finished = False
+
+    tau_J = _value("tau_J", "Joint torques (7,) [Nm].")
 
 
 class JointPositions:
     """Joint positions ``q`` (7,) [rad] for the joint position motion generator."""
 
-    __slots__ = ("motion_finished", "q")
+    __slots__ = ("_array", "_values", "motion_finished")
 
     def __init__(self, q: Any) -> None:
-        self.q: FloatArray = _vector("q", q, 7, "[rad]")
+        self._array, self._values = _checked("q", q, 7, "[rad]")
         self.motion_finished = False
+
+    q = _value("q", "Joint positions (7,) [rad].")
 
 
 class JointVelocities:
     """Joint velocities ``dq`` (7,) [rad/s] for the joint velocity motion generator."""
 
-    __slots__ = ("dq", "motion_finished")
+    __slots__ = ("_array", "_values", "motion_finished")
 
     def __init__(self, dq: Any) -> None:
-        self.dq: FloatArray = _vector("dq", dq, 7, "[rad/s]")
+        self._array, self._values = _checked("dq", dq, 7, "[rad/s]")
         self.motion_finished = False
+
+    dq = _value("dq", "Joint velocities (7,) [rad/s].")
 
 
 class CartesianPose:
     """End-effector pose ``O_T_EE`` (16 values column-major, or a 4x4 matrix) [m], with an
     optional ``elbow`` (joint-3 position [rad], joint-4 flip sign +-1)."""
 
-    __slots__ = ("O_T_EE", "elbow", "motion_finished")
+    __slots__ = ("_array", "_values", "elbow", "motion_finished")
 
     def __init__(self, O_T_EE: Any, elbow: Any = None) -> None:
-        self.O_T_EE: FloatArray = _pose(O_T_EE)
+        self._array, self._values = _pose(O_T_EE)
         self.elbow: FloatArray | None = _elbow(elbow)
         self.motion_finished = False
+
+    O_T_EE = _value("O_T_EE", "End-effector pose (16,) column-major [m].")
 
     def has_elbow(self) -> bool:
         return self.elbow is not None
@@ -130,12 +155,14 @@ class CartesianVelocities:
     """End-effector twist ``O_dP_EE`` (6,) [m/s, rad/s] in the base frame, with an
     optional ``elbow`` (joint-3 velocity [rad/s], joint-4 flip sign +-1)."""
 
-    __slots__ = ("O_dP_EE", "elbow", "motion_finished")
+    __slots__ = ("_array", "_values", "elbow", "motion_finished")
 
     def __init__(self, O_dP_EE: Any, elbow: Any = None) -> None:
-        self.O_dP_EE: FloatArray = _vector("O_dP_EE", O_dP_EE, 6, "[m/s, rad/s]")
+        self._array, self._values = _checked("O_dP_EE", O_dP_EE, 6, "[m/s, rad/s]")
         self.elbow: FloatArray | None = _elbow(elbow)
         self.motion_finished = False
+
+    O_dP_EE = _value("O_dP_EE", "End-effector twist (6,) [m/s, rad/s].")
 
     def has_elbow(self) -> bool:
         return self.elbow is not None

@@ -76,8 +76,10 @@ class Duration:
     __slots__ = ("_ms",)
 
     def __init__(self, milliseconds: int | datetime.timedelta | Duration = 0) -> None:
-        if isinstance(milliseconds, Duration):
-            self._ms: int = milliseconds._ms
+        if type(milliseconds) is int:  # the control loop's case, first
+            self._ms: int = milliseconds
+        elif isinstance(milliseconds, Duration):
+            self._ms = milliseconds._ms
         elif isinstance(milliseconds, datetime.timedelta):
             self._ms = round(milliseconds.total_seconds() * 1000.0)
         elif isinstance(milliseconds, (int, np.integer)) and not isinstance(milliseconds, bool):
