@@ -13,6 +13,7 @@ from panda_py.libfranka._active import ActiveControl, RobotBase
 from panda_py.libfranka._commander import Commander, check_cutoff
 from panda_py.libfranka._motion import MotionSession
 from panda_py.libfranka._realtime import check_realtime, realtime_scope
+from panda_py.libfranka._warm import rehearsal
 from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
@@ -169,13 +170,19 @@ class ControlMixin(RobotBase):
         command = commander.buffer
         log = self._log
         gc_was_enabled = gc.isenabled()
+        kinds = ((Torques,) if control_cb is not None else ()) + (
+            (kind,) if motion_cb is not None else ()
+        )
+        net = conn.net
         with realtime_scope(self._realtime_config):
             session = self._start(controller, generator)
             send, receive = session.send, session.receive
+            scratch = Commander(d, self._limits, limit_rate, cutoff_frequency)
             # No cyclic garbage collection inside the loop: a collection pass costs more
             # than a tick; cycles the callbacks create are collected after the motion.
             gc.disable()
             try:
+                net.before_spin = rehearsal(conn, scratch, kinds)
                 data = receive()  # libfranka skips the state that shows the modes
                 prev = conn.last_id
                 # Between reading a state and sending its command only what the answer
@@ -201,6 +208,7 @@ class ControlMixin(RobotBase):
                 session.cancel()
                 raise
             finally:
+                net.before_spin = None
                 if gc_was_enabled:
                     gc.enable()
                 if self._session is session:

@@ -14,6 +14,7 @@ import struct
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from panda_py.fci import Message, MessageReader, ProtocolError
@@ -28,9 +29,15 @@ UDP_TIMEOUT = 1.0  # [s] wait for a UDP datagram (libfranka: 1 s)
 # without sleeping for at most SPIN_BUDGET, then sleep again. A thread woken from sleep
 # runs its first microseconds on cold caches (several times slower on a VM), so catching
 # the datagram while spinning cuts the per-tick latency; the budget bounds the CPU burnt.
+# When a state is due is tracked as a phase: the robot sends on absolute deadlines and
+# delays only ever add, so an early state sets the phase at once, while one that is late
+# but still inside the spin moves it by PHASE_SLEW only (else one late state would end
+# the wait for the next, which comes on time, too late: woken on cold caches, or in the
+# middle of the loop's cache warm-up); a state later than the spin covers resets it.
 STATE_PERIOD = 1e-3  # [s]
 SPIN_LEAD = 150e-6  # [s]
 SPIN_BUDGET = 300e-6  # [s]
+PHASE_SLEW = 10e-6  # [s] per state
 _clock = time.perf_counter
 _UDP_BUFFER = 4096  # [bytes] larger than any state datagram
 _MESSAGE_ID = struct.Struct("<Q")
@@ -68,9 +75,12 @@ class Network:
         self._responses: dict[int, deque[Message]] = {}
         self._tcp_lock = threading.Lock()
         self._udp_peer: tuple[str, int] | None = None
-        self._last_arrival = 0.0  # perf_counter of the last datagram read
+        self._next_due = 0.0  # perf_counter when the next state is expected
         self.broken = False  # the robot closed the TCP connection (or it failed)
         self.spin = True  # hybrid sleep/spin wait for states (False: sleep only)
+        #: Called when a hybrid wait has slept and starts polling for a state that is due
+        #: shortly (a control loop warms its caches there, see :mod:`._warm`).
+        self.before_spin: Callable[[], None] | None = None
         self._tcp: socket.socket | None = None
         self._udp: socket.socket | None = None
         try:
@@ -209,12 +219,17 @@ class Network:
         if len(data) < self._udp_size:
             raise ProtocolException("libfranka: incorrect object size")
         self._udp_peer = addr
-        self._last_arrival = _clock()
+        now = _clock()
+        due = self._next_due
+        if due < now <= due + (SPIN_BUDGET - SPIN_LEAD):  # late, within the spin
+            self._next_due = due + STATE_PERIOD + PHASE_SLEW
+        else:  # early (or no phase yet, or far off): this arrival sets it
+            self._next_due = now + STATE_PERIOD
         return data
 
     def _spin_wait(self, udp: socket.socket) -> bytes | None:
         """Sleep until shortly before the next state is due, then poll for it."""
-        due = self._last_arrival + STATE_PERIOD - SPIN_LEAD
+        due = self._next_due - SPIN_LEAD
         now = _clock()
         if due > now:
             ready, _, _ = select.select([udp], [], [], due - now)
@@ -224,6 +239,9 @@ class Network:
                 except (BlockingIOError, InterruptedError):
                     return None
                 return self._accept(data, addr)
+            hook = self.before_spin
+            if hook is not None:
+                hook()
         end = _clock() + SPIN_BUDGET
         recvfrom = udp.recvfrom
         while True:
@@ -234,6 +252,11 @@ class Network:
                     return None
                 continue
             return self._accept(data, addr)
+
+    def pending(self) -> bool:
+        """True if a datagram waits on the UDP socket (a poll, no wait)."""
+        udp = self._udp
+        return udp is not None and bool(select.select([udp], [], [], 0.0)[0])
 
     def receive_newest(self, last_id: int) -> bytes:
         """The newest robot state on the UDP socket whose ``message_id`` (u64 at offset 0)
