@@ -167,6 +167,7 @@ def overhead(ticks: int, lockstep: bool, repeat: int, kinds: tuple[str, ...]) ->
                         except lf.ControlException as exc:  # e.g. commands lost under load
                             reason = str(exc).splitlines()[0]
                             print(f"{version:>7} {kind:>18} failed: {reason}")
+                            robot.automatic_error_recovery()
                             continue
                     # the last commands are the finish phase (no callback): leave them out
                     us = response[: min(count[0], ticks) - 1] * 1e6
