@@ -179,6 +179,16 @@ def test_fast_math_equals_the_numpy_reference():
         ref_f = lf.cartesian_lowpass_filter(DT, T, T_last, 30.0)
         gain = lm._gain(DT, 30.0)
         np.testing.assert_allclose(_fast.pose_lowpass(gain, T, T_last), ref_f, atol=1e-12)
+        # filter and limiter in one pass, for steps up to large rotations and gains near 1
+        for angle, cutoff in ((0.01, 30.0), (1.0, 300.0), (3.0, 999.0)):
+            T_far = _pose(lm._exp(rng.normal(0, angle, 3)) @ R_step, T_last[12:15] + 0.01)
+            ref_f = lf.cartesian_lowpass_filter(DT, T_far, T_last, cutoff)
+            ref_fl = lm.limit_rate_cartesian_pose(lim.translation, lim.rotation, ref_f, T_last,
+                                                  v, a)  # fmt: skip
+            fast_fl = _fast.pose_lowpass_limit(
+                lm._gain(DT, cutoff), lim.translation, rot, T_far.tolist(), T_last.tolist(), v, a
+            )
+            np.testing.assert_allclose(fast_fl, ref_fl, atol=1e-12)
     # a rotation by (almost) pi: the log map's special branch
     R = lm._exp(np.array([0.0, math.pi - 1e-9, 0.0]))
     np.testing.assert_allclose(_fast.log_so3(tuple(R.reshape(9))), lm._log(R), atol=1e-6)

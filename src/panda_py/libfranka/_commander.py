@@ -165,14 +165,14 @@ class Commander:
         if self._process:
             s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
             q_d = s[:7]
-            if self.filter and self.initialized:
-                g = self.gain
-                q = [q_d[i] + g * (q[i] - q_d[i]) for i in range(7)]
-            if self.limit_rate:
+            gain = self.gain if self.filter and self.initialized else None
+            if self.limit_rate:  # the filter runs inside the limiter's loop
                 upper, lower = self._velocity_limits(q_d)
                 q = _fast.joint_positions(
-                    upper, lower, self._acc, self._jerk, q, q_d, s[7:14], s[14:21]
+                    upper, lower, self._acc, self._jerk, q, q_d, s[7:14], s[14:21], gain
                 )
+            elif gain is not None:
+                q = [q_d[i] + gain * (q[i] - q_d[i]) for i in range(7)]
             _finite("q", q)
         self.initialized = True
         self._c_q.pack(self.buffer, *q)
@@ -186,12 +186,14 @@ class Commander:
         if self._process:
             s = self._joint.unpack(state)  # q_d, dq_d, ddq_d
             dq_d = s[7:14]
-            if self.filter:
-                g = self.gain
-                dq = [dq_d[i] + g * (dq[i] - dq_d[i]) for i in range(7)]
-            if self.limit_rate:
+            gain = self.gain if self.filter else None
+            if self.limit_rate:  # the filter runs inside the limiter's loop
                 upper, lower = self._velocity_limits(s[:7])
-                dq = _fast.joint_velocities(upper, lower, self._acc, self._jerk, dq, dq_d, s[14:21])
+                dq = _fast.joint_velocities(
+                    upper, lower, self._acc, self._jerk, dq, dq_d, s[14:21], gain
+                )
+            elif gain is not None:
+                dq = [dq_d[i] + gain * (dq[i] - dq_d[i]) for i in range(7)]
             _finite("dq", dq)
         self._c_dq.pack(self.buffer, *dq)
         return bool(out.motion_finished)
@@ -226,12 +228,18 @@ class Commander:
         if self._process:
             s = self._pose.unpack(state)  # O_T_EE_c, O_dP_EE_c, O_ddP_EE_c
             last = s[:16]
-            if self.filter and not first:
-                T = _fast.pose_lowpass(self.gain, T, last)
-            if self.limit_rate:
+            filtered = self.filter and not first
+            if self.limit_rate and filtered:
+                T = _fast.pose_lowpass_limit(
+                    self.gain, self.limits.translation, self._pose_rotation, T, last,
+                    s[16:22], s[22:28],
+                )  # fmt: skip
+            elif self.limit_rate:
                 T = _fast.pose_limit(
                     self.limits.translation, self._pose_rotation, T, last, s[16:22], s[22:28]
                 )
+            elif filtered:
+                T = _fast.pose_lowpass(self.gain, T, last)
             _finite("O_T_EE", T)
         self._c_pose.pack(self.buffer, *T)
         self._elbow(out.elbow, state, first)

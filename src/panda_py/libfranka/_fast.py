@@ -23,6 +23,7 @@ __all__ = [
     "log_so3",
     "pose_limit",
     "pose_lowpass",
+    "pose_lowpass_limit",
     "twist_limit",
 ]
 
@@ -39,12 +40,15 @@ _sqrt = math.sqrt
 def joint_velocities(
     upper: Sequence[float], lower: Sequence[float], max_acc: Sequence[float],
     max_jerk: Sequence[float], v: Sequence[float], lv: Sequence[float], la: Sequence[float],
+    gain: float | None = None,
 ) -> list[float]:  # fmt: skip
-    """Per-joint jerk/acceleration/velocity limiting (see ``limit_rate_joint_velocities``)."""
+    """Per-joint jerk/acceleration/velocity limiting (see ``limit_rate_joint_velocities``),
+    of ``v`` low-passed towards ``lv`` by ``gain`` first if given."""
     out = []
     for i in range(len(v)):
         lvi, lai, am, jm = lv[i], la[i], max_acc[i], max_jerk[i]
-        jerk = ((v[i] - lvi) / DT - lai) / DT
+        vi = v[i] if gain is None else lvi + gain * (v[i] - lvi)
+        jerk = ((vi - lvi) / DT - lai) / DT
         acc = lai + (jm if jerk > jm else -jm if jerk < -jm else jerk) * DT
         r = jm / am
         x = r * (upper[i] - lvi)
@@ -59,13 +63,15 @@ def joint_velocities(
 def joint_positions(
     upper: Sequence[float], lower: Sequence[float], max_acc: Sequence[float],
     max_jerk: Sequence[float], q: Sequence[float], lq: Sequence[float], lv: Sequence[float],
-    la: Sequence[float],
+    la: Sequence[float], gain: float | None = None,
 ) -> list[float]:  # fmt: skip
-    """Joint positions whose finite-difference velocity is limited as above."""
+    """Joint positions whose finite-difference velocity is limited as above, of ``q``
+    low-passed towards ``lq`` by ``gain`` first if given."""
     out = []
     for i in range(len(q)):
         lqi, lvi, lai, am, jm = lq[i], lv[i], la[i], max_acc[i], max_jerk[i]
-        jerk = (((q[i] - lqi) / DT - lvi) / DT - lai) / DT
+        qi = q[i] if gain is None else lqi + gain * (q[i] - lqi)
+        jerk = (((qi - lqi) / DT - lvi) / DT - lai) / DT
         acc = lai + (jm if jerk > jm else -jm if jerk < -jm else jerk) * DT
         r = jm / am
         x = r * (upper[i] - lvi)
@@ -238,10 +244,48 @@ def pose_limit(
         N[2] * L[0] + N[6] * L[4] + N[10] * L[8], N[2] * L[1] + N[6] * L[5] + N[10] * L[9],
         N[2] * L[2] + N[6] * L[6] + N[10] * L[10],
     ))  # fmt: skip
+    return _limit_step(translation, rotation, L, N[12], N[13], N[14], w, lv, la)
+
+
+def pose_lowpass_limit(
+    gain: float, translation: Sequence[float], rotation: Sequence[float], T: Sequence[float],
+    T_last: Sequence[float], lv: Sequence[float], la: Sequence[float],
+) -> list[float]:  # fmt: skip
+    """:func:`pose_limit` of :func:`pose_lowpass` in one pass: the low-passed rotation
+    R_last exp(gain w) (w = log(R_last^T R)) is never formed, as the limiter needs only
+    its rotation vector relative to R_last in the base frame, log(R_last exp(gain w)
+    R_last^T) = R_last (gain w) (conjugation turns the axis; gain < 1 keeps the angle
+    below pi). Equal to the two steps to float round-off."""
+    L, N = T_last, T
+    # R_last^T R: column i of T_last dotted with column j of T
+    w = log_so3((
+        L[0] * N[0] + L[1] * N[1] + L[2] * N[2], L[0] * N[4] + L[1] * N[5] + L[2] * N[6],
+        L[0] * N[8] + L[1] * N[9] + L[2] * N[10], L[4] * N[0] + L[5] * N[1] + L[6] * N[2],
+        L[4] * N[4] + L[5] * N[5] + L[6] * N[6], L[4] * N[8] + L[5] * N[9] + L[6] * N[10],
+        L[8] * N[0] + L[9] * N[1] + L[10] * N[2], L[8] * N[4] + L[9] * N[5] + L[10] * N[6],
+        L[8] * N[8] + L[9] * N[9] + L[10] * N[10],
+    ))  # fmt: skip
+    gx, gy, gz = gain * w[0], gain * w[1], gain * w[2]
+    g1 = 1.0 - gain
+    return _limit_step(
+        translation, rotation, L, gain * N[12] + g1 * L[12], gain * N[13] + g1 * L[13],
+        gain * N[14] + g1 * L[14],
+        (L[0] * gx + L[4] * gy + L[8] * gz, L[1] * gx + L[5] * gy + L[9] * gz,
+         L[2] * gx + L[6] * gy + L[10] * gz),
+        lv, la,
+    )  # fmt: skip
+
+
+def _limit_step(
+    translation: Sequence[float], rotation: Sequence[float], L: Sequence[float], x: float,
+    y: float, z: float, w: Sequence[float], lv: Sequence[float], la: Sequence[float],
+) -> list[float]:  # fmt: skip
+    """The limited pose from T_last ``L`` towards position (x, y, z) and the base-frame
+    rotation vector ``w`` relative to R_last."""
     px, py, pz = L[12], L[13], L[14]
     tx, ty, tz = _vec_limit(
-        translation[0], translation[1], translation[2], (N[12] - px) / DT, (N[13] - py) / DT,
-        (N[14] - pz) / DT, lv[0], lv[1], lv[2], la[0], la[1], la[2],
+        translation[0], translation[1], translation[2], (x - px) / DT, (y - py) / DT,
+        (z - pz) / DT, lv[0], lv[1], lv[2], la[0], la[1], la[2],
     )  # fmt: skip
     rx, ry, rz = _vec_limit(
         rotation[0], rotation[1], rotation[2], w[0] / DT, w[1] / DT, w[2] / DT, lv[3], lv[4],
