@@ -82,31 +82,38 @@ def get_kinematics(robot: Any = "fer", F_T_EE: Any = None) -> Kinematics:
 
 
 def _make_fk(kin: Kinematics) -> Any:
-    # A closure over the default model's generated code: one Python call frame, no
-    # attribute look-ups on the fast path (7 floats in, one 4x4 array out).
+    # A closure over the default model: one Python call frame, no attribute look-ups on
+    # the fast path (7 floats in, one 4x4 array out), on the numba kernel (its signatures
+    # refuse other types with a TypeError) or on the generated code.
     ee = kin._ee
     empty = np.empty
     from panda_py.kinematics import _model
-    from panda_py.kinematics._model import _F64, _PACK16, _UNSET
+    from panda_py.kinematics._model import _PACK16, _UNSET
 
     pack = _PACK16
     CF = kin._CF
     ndarray = np.ndarray
+    kernel: Any = None  # the numba kernel, once loaded
 
     def fk(q: Any, *, robot: Any = None, F_T_EE: Any = None) -> FloatArray:
         """``O_T_EE`` (4, 4) [m] for joint positions ``q`` (7,) [rad]; a batch (N, 7)
         gives (N, 4, 4). ``robot``/``F_T_EE`` select another arm or end effector (default
         the FER with the Franka Hand)."""
+        nonlocal kernel
         if robot is None and F_T_EE is None:
-            if type(q) is ndarray and q.dtype is _F64 and q.shape == (7,):
-                jit = _model._JIT
-                if jit is _UNSET:
-                    jit = _model.load_jit()
-                if jit is not None:
+            jit = _model._JIT
+            if jit is _UNSET:
+                jit = _model.load_jit()
+            if jit is not None:
+                if type(q) is ndarray and q.ndim == 1:
+                    if kernel is None:
+                        kernel = jit.single("fk_one")
                     out = empty((4, 4))
-                    if jit.fk_one(q, CF, out):
-                        return out
-            elif _model.load_jit() is not None:
+                    try:
+                        if kernel(q, CF, out):
+                            return out
+                    except (TypeError, ValueError):  # not float64
+                        pass
                 return kin.fk(q)
             try:
                 if len(q) != 7:
@@ -144,52 +151,76 @@ def body_jacobian(q: Any, *, robot: Any = "fer", F_T_EE: Any = None) -> FloatArr
     return get_kinematics(robot, F_T_EE).body_jacobian(q)
 
 
-def _make_ik(kin: Kinematics) -> Any:
-    fast = kin._ik_fast
+_NOARG: Any = object()  # "not given", for ik's positional-only parameters
 
-    def ik(*args: Any, robot: Any = None, F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
-        """Joint positions (7,) [rad] reaching the EE pose, in the same case as ``q_init``;
-        NaN if that case has no solution within the joint limits.
 
-        ``ik(O_T_EE, q_init=START_POSE, q_7=pi/4)`` or ``ik(position, orientation, q_init,
-        q_7)`` with position [m] (3,) and quaternion (x, y, z, w) (4,). ``q_7`` [rad] is
-        the redundancy parameter. Batches: O_T_EE (N, 4, 4) (or (N, 3) and (N, 4)),
-        q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r``
-        [rad] tries the nearest q7 within r of q_7 with a solution; ``robot`` ("fer",
-        "fr3", ...) the joint limits; ``F_T_EE`` another end effector.
-        """
-        if robot is None and F_T_EE is None and not kwargs and 1 <= len(args) <= 3:
-            q = fast(*args)
-            if q is not None:
-                return q
-        kin_ = get_kinematics(robot if robot is not None else "fer", F_T_EE)
-        return kin_._ik_selected(*args, **kwargs)
+def _make_ik(kin: Kinematics, full: bool) -> Any:
+    # One Python frame on the fast path (an ndarray pose, positional q_init and q_7, the
+    # default robot): the numba kernel is called directly; its signatures refuse other
+    # types (TypeError) and it returns False for bad shapes or values, and everything
+    # else takes the general path, which also words the error messages.
+    if kin._EE_T_F is not None:
+        raise ValueError("the fast single-pose ik needs an EE on the flange's z axis")
+    from panda_py.kinematics import _model
+    from panda_py.kinematics._model import _UNSET
+
+    P, start, empty, ndarray = kin._P, kin._start, np.empty, np.ndarray
+    shape = (4, 7) if full else 7
+    kernel_name = "ik_full_one" if full else "ik_one"
+    kernel: Any = None  # the numba kernel, once loaded
+    scalar = kin._ik_fast  # the pure path's single-pose solver
+    general_name = "_ik_full_selected" if full else "_ik_selected"
+
+    def ik(
+        O_T_EE: Any = _NOARG, q_init: Any = _NOARG, q_7: Any = _NOARG, /, *more: Any, **kw: Any
+    ) -> FloatArray:
+        nonlocal kernel
+        if type(O_T_EE) is ndarray and O_T_EE.ndim == 2 and not kw and not more:
+            q7 = DEFAULT_Q7 if q_7 is _NOARG else q_7
+            qi = start if q_init is _NOARG or q_init is None else q_init
+            jit = _model._JIT
+            if jit is _UNSET:
+                jit = _model.load_jit()
+            if jit is not None:
+                if kernel is None:
+                    kernel = jit.single(kernel_name)
+                out = empty(shape)
+                try:
+                    if kernel(P, O_T_EE, qi, q7, out):
+                        return out
+                except (TypeError, ValueError):  # not float64 arrays / a number
+                    pass
+            else:
+                q = scalar(O_T_EE, None if qi is start else qi, q7, full=full)
+                if q is not None:
+                    return q
+        args = tuple(a for a in (O_T_EE, q_init, q_7) if a is not _NOARG) + more
+        robot = kw.pop("robot", None)
+        kin_ = get_kinematics(robot if robot is not None else "fer", kw.pop("F_T_EE", None))
+        return getattr(kin_, general_name)(*args, **kw)
 
     return ik
 
 
-ik = _make_ik(_DEFAULT)
+ik = _make_ik(_DEFAULT, full=False)
+ik.__name__ = ik.__qualname__ = "ik"
+ik.__doc__ = """Joint positions (7,) [rad] reaching the EE pose, in the same case as ``q_init``;
+NaN if that case has no solution within the joint limits.
 
+``ik(O_T_EE, q_init=START_POSE, q_7=pi/4)`` or ``ik(position, orientation, q_init, q_7)``
+with position [m] (3,) and quaternion (x, y, z, w) (4,); each also by keyword. ``q_7``
+[rad] is the redundancy parameter. Batches: O_T_EE (N, 4, 4) (or (N, 3) and (N, 4)),
+q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r`` [rad]
+tries the nearest q7 within r of q_7 with a solution; ``robot`` ("fer", "fr3", ...) the
+joint limits; ``F_T_EE`` another end effector.
+"""
 
-def _make_ik_full(kin: Kinematics) -> Any:
-    fast = kin._ik_fast
-
-    def ik_full(*args: Any, robot: Any = None, F_T_EE: Any = None, **kwargs: Any) -> FloatArray:
-        """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none), rows
-        ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0),
-        (cos(q5) >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives
-        (N, 4, 7)."""
-        if robot is None and F_T_EE is None and not kwargs and 1 <= len(args) <= 3:
-            q = fast(*args, full=True)
-            if q is not None:
-                return q
-        kin_ = get_kinematics(robot if robot is not None else "fer", F_T_EE)
-        return kin_.ik_full(*args, **kwargs)
-
-    return ik_full
-
-
-ik_full = _make_ik_full(_DEFAULT)
+ik_full = _make_ik(_DEFAULT, full=True)
+ik_full.__name__ = ik_full.__qualname__ = "ik_full"
+ik_full.__doc__ = """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none),
+rows ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0),
+(cos(q5) >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives
+(N, 4, 7)."""
 
 
 def ik_result(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> IKResult:

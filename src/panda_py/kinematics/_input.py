@@ -30,13 +30,22 @@ def as_float_array(name: str, x: object) -> NDArray[np.float64]:
     return a
 
 
-def check_finite(name: str, a: NDArray[np.float64]) -> None:
+def check_finite(name: str, a: NDArray[np.float64], item_ndim: int | None = None) -> None:
+    """All of a finite; in a batch (``a.ndim > item_ndim``) the message names the first
+    item with a NaN or infinity."""
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: expected finite values, got NaN or infinity in {a!r:.200}")
+        where = ""
+        if item_ndim is not None and a.ndim > item_ndim:
+            bad = ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+            where = f" (batch index {int(np.flatnonzero(bad)[0])})"
+        raise ValueError(
+            f"{name}: expected finite values, got NaN or infinity{where} in {a!r:.200}"
+        )
 
 
-def joints(name: str, x: object) -> NDArray[np.float64]:
-    """(7,) or (N, 7) joint positions [rad]; a (7, 1) column is taken as (7,)."""
+def joints(name: str, x: object, *, check: bool = True) -> NDArray[np.float64]:
+    """(7,) or (N, 7) joint positions [rad]; a (7, 1) column is taken as (7,). With
+    ``check=False`` the values are not tested for being finite (a kernel does that)."""
     a = as_float_array(name, x)
     if a.shape == (7, 1):
         a = a[:, 0]
@@ -45,18 +54,27 @@ def joints(name: str, x: object) -> NDArray[np.float64]:
             f"{name}: expected 7 joint positions [rad] as shape (7,) or a batch (N, 7), "
             f"got {_describe(x)}"
         )
-    check_finite(name, a)
+    if check:
+        check_finite(name, a, 1)
     return a
 
 
-def transforms(name: str, x: object) -> NDArray[np.float64]:
-    """(4, 4) or (N, 4, 4) homogeneous transforms, checked to be rigid."""
+def transforms(name: str, x: object, *, check: bool = True) -> NDArray[np.float64]:
+    """(4, 4) or (N, 4, 4) homogeneous transforms, checked to be finite and rigid (unless
+    ``check=False``: the numba kernels test each pose themselves, see ``_numba._rigid``)."""
     a = as_float_array(name, x)
     if a.ndim not in (2, 3) or a.shape[-2:] != (4, 4):
         raise ValueError(
             f"{name}: expected a 4x4 homogeneous transform or a batch (N, 4, 4), got {_describe(x)}"
         )
-    check_finite(name, a)
+    if check:
+        check_rigid(name, a)
+    return a
+
+
+def check_rigid(name: str, a: NDArray[np.float64]) -> None:
+    """ValueError unless every 4x4 in a ((4, 4) or (N, 4, 4)) is finite and rigid."""
+    check_finite(name, a, 2)
     # Elementwise (cheap on batches): unit orthogonal x, y columns, z = x cross y.
     x, y, z = a[..., :3, 0], a[..., :3, 1], a[..., :3, 2]
     cross = np.stack(
@@ -81,7 +99,6 @@ def transforms(name: str, x: object) -> NDArray[np.float64]:
             f"0 0 0 1, tolerance {ROTATION_TOL}){where}; largest deviation "
             f"{max(np.atleast_1d(err)[i], np.atleast_1d(last)[i]):.3g}"
         )
-    return a
 
 
 def position_orientation(position: object, orientation: object) -> NDArray[np.float64]:
@@ -100,8 +117,8 @@ def position_orientation(position: object, orientation: object) -> NDArray[np.fl
         raise ValueError(
             f"position, orientation: batch sizes differ, got shapes {p.shape} and {o.shape}"
         )
-    check_finite("position", p)
-    check_finite("orientation", o)
+    check_finite("position", p, 1)
+    check_finite("orientation", o, 1)
     norm = np.linalg.norm(o, axis=-1)
     if np.any(np.abs(norm - 1.0) > QUATERNION_TOL):
         raise ValueError(
@@ -124,11 +141,14 @@ def position_orientation(position: object, orientation: object) -> NDArray[np.fl
     return T
 
 
-def scalar_or_batch(name: str, x: object, n: int | None, unit: str) -> NDArray[np.float64]:
-    """A float, or (N,) matching a batch of n."""
+def scalar_or_batch(
+    name: str, x: object, n: int | None, unit: str, *, check: bool = True
+) -> NDArray[np.float64]:
+    """A float, or (N,) matching a batch of n (finite unless ``check=False``)."""
     a = as_float_array(name, x)
     if a.ndim == 0 or (a.ndim == 1 and n is not None and a.shape[0] == n):
-        check_finite(name, a)
+        if check:
+            check_finite(name, a, 0)
         return a
     want = "a number" if n is None else f"a number or shape ({n},)"
     raise ValueError(f"{name}: expected {want} [{unit}], got {_describe(x)}")

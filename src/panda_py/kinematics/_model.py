@@ -7,6 +7,7 @@ import enum
 import math
 import os
 import struct
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -55,6 +56,38 @@ def load_jit() -> Any:
     return _JIT
 
 
+# Batches of at least this many rows run the numba kernels on all cores (below it the
+# threads' start-up costs more than they save).
+PARALLEL_MIN_ROWS = 2048
+# One parallel launch at a time (numba's fallback threading layer aborts on concurrent
+# launches; a second caller takes the serial kernel instead of waiting), and none in a
+# forked child (GNU OpenMP, numba's default layer on Linux, is not fork-safe).
+_PAR_LOCK = threading.Lock()
+_PAR_PID = os.getpid()
+
+
+def _run(serial: Any, parallel: Any, n: int, *args: Any) -> None:
+    """A numba batch kernel over n rows: the parallel variant where it pays and is safe."""
+    if n >= PARALLEL_MIN_ROWS and os.getpid() == _PAR_PID and _PAR_LOCK.acquire(blocking=False):
+        try:
+            parallel(*args)
+        finally:
+            _PAR_LOCK.release()
+    else:
+        serial(*args)
+
+
+def _raise_invalid(T: FloatArray, qi: FloatArray, q7: FloatArray, k: int) -> None:
+    """The validating path's message for pose k, which a kernel found not to be a finite
+    rigid transform (or with a non-finite q_init or q_7)."""
+    _input.check_rigid("O_T_EE", T)  # each names the first bad item of a batch
+    _input.check_finite("q_init", qi, 1)
+    _input.check_finite("q_7", q7, 0)
+    raise ValueError(  # not reached unless the two checks disagree at the tolerance
+        f"O_T_EE: expected a rigid transform (tolerance {_input.ROTATION_TOL}) (batch index {k})"
+    )
+
+
 def _pack_chain(dh: Any, F_T_EE: FloatArray) -> FloatArray:
     """The numba fk kernels' chain (11, 4): per joint ``[a, d, cos alpha, sin alpha]``
     (cos/sin snapped to exact 0, +-1 as in ``_codegen``), ``[flange_d, 0, 0, 0]``, then
@@ -69,9 +102,10 @@ def _pack_chain(dh: Any, F_T_EE: FloatArray) -> FloatArray:
 
 def _pack_ik(P: _ik.IKParams) -> FloatArray:
     """The numba ik kernels' parameters: d1, d3, d5, a4, a7, d_e, theta_e, l24, l46,
-    q4_offset, q_min (7), q_max (7)."""
+    q4_offset, q_min (7), q_max (7), cos and sin of q4_offset, 1 / (2 l24 l46)."""
     head = [P.d1, P.d3, P.d5, P.a4, P.a7, P.d_e, P.theta_e, P.l24, P.l46, P.q4_offset]
-    return np.array([*head, *P.q_min, *P.q_max], dtype=np.float64)
+    tail = [P.cos_q4_offset, P.sin_q4_offset, P.inv_2l24l46]
+    return np.array([*head, *P.q_min, *P.q_max, *tail], dtype=np.float64)
 
 
 class IKStatus(enum.IntEnum):
@@ -201,19 +235,20 @@ class Kinematics:
     def fk(self, q: object) -> FloatArray:
         """``O_T_EE`` (4, 4) for joint positions q (7,) [rad]; a batch (N, 7) gives
         (N, 4, 4). Translations in [m]."""
-        if type(q) is np.ndarray and q.dtype is _F64 and q.shape == (7,):
-            jit = _JIT if _JIT is not _UNSET else load_jit()
-            if jit is not None:
-                out = np.empty((4, 4))
-                if jit.fk_one(q, self._CF, out):
+        jit = _JIT if _JIT is not _UNSET else load_jit()
+        if jit is not None and type(q) is np.ndarray and q.ndim == 1:
+            out = np.empty((4, 4))
+            try:
+                if jit.single("fk_one")(q, self._CF, out):
                     return out
-        jit = load_jit()
+            except (TypeError, ValueError):  # not float64: the general path converts
+                pass
         if jit is None:
             return self._fk_pure(q)
         qa = _input.joints("q", q)
         qb = np.ascontiguousarray(qa.reshape(-1, 7))
         out = np.empty((qb.shape[0], 4, 4))
-        jit.fk_batch(qb, self._CF, out)
+        _run(jit.fk_batch, jit.fk_batch_par, qb.shape[0], qb, self._CF, out)
         return out[0] if qa.ndim == 1 else out
 
     def _fk_pure(self, q: object) -> FloatArray:
@@ -330,37 +365,7 @@ class Kinematics:
         q7_search: float = 0.0,
     ) -> FloatArray:
         """ik for a batch without the other three branches (a quarter of the work)."""
-        T, qi_a, q7_a = self._parse(args, O_T_EE, position, orientation, q_init, q_7)
-        if T.ndim == 2 or _input.nonnegative("q7_search", q7_search, "rad") > 0.0:
-            return self.ik_result(
-                T, q_init=qi_a, q_7=q7_a, q7_search=q7_search
-            ).q  # one pose, or a search: the general path
-        n = T.shape[0]
-        if self._EE_T_F is not None:
-            T = T @ self._EE_T_F
-        qi = np.broadcast_to(qi_a, (n, 7))
-        q7 = np.broadcast_to(q7_a, (n,)).astype(np.float64)
-        jit = load_jit()
-        if jit is not None:
-            out = np.empty((n, 7))
-            st = np.empty(n, dtype=np.int8)
-            jit.ik_batch(
-                self._P,
-                np.ascontiguousarray(T),
-                np.ascontiguousarray(qi_a.reshape(-1, 7)),
-                np.ascontiguousarray(q7),
-                out,
-                st,
-            )
-            return out
-        rows = (np.where(np.cos(qi[:, 4]) >= 0.0, 2, 0) + (qi[:, 1] < 0.0)).astype(np.int64)
-        out = np.empty((n, 7))
-        for a in range(0, n, BATCH_CHUNK):
-            b = min(a + BATCH_CHUNK, n)
-            out[a:b] = _ik.solve_batch(
-                self._ik_params, T[a:b, :3, :3], T[a:b, :3, 3], q7[a:b], qi[a:b, 0], rows[a:b]
-            )[0]
-        return out
+        return self._ik_any(False, args, O_T_EE, position, orientation, q_init, q_7, q7_search)
 
     def ik_full(self, *args: Any, **kwargs: Any) -> FloatArray:
         """See :func:`panda_py.kinematics.ik_full`."""
@@ -368,7 +373,80 @@ class Kinematics:
             q = self._ik_fast(*args, full=True)
             if q is not None:
                 return q
-        return self.ik_result(*args, **kwargs).solutions
+        return self._ik_full_selected(*args, **kwargs)
+
+    def _ik_full_selected(
+        self,
+        *args: Any,
+        O_T_EE: Any = None,
+        position: Any = None,
+        orientation: Any = None,
+        q_init: Any = None,
+        q_7: Any = None,
+        q7_search: float = 0.0,
+    ) -> FloatArray:
+        """ik_full without the result object."""
+        return self._ik_any(True, args, O_T_EE, position, orientation, q_init, q_7, q7_search)
+
+    def _ik_any(
+        self,
+        full: bool,
+        args: tuple[Any, ...],
+        O_T_EE: Any,
+        position: Any,
+        orientation: Any,
+        q_init: Any,
+        q_7: Any,
+        q7_search: float,
+    ) -> FloatArray:
+        """ik (full: ik_full) for one pose or a batch. With numba the kernels check each
+        pose themselves (finite, rigid) while solving; an invalid one is then reported by
+        the validating NumPy checks, which name it."""
+        search = _input.nonnegative("q7_search", q7_search, "rad")
+        jit = load_jit()
+        fused = jit is not None and search == 0.0 and self._EE_T_F is None
+        T, qi_a, q7_a = self._parse(
+            args, O_T_EE, position, orientation, q_init, q_7, check=not fused
+        )
+        if not fused and (T.ndim == 2 or search > 0.0):
+            r = self.ik_result(T, q_init=qi_a, q_7=q7_a, q7_search=search)
+            return r.solutions if full else r.q  # one pose, or a search: the general path
+        single = T.ndim == 2
+        Tb = T[None] if single else T
+        n = Tb.shape[0]
+        if self._EE_T_F is not None:
+            Tb = Tb @ self._EE_T_F
+        if jit is not None:
+            out = np.empty((n, 4, 7) if full else (n, 7))
+            st = np.empty((n, 4) if full else (n,), dtype=np.int8)
+            _run(
+                jit.ik_batch,
+                jit.ik_batch_par,
+                n,
+                self._P,
+                np.ascontiguousarray(Tb),
+                np.ascontiguousarray(qi_a.reshape(-1, 7)),
+                np.ascontiguousarray(q7_a.reshape(-1)),
+                full,
+                out,
+                st,
+            )
+            first = st[:, 0] if full else st
+            if n and first.min() < 0:
+                _raise_invalid(T, qi_a, q7_a, int(np.argmax(first < 0)))
+            return out[0] if single else out
+        q7 = np.broadcast_to(q7_a, (n,)).astype(np.float64)
+        qi = np.broadcast_to(qi_a, (n, 7))
+        if full:
+            return self._solve_all(Tb, q7, qi)[0]
+        rows = (np.where(np.cos(qi[:, 4]) >= 0.0, 2, 0) + (qi[:, 1] < 0.0)).astype(np.int64)
+        out = np.empty((n, 7))
+        for a in range(0, n, BATCH_CHUNK):
+            b = min(a + BATCH_CHUNK, n)
+            out[a:b] = _ik.solve_batch(
+                self._ik_params, Tb[a:b, :3, :3], Tb[a:b, :3, 3], q7[a:b], qi[a:b, 0], rows[a:b]
+            )[0]
+        return out
 
     def _ik_fast(
         self, O_T_EE: Any, q_init: Any = None, q_7: Any = DEFAULT_Q7, *, full: bool = False
@@ -377,25 +455,15 @@ class Kinematics:
         general path" (which also produces the error message for bad input)."""
         if self._EE_T_F is not None:
             return None
-        if type(O_T_EE) is np.ndarray and O_T_EE.dtype is _F64 and O_T_EE.shape == (4, 4):
-            jit = _JIT if _JIT is not _UNSET else load_jit()
-            if jit is not None:
-                if q_init is None:
-                    qi = self._start
-                elif type(q_init) is np.ndarray and q_init.dtype is _F64 and q_init.shape == (7,):
-                    qi = q_init
-                else:
-                    qi = None
-                if qi is not None and type(q_7) in (float, np.float64):
-                    if full:
-                        out4 = np.empty((4, 7))
-                        if jit.ik_full_one(self._P, O_T_EE, qi, q_7, out4):
-                            return out4
-                    else:
-                        out1 = np.empty(7)
-                        if jit.ik_one(self._P, O_T_EE, qi, q_7, out1):
-                            return out1
-        if load_jit() is not None:
+        jit = _JIT if _JIT is not _UNSET else load_jit()
+        if jit is not None:
+            qi = self._start if q_init is None else q_init
+            out = np.empty((4, 7) if full else 7)
+            try:
+                if jit.single("ik_full_one" if full else "ik_one")(self._P, O_T_EE, qi, q_7, out):
+                    return out
+            except (TypeError, ValueError):  # not float64 arrays / a number
+                pass
             return None  # the validating path, on the same kernels
         try:
             if len(O_T_EE) != 4:
@@ -465,7 +533,7 @@ class Kinematics:
         qi = np.broadcast_to(q_init_a, (n, 7))
         q7 = np.broadcast_to(q7_a, (n,)).astype(np.float64)
         rows = (np.where(np.cos(qi[:, 4]) >= 0.0, 2, 0) + (qi[:, 1] < 0.0)).astype(np.int64)
-        sols, stats = self._solve_all(Tb, q7, qi[:, 0])
+        sols, stats = self._solve_all(Tb, q7, qi)
         idx = np.arange(n)
         q = sols[idx, rows].copy()
         status = stats[idx, rows].copy()
@@ -476,7 +544,7 @@ class Kinematics:
                 if todo.size == 0:
                     break
                 q7c = q7[todo] + offset
-                s2, st2 = self._solve_all(Tb[todo], q7c, qi[todo, 0])
+                s2, st2 = self._solve_all(Tb[todo], q7c, qi[todo])
                 r = rows[todo]
                 found = st2[np.arange(todo.size), r] == IKStatus.OK
                 hit = todo[found]
@@ -495,45 +563,41 @@ class Kinematics:
         )
 
     def _solve_all(
-        self, T: FloatArray, q7: FloatArray, q1_init: FloatArray
+        self, T: FloatArray, q7: FloatArray, qi: FloatArray
     ) -> tuple[FloatArray, NDArray[np.int8]]:
-        """All four branches for N poses: (N, 4, 7) and statuses (N, 4)."""
+        """All four branches for N validated poses T (N, 4, 4), q7 (N,), q_init (N, 7):
+        (N, 4, 7) and statuses (N, 4)."""
         n = T.shape[0]
         jit = load_jit()
         if jit is not None:
             sols = np.empty((n, 4, 7))
             stats = np.empty((n, 4), dtype=np.int8)
-            jit.ik_full_batch(
+            _run(
+                jit.ik_batch,
+                jit.ik_batch_par,
+                n,
                 self._P,
                 np.ascontiguousarray(T),
-                np.ascontiguousarray(q1_init, dtype=np.float64),
+                np.ascontiguousarray(qi, dtype=np.float64),
                 np.ascontiguousarray(q7, dtype=np.float64),
+                True,
                 sols,
                 stats,
             )
             return sols, stats
         if n == 1:  # the scalar solver is ~50x faster than NumPy on one row
             args = T[0, :3, :3].ravel().tolist() + T[0, :3, 3].tolist()
-            res = self._solve(*args, float(q7[0]), float(q1_init[0]), (0, 1, 2, 3))
+            res = self._solve(*args, float(q7[0]), float(qi[0, 0]), (0, 1, 2, 3))
             sols = np.array([r[2] for r in res])[None]
             stats = np.array([r[1] for r in res], dtype=np.int8)[None]
             return sols, stats
         sols = np.empty((n, 4, 7))
         stats = np.empty((n, 4), dtype=np.int8)
-        rep = np.repeat
-        step = BATCH_CHUNK // 4
-        for a in range(0, n, step):
-            b = min(a + step, n)
-            q, st = _ik.solve_batch(
-                self._ik_params,
-                rep(T[a:b, :3, :3], 4, axis=0),
-                rep(T[a:b, :3, 3], 4, axis=0),
-                rep(q7[a:b], 4),
-                rep(q1_init[a:b], 4),
-                np.tile(np.arange(4), b - a),
+        for a in range(0, n, BATCH_CHUNK):
+            b = min(a + BATCH_CHUNK, n)
+            sols[a:b], stats[a:b] = _ik.solve_batch_full(
+                self._ik_params, T[a:b, :3, :3], T[a:b, :3, 3], q7[a:b], qi[a:b, 0]
             )
-            sols[a:b] = q.reshape(b - a, 4, 7)
-            stats[a:b] = st.reshape(b - a, 4)
         return sols, stats
 
     def _parse(
@@ -544,9 +608,12 @@ class Kinematics:
         orientation: Any,
         q_init: Any,
         q_7: Any,
+        *,
+        check: bool = True,
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Sort panda-py's two overloads, ``(O_T_EE, q_init, q_7)`` and ``(position,
-        orientation, q_init, q_7)``, positional or keyword, into (T, q_init, q_7)."""
+        orientation, q_init, q_7)``, positional or keyword, into (T, q_init, q_7), checked
+        for shape and (unless ``check=False``: a kernel checks them) values."""
         rest = list(args)
         if O_T_EE is None and position is None and rest:
             first = np.asarray(rest[0]) if not isinstance(rest[0], np.ndarray) else rest[0]
@@ -574,7 +641,7 @@ class Kinematics:
         if O_T_EE is not None:
             if position is not None or orientation is not None:
                 raise ValueError("O_T_EE: give either O_T_EE or position and orientation")
-            T = _input.transforms("O_T_EE", O_T_EE)
+            T = _input.transforms("O_T_EE", O_T_EE, check=check)
         elif position is not None and orientation is not None:
             T = _input.position_orientation(position, orientation)
         else:
@@ -583,13 +650,13 @@ class Kinematics:
         if given["q_init"] is None:
             qi = np.array(START_POSE)
         else:
-            qi = _input.joints("q_init", given["q_init"])
+            qi = _input.joints("q_init", given["q_init"], check=check)
             if qi.ndim == 2 and (n is None or qi.shape[0] != n):
                 raise ValueError(
                     f"q_init: expected shape (7,) or ({n}, 7) to match the poses, got {qi.shape}"
                 )
         q7 = _input.scalar_or_batch(
-            "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad"
+            "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad", check=check
         )
         return T, qi, q7
 
