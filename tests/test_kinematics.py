@@ -374,6 +374,48 @@ def test_bad_input_is_a_clear_value_error(call, match: str) -> None:
         call()
 
 
+@pytest.mark.parametrize("n", [5, 3000])  # 3000: above PARALLEL_MIN_ROWS (numba: prange)
+@pytest.mark.parametrize("fn", ["ik", "ik_full"])
+def test_a_bad_pose_in_a_batch_is_named_by_its_index(n: int, fn: str) -> None:
+    rng = np.random.default_rng(13)
+    Q = random_q(rng, n)
+    T = kin_mod.fk(Q)
+    q7 = Q[:, 6].copy()
+    call = getattr(kin_mod, fn)
+    k = n - 2
+    bad = T.copy()
+    bad[k, :3, :3] *= 1.001  # not orthonormal
+    with pytest.raises(ValueError, match=rf"O_T_EE: expected a rigid transform.*batch index {k}\b"):
+        call(bad, Q, q7)
+    bad = T.copy()
+    bad[k, 3, 0] = 1e-3  # last row not 0 0 0 1
+    with pytest.raises(ValueError, match=rf"O_T_EE: expected a rigid.*batch index {k}\b"):
+        call(bad, Q, q7)
+    bad = T.copy()
+    bad[k, 1, 3] = math.inf
+    with pytest.raises(ValueError, match=rf"O_T_EE: expected finite values.*batch index {k}\b"):
+        call(bad, Q, q7)
+    Qb = Q.copy()
+    Qb[k, 3] = math.nan
+    with pytest.raises(ValueError, match=rf"q_init: expected finite values.*batch index {k}\b"):
+        call(T, Qb, q7)
+    q7b = q7.copy()
+    q7b[k] = math.nan
+    with pytest.raises(ValueError, match=rf"q_7: expected finite values.*batch index {k}\b"):
+        call(T, Q, q7b)
+    # the first bad one is named, and a single bad pose says no index
+    bad = T.copy()
+    bad[[1, k], 0, 0] = 2.0
+    with pytest.raises(ValueError, match=r"batch index 1\b"):
+        call(bad, Q, q7)
+    with pytest.raises(ValueError, match=r"rigid transform \(orthonormal[^(]*\); largest"):
+        call(bad[1], Q[1], float(q7[1]))
+    # within the tolerance (1e-6) a pose is accepted, on both backends alike
+    ok = T.copy()
+    ok[k, :3, :3] *= 1.0 + 2e-7
+    assert np.all(np.isfinite(call(ok, Q, q7)[k]) == np.isfinite(call(T, Q, q7)[k]))
+
+
 def test_public_names_exist() -> None:
     for name in kin_mod.__all__:
         assert hasattr(kin_mod, name), name
@@ -435,6 +477,98 @@ def test_numba_equals_pure(robot: str, backend: str, monkeypatch: pytest.MonkeyP
                 assert np.any(statuses == s), s
 
 
+def test_numba_atan2_and_sincos_are_within_3_ulp_of_libm(backend: str) -> None:
+    if backend == "pure":
+        pytest.skip("numba only")
+    import numba
+
+    from panda_py.kinematics import _nbmath
+
+    @numba.njit
+    def run(y, x, out):  # atan2(y, x), sin(x), cos(x)
+        for i in range(y.shape[0]):
+            out[i, 0] = _nbmath.atan2(y[i], x[i])
+            out[i, 1], out[i, 2] = _nbmath.sincos(x[i])
+
+    rng = np.random.default_rng(14)
+    n = 200_000
+    for scale in (1e-200, 1e-8, 1.0, 1e3, 1e200):
+        y = rng.normal(size=n) * scale * np.exp(rng.uniform(-4, 4, n))
+        x = rng.normal(size=n) * scale * np.exp(rng.uniform(-4, 4, n))
+        out = np.empty((n, 3))
+        run(y, x, out)
+        ref = np.array([math.atan2(a, b) for a, b in zip(y, x, strict=True)])
+        assert np.all(np.abs(out[:, 0] - ref) <= 3 * np.spacing(np.abs(ref)))
+    x = np.concatenate([rng.uniform(-7, 7, n), rng.uniform(-9e4, 9e4, 1000)])
+    out = np.empty((x.size, 3))
+    run(x, x, out)
+    for col, f in ((1, math.sin), (2, math.cos)):
+        ref = np.array([f(v) for v in x])
+        assert np.all(np.abs(out[:, col] - ref) <= 3 * np.spacing(np.abs(ref)))
+    # special values go to the C library: the same results, signs of zero included
+    special = [0.0, -0.0, 1.0, -1.0, math.inf, -math.inf, math.nan, 5e-324, -1e308, 1e5]
+    ys, xs = np.array(special).repeat(len(special)), np.tile(special, len(special))
+    out = np.empty((ys.size, 3))
+    run(ys, xs, out)
+    for (a, b), got in zip(zip(ys, xs, strict=True), out, strict=True):
+        for value, ref in zip(got, (math.atan2(a, b), *_libm_sincos(b)), strict=True):
+            same = value == ref and math.copysign(1, value) == math.copysign(1, ref)
+            assert (
+                same
+                or (math.isnan(value) and math.isnan(ref))
+                or abs(value - ref) <= 3 * np.spacing(abs(ref))
+            ), (a, b)
+
+
+def _libm_sincos(x: float) -> tuple[float, float]:
+    try:
+        return math.sin(x), math.cos(x)
+    except ValueError:  # math raises for infinity where the C library returns NaN
+        return math.nan, math.nan
+
+
+def test_parallel_kernels_equal_the_serial_ones(
+    backend: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    if backend == "pure":
+        pytest.skip("numba only")
+    rng = np.random.default_rng(15)
+    Q = random_q(rng, 2500)
+    T = kin_mod.fk(Q)
+    q7 = rng.uniform(-3.0, 3.0, Q.shape[0])
+    T[::9, :3, 3] *= 2.0  # some unreachable
+
+    def all_of_them():
+        return (kin_mod.fk(Q), kin_mod.ik(T, Q, q7), kin_mod.ik_full(T, Q, q7), kin_mod.ik(T))
+
+    monkeypatch.setattr(_model, "PARALLEL_MIN_ROWS", 10**9)
+    serial = all_of_them()
+    monkeypatch.setattr(_model, "PARALLEL_MIN_ROWS", 1)
+    calls = []
+    original = _model._run
+
+    def spy(serial_kernel, parallel_kernel, n, *args):
+        calls.append(parallel_kernel.__name__)
+        original(serial_kernel, parallel_kernel, n, *args)
+
+    monkeypatch.setattr(_model, "_run", spy)
+    parallel = all_of_them()
+    assert calls == ["fk_batch_par", "ik_batch_par", "ik_batch_par", "ik_batch_par"]
+    for a, b in zip(serial, parallel, strict=True):
+        np.testing.assert_array_equal(a, b)  # bit for bit, NaN where NaN
+    # not in a forked child (GNU OpenMP is not fork-safe) and not while another thread
+    # runs a parallel kernel: the serial kernel then
+    monkeypatch.setattr(_model, "_run", original)
+    ran = []
+    monkeypatch.setattr(_model, "_PAR_PID", -1)
+    _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    monkeypatch.setattr(_model, "_PAR_PID", os.getpid())
+    with _model._PAR_LOCK:
+        _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    assert ran == ["serial", "serial", "parallel"]
+
+
 def _python(code: str, **env: str) -> str:
     full_env = {**os.environ, **env}
     out = subprocess.run(
@@ -483,3 +617,9 @@ def test_strided_and_integer_inputs_give_the_same_results() -> None:
     np.testing.assert_allclose(kin_mod.ik(T_s, q_s, q[6]), kin_mod.ik(T, q, q[6]), atol=1e-15)
     np.testing.assert_allclose(kin_mod.ik_full(T_s, q_s), kin_mod.ik_full(T, q), atol=1e-15)
     np.testing.assert_allclose(kin_mod.fk(np.zeros(7, dtype=int)), kin_mod.fk(np.zeros(7)))
+    # other dtypes and Python sequences: the general path, the same answer
+    T32 = T.astype(np.float32).astype(np.float64)
+    for f in (kin_mod.ik, kin_mod.ik_full):
+        ref = f(T32, q, 1.0)
+        np.testing.assert_array_equal(f(T32.astype(np.float32), q.tolist(), 1), ref)
+        np.testing.assert_array_equal(f(T32.tolist(), list(q), np.float64(1.0)), ref)
