@@ -8,7 +8,8 @@ own virtual environment, created by ``tests/peer_envs.py`` if missing, as a subp
 with the same timing code). Batched: one call over N configurations or poses against
 panda-python's per-call loop over the same N, per configuration. Also the import time of
 ``panda_py``. Both backends are timed: the pure-NumPy paths and, if numba is installed
-(and PANDA_PY_NO_JIT is not set), the numba kernels.
+(and PANDA_PY_NO_JIT is not set), the numba kernels; their batches also on one thread
+(the serial kernels, which batches below ``PARALLEL_MIN_ROWS`` and busy machines get).
 """
 
 from __future__ import annotations
@@ -127,18 +128,23 @@ def main() -> None:
     t_jit_import = time.perf_counter() - t0
     if jit is not None:
         backends["numba"] = jit
+        backends["numba, one thread"] = jit
+    par_min = _model.PARALLEL_MIN_ROWS
     results: dict[str, dict[str, list[float]]] = {}
     for bname, mod in backends.items():
         _model._JIT = mod
+        _model.PARALLEL_MIN_ROWS = 2**62 if bname == "numba, one thread" else par_min
         T = kin.fk(q)
         TT = kin.fk(Q)
-        ours = {
-            "fk": measure(lambda: kin.fk(q), s, b),  # type: ignore[operator]
-            "ik": measure(lambda: kin.ik(T), s, b),  # type: ignore[operator]  # noqa: B023
-            "ik_q": measure(lambda: kin.ik(T, q, 0.5), s, b),  # type: ignore[operator]  # noqa: B023
-            "ik_full": measure(lambda: kin.ik_full(T), s, b),  # type: ignore[operator]  # noqa: B023
-            "zero_jacobian": measure(lambda: kin.zero_jacobian(q), s, b),  # type: ignore[operator]
-        }
+        ours: dict[str, list[float]] = {}
+        if bname != "numba, one thread":  # (single calls are the same as "numba")
+            ours = {
+                "fk": measure(lambda: kin.fk(q), s, b),  # type: ignore[operator]
+                "ik": measure(lambda: kin.ik(T), s, b),  # type: ignore[operator]  # noqa: B023
+                "ik_q": measure(lambda: kin.ik(T, q, 0.5), s, b),  # type: ignore[operator]  # noqa: B023
+                "ik_full": measure(lambda: kin.ik_full(T), s, b),  # type: ignore[operator]  # noqa: B023
+                "zero_jacobian": measure(lambda: kin.zero_jacobian(q), s, b),  # type: ignore[operator]
+            }
         batched = {
             "fk_loop": lambda: kin.fk(Q),
             "ik_loop": lambda: kin.ik(TT, Q, q7),  # noqa: B023
@@ -149,6 +155,7 @@ def main() -> None:
             ours[name] = [min(measure(fn, 5, 1)) / n]  # type: ignore[operator]
         results[bname] = ours
     _model._JIT = jit
+    _model.PARALLEL_MIN_ROWS = par_min
     T = kin.fk(q)
     TT = kin.fk(Q)
 
@@ -173,9 +180,12 @@ def main() -> None:
 
     for bname, ours in results.items():
         print(f"\n=== backend: {bname} ===")
-        print(f"{'per call [us]':<22}{'median':>9}{'p99':>9}{'worst':>9}   panda-python median"
-              f"{'p99':>8}{'worst':>9}   ours/theirs")  # fmt: skip
+        if "fk" in ours:
+            print(f"{'per call [us]':<22}{'median':>9}{'p99':>9}{'worst':>9}   panda-python median"
+                  f"{'p99':>8}{'worst':>9}   ours/theirs")  # fmt: skip
         for name in ("fk", "ik", "ik_q", "ik_full", "zero_jacobian"):
+            if name not in ours:
+                continue
             m, p, w = _stats(ours[name])
             line = f"{name:<22}{m:9.2f}{p:9.2f}{w:9.2f}"
             if name in theirs:
