@@ -18,8 +18,9 @@ behaviour), in pure Python and NumPy:
 
 Single calls run generated straight-line float code (see ``_codegen``); batches run the
 same code on NumPy arrays. With numba installed (``pip install panda-py[fast]``) both run
-compiled kernels instead (``_numba``; loaded on the first call, not at import); set
-``PANDA_PY_NO_JIT=1`` to keep the pure paths.
+compiled kernels instead (``_numba``; loaded on the first call, not at import; batches of
+``_model.PARALLEL_MIN_ROWS`` or more on all cores); set ``PANDA_PY_NO_JIT=1`` to keep the
+pure paths.
 """
 
 from __future__ import annotations

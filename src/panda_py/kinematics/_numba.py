@@ -8,11 +8,15 @@ environment the pure-NumPy paths run instead. The kernels mirror the pure code:
   ``_model._pack_chain``), a loop over joints on 12 scalars; frames and Jacobians from it;
 * inverse kinematics: :func:`._ik.make_scalar_solver`'s equations line by line, the same
   branch indexing, status precedence and joint-limit tests (parameters packed by
-  ``_model._pack_ik``).
+  ``_model._pack_ik``), after the same input check as ``_input.check_rigid``;
+* trigonometry from :mod:`._nbmath` (branch-free, within 3 ulp of libm).
 
-Compiled with ``cache=True`` (numba writes to ``__pycache__`` next to this file and falls
-back to compiling in memory if that is not writable). Tests hold every kernel equal to the
-pure path to 1e-12.
+One loop per problem (``_fk_range``, ``_ik_range``) serves the single-call, batch and
+parallel (``prange`` over chunks, identical per-row arithmetic) kernels, so each is
+compiled once. Compiled with ``cache=True`` (numba writes to ``__pycache__`` next to
+this file and falls back to compiling in memory if that is not writable); a fresh
+install compiles each kernel on its first use (seconds), later processes load them.
+Tests hold every kernel equal to the pure path to 1e-12, and batched to looped.
 """
 
 from __future__ import annotations
