@@ -57,8 +57,8 @@ def load_jit() -> Any:
 
 
 # Batches of at least this many rows run the numba kernels on all cores (below it the
-# threads' start-up costs more than they save).
-PARALLEL_MIN_ROWS = 2048
+# threads' start-up costs more than they save); never on a single-core machine.
+PARALLEL_MIN_ROWS = 2048 if (os.cpu_count() or 1) > 1 else 2**62
 # One parallel launch at a time (numba's fallback threading layer aborts on concurrent
 # launches; a second caller takes the serial kernel instead of waiting), and none in a
 # forked child (GNU OpenMP, numba's default layer on Linux, is not fork-safe).
