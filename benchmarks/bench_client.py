@@ -63,11 +63,12 @@ def _instrument(robot: lf.Robot, n: int) -> tuple[np.ndarray, np.ndarray, list[i
     return response, t_read, count
 
 
-def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[tuple[Any, ...], dict]:
+def _callbacks(kind: str, ticks: int) -> tuple[tuple[Any, ...], dict]:
     """(callbacks, keyword arguments) of ``Robot.control`` for one control type: a short
-    motion of joint 1 or along z there and back, smooth up to the acceleration."""
-    q0, T0 = state0.q, state0.O_T_EE
+    motion of joint 1 or along z there and back, smooth up to the acceleration, from where
+    the robot's motion generator stands at the first tick (as libfranka's examples)."""
     n = [0]
+    start: dict[str, np.ndarray] = {}
 
     def bump(k: int) -> float:
         """0 -> 1 -> 0 over the run, smooth up to the acceleration (a quintic up and down)."""
@@ -87,7 +88,9 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[tuple[Any,
 
     def joint(s: lf.RobotState, dt: lf.Duration) -> lf.JointPositions:
         n[0] += 1
-        q = q0.copy()
+        if n[0] == 1:
+            start["q"] = s.q_d
+        q = start["q"].copy()
         q[0] += 0.05 * bump(n[0])
         out = lf.JointPositions(q)
         out.motion_finished = n[0] >= ticks
@@ -103,7 +106,9 @@ def _callbacks(kind: str, state0: lf.RobotState, ticks: int) -> tuple[tuple[Any,
 
     def cartesian(s: lf.RobotState, dt: lf.Duration) -> lf.CartesianPose:
         n[0] += 1
-        T = T0.copy()
+        if n[0] == 1:
+            start["T"] = s.O_T_EE_c
+        T = start["T"].copy()
         T[14] += 0.02 * bump(n[0])
         out = lf.CartesianPose(T)
         out.motion_finished = n[0] >= ticks
@@ -159,7 +164,7 @@ def overhead(ticks: int, lockstep: bool, repeat: int, kinds: tuple[str, ...]) ->
             for version in (5, 10):
                 for kind in kinds:
                     with lf.Robot(sim.host, version=version, robot="fer") as robot:
-                        callbacks, kw = _callbacks(kind, robot.read_once(), ticks)
+                        callbacks, kw = _callbacks(kind, ticks)
                         response, _, count = _instrument(robot, ticks)
                         gc.collect()
                         try:
@@ -196,7 +201,7 @@ def realtime(seconds: float, burner: bool) -> None:
             if lf.set_current_thread_to_highest_priority() is not None:
                 config = lf.RealtimeConfig.kEnforce
             with lf.Robot(sim.host, config, version=10, robot="fer") as robot:
-                callbacks, kw = _callbacks("torque", robot.read_once(), ticks)
+                callbacks, kw = _callbacks("torque", ticks)
                 response, t_read, count = _instrument(robot, ticks)
                 gc.collect()
                 gc.freeze()
