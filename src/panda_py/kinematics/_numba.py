@@ -32,6 +32,11 @@ from panda_py.kinematics._input import ROTATION_TOL
 from panda_py.kinematics._nbmath import atan2, sincos
 
 _OPTS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
+# The arithmetic helpers may fuse a * b + c into one multiply-add (fastmath "contract":
+# one rounding instead of two, no reassociation, nothing assumed about NaN or infinity).
+# Every kernel calls the same compiled loop, so batched and single calls stay equal bit
+# for bit; the input test (_rigid) keeps NumPy's exact arithmetic.
+_ARITH: dict[str, Any] = {**_OPTS, "forceinline": True, "fastmath": {"contract"}}
 
 
 def njit(**kw: Any) -> Any:
@@ -74,7 +79,7 @@ _SINGLE_SIGNATURES = {
 # ------------------------------------------------------------------------ forward kinematics
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_ARITH)
 def _link(m: Any, a: float, d: float, ca: float, sa: float, q: float) -> Any:
     """M @ RotX(alpha) TransX(a) RotZ(q) TransZ(d), M the top 3x4 rows as a 12-tuple."""
     s, c = sincos(q)
@@ -99,7 +104,7 @@ def _link(m: Any, a: float, d: float, ca: float, sa: float, q: float) -> Any:
     )
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_ARITH)
 def _tail(m: Any, fd: float, F: Any) -> Any:
     """M @ TransZ(fd) @ F (F the top 3x4 rows of a rigid transform, a 12-tuple), as a
     12-tuple."""
@@ -287,7 +292,7 @@ def _flip(a: float) -> float:
     return a - _PI if a > 0.0 else a + _PI
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_ARITH)
 def _pose_part(
     P: Any, r00: float, r01: float, r02: float, r10: float, r11: float, r12: float,
     r20: float, r21: float, r22: float, px: float, py: float, pz: float, q7: float,
@@ -333,7 +338,7 @@ def _pose_part(
     return _OK, g
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_ARITH)
 def _arm_part(P: Any, g: Any, r02: float, r12: float, r22: float, q1_init: float, i6: int) -> Any:
     """q6 branch i6 of the solver: (ok, shoulder singular, q5, q6, q1, q2, q3) with
     q1..q3 those of the q2 >= 0 row (the other row flips them, unless singular)."""
@@ -384,7 +389,7 @@ def _arm_part(P: Any, g: Any, r02: float, r12: float, r22: float, q1_init: float
     return True, False, q5, q6, q1, q2, q3
 
 
-@njit(forceinline=True, **_OPTS)
+@njit(**_ARITH)
 def _row(P: Any, arm: Any, i1: int, q4: float, q7: float) -> Any:
     """(status, q (7-tuple, NaN without a solution)) of shoulder branch i1 of an arm."""
     ok, singular, q5, q6, q1, q2, q3 = arm
