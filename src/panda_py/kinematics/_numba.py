@@ -16,6 +16,8 @@ parallel (``prange`` over chunks, identical per-row arithmetic) kernels, so each
 compiled once. Compiled with ``cache=True`` (numba writes to ``__pycache__`` next to
 this file and falls back to compiling in memory if that is not writable); a fresh
 install compiles each kernel on its first use (seconds), later processes load them.
+numba keys that cache on this file alone: after editing ``_nbmath.py`` or the constants
+taken from ``_ik``/``_input`` in a source checkout, delete ``__pycache__/_numba*.nb[ic]``.
 Tests hold every kernel equal to the pure path to 1e-12, and batched to looped.
 """
 
