@@ -89,6 +89,7 @@ def _make_fk(kin: Kinematics) -> Any:
     ee = kin._ee
     empty = np.empty
     from panda_py.kinematics import _model
+    from panda_py.kinematics._model import _F64 as F64
     from panda_py.kinematics._model import _PACK16, _UNSET
 
     pack = _PACK16
@@ -106,7 +107,7 @@ def _make_fk(kin: Kinematics) -> Any:
             if jit is _UNSET:
                 jit = _model.load_jit()
             if jit is not None:
-                if type(q) is ndarray and q.ndim == 1:
+                if type(q) is ndarray and q.dtype is F64 and q.ndim == 1:
                     if kernel is None:
                         kernel = jit.single("fk_one")
                     out = empty((4, 4))
@@ -156,13 +157,14 @@ _NOARG: Any = object()  # "not given", for ik's positional-only parameters
 
 
 def _make_ik(kin: Kinematics, full: bool) -> Any:
-    # One Python frame on the fast path (an ndarray pose, positional q_init and q_7, the
+    # One Python frame on the fast path (float64 arrays, positional q_init and q_7, the
     # default robot): the numba kernel is called directly; its signatures refuse other
     # types (TypeError) and it returns False for bad shapes or values, and everything
     # else takes the general path, which also words the error messages.
     if kin._EE_T_F is not None:
         raise ValueError("the fast single-pose ik needs an EE on the flange's z axis")
     from panda_py.kinematics import _model
+    from panda_py.kinematics._model import _F64 as F64
     from panda_py.kinematics._model import _UNSET
 
     P, start, empty, ndarray = kin._P, kin._start, np.empty, np.ndarray
@@ -176,13 +178,22 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
         O_T_EE: Any = _NOARG, q_init: Any = _NOARG, q_7: Any = _NOARG, /, *more: Any, **kw: Any
     ) -> FloatArray:
         nonlocal kernel
-        if type(O_T_EE) is ndarray and O_T_EE.ndim == 2 and not kw and not more:
-            q7 = DEFAULT_Q7 if q_7 is _NOARG else q_7
-            qi = start if q_init is _NOARG or q_init is None else q_init
+        fast = type(O_T_EE) is ndarray and O_T_EE.ndim == 2 and not more
+        qi, q7 = q_init, q_7
+        if kw and fast:  # q_init, q_7 by keyword (each given once): the same fast path
+            qi, q7 = kw.get("q_init", qi), kw.get("q_7", q7)
+            fast = len(kw) == ("q_init" in kw) + ("q_7" in kw) and (
+                (q_init is _NOARG or "q_init" not in kw) and (q_7 is _NOARG or "q_7" not in kw)
+            )
+        if fast:
+            q7 = DEFAULT_Q7 if q7 is _NOARG else q7
+            qi = start if qi is _NOARG or qi is None else qi
             jit = _model._JIT
             if jit is _UNSET:
                 jit = _model.load_jit()
-            if jit is not None:
+            if jit is not None and (
+                O_T_EE.dtype is F64 and (qi is start or (type(qi) is ndarray and qi.dtype is F64))
+            ):
                 if kernel is None:
                     kernel = jit.single(kernel_name)
                 out = empty(shape)
@@ -191,7 +202,7 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
                         return out
                 except (TypeError, ValueError):  # not float64 arrays / a number
                     pass
-            else:
+            elif jit is None:
                 q = scalar(O_T_EE, None if qi is start else qi, q7, full=full)
                 if q is not None:
                     return q

@@ -236,7 +236,7 @@ class Kinematics:
         """``O_T_EE`` (4, 4) for joint positions q (7,) [rad]; a batch (N, 7) gives
         (N, 4, 4). Translations in [m]."""
         jit = _JIT if _JIT is not _UNSET else load_jit()
-        if jit is not None and type(q) is np.ndarray and q.ndim == 1:
+        if jit is not None and type(q) is np.ndarray and q.dtype is _F64 and q.ndim == 1:
             out = np.empty((4, 4))
             try:
                 if jit.single("fk_one")(q, self._CF, out):
@@ -458,6 +458,13 @@ class Kinematics:
         jit = _JIT if _JIT is not _UNSET else load_jit()
         if jit is not None:
             qi = self._start if q_init is None else q_init
+            if not (
+                type(O_T_EE) is np.ndarray
+                and O_T_EE.dtype is _F64
+                and type(qi) is np.ndarray
+                and qi.dtype is _F64
+            ):
+                return None  # (numba's TypeError would cost ~100 us to word)
             out = np.empty((4, 7) if full else 7)
             try:
                 if jit.single("ik_full_one" if full else "ik_one")(self._P, O_T_EE, qi, q_7, out):

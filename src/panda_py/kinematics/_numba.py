@@ -56,12 +56,14 @@ def njit(**kw: Any) -> Any:
 
 def single(name: str) -> Any:
     """The single-call kernel ``name`` (fk_one, ik_one, ik_full_one), compiled (or
-    loaded from the cache) for C-contiguous float64 arrays only, on first use: it then
-    refuses other argument types with a TypeError instead of compiling for them, which
-    lets the callers skip type checks on their fast paths."""
+    loaded from the cache) on first use for float64 arrays only, C-contiguous (the
+    dispatcher's exact match) or of any layout (a conversion, copied in the kernel): it
+    then refuses other argument types with a TypeError instead of compiling for them, so
+    the callers check only the dtype (numba's TypeError costs ~100 us to word)."""
     kernel = globals()[name]
     if name not in _READY:
-        kernel.compile(_SINGLE_SIGNATURES[name])
+        for sig in _SINGLE_SIGNATURES[name]:
+            kernel.compile(sig)
         kernel.disable_compile()
         _READY.add(name)
     return kernel
@@ -72,10 +74,11 @@ _READY: set[str] = set()
 
 _f8 = numba.float64
 _V, _M = _f8[::1], _f8[:, ::1]  # C-contiguous float64 vector and matrix
+_VA, _MA = _f8[:], _f8[:, :]  # any layout
 _SINGLE_SIGNATURES = {
-    "fk_one": numba.boolean(_V, _M, _M),
-    "ik_one": numba.boolean(_V, _M, _V, _f8, _V),
-    "ik_full_one": numba.boolean(_V, _M, _V, _f8, _M),
+    "fk_one": [numba.boolean(_V, _M, _M), numba.boolean(_VA, _M, _M)],
+    "ik_one": [numba.boolean(_V, _M, _V, _f8, _V), numba.boolean(_V, _MA, _VA, _f8, _V)],
+    "ik_full_one": [numba.boolean(_V, _M, _V, _f8, _M), numba.boolean(_V, _MA, _VA, _f8, _M)],
 }
 
 # ------------------------------------------------------------------------ forward kinematics
@@ -171,7 +174,9 @@ def fk_one(q: Any, CF: Any, out: Any) -> bool:
     if not math.isfinite(s):
         return False
     one = np.int64(1)  # (literals would make numba compile _fk_range again)
-    _fk_range(q.reshape((1, 7)), CF, out.reshape((1, 4, 4)), one - one, one)
+    # (a copy only where q is not C-contiguous: decided at compile time)
+    Q = np.ascontiguousarray(q).reshape((1, 7))
+    _fk_range(Q, CF, out.reshape((1, 4, 4)), one - one, one)
     return True
 
 
@@ -500,8 +505,10 @@ def _ik_single(P: Any, T: Any, qi: Any, q7: float, full: bool, out: Any) -> bool
     st = np.empty(4 if full else 1, dtype=np.int8)
     Q = out.reshape((4 if full else 1, 7))
     one = np.int64(1)  # (literal 0 and 1 would make numba compile _ik_range again)
-    QI = qi.reshape((1, 7))
-    _ik_range(P, T.reshape((1, 4, 4)), QI, QI[0, :0], q7, full, Q, st, one - one, one)
+    # (copies only where T or qi is not C-contiguous: decided at compile time)
+    QI = np.ascontiguousarray(qi).reshape((1, 7))
+    T3 = np.ascontiguousarray(T).reshape((1, 4, 4))
+    _ik_range(P, T3, QI, QI[0, :0], q7, full, Q, st, one - one, one)
     return st[0] != INVALID
 
 
