@@ -330,3 +330,19 @@ def test_simulator_api_rejects_bad_requests(sim):
     with pytest.raises(ValueError, match="robot: expected one of"):
         Simulator(robot="ur5")
     assert np.allclose(FER.joints.q_max[0], 2.8973)
+
+
+def test_lockstep_without_polling_loses_nothing():
+    """``lockstep_spin=0`` (sleep on every answer) is slower, never lossy."""
+    with pytest.raises(ValueError, match=r"lockstep_spin: expected 0\.\.0\.01 s"):
+        Simulator(lockstep=True, lockstep_spin=-1e-6)
+    with Simulator(free_loopback_host(), lockstep=True, lockstep_spin=0.0) as s:
+        c = RawClient(s.host, 10)
+        try:
+            _, final = run_joint_motion(c, 0.05, 300)
+            assert final == MoveStatus.SUCCESS
+            assert s.stats()["commands_lost"] == 0
+            # every answer but the first, which comes before the robot awaits answers
+            assert s.stats()["commands_received"] == 299
+        finally:
+            c.close()

@@ -39,6 +39,13 @@ def _parser() -> argparse.ArgumentParser:
         help="lockstep: seconds to wait for a command before counting it lost",
     )
     p.add_argument(
+        "--lockstep-spin",
+        type=float,
+        default=300.0,
+        metavar="US",
+        help="lockstep: microseconds to poll for a command before sleeping (0: never poll)",
+    )
+    p.add_argument(
         "--version",
         type=int,
         action="append",
@@ -66,6 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             robot=args.robot,
             lockstep=args.lockstep,
             lockstep_timeout=args.lockstep_timeout,
+            lockstep_spin=args.lockstep_spin * 1e-6,
             versions=tuple(args.versions) if args.versions else None,
             scene=not args.no_scene,
             extra=args.scene,
