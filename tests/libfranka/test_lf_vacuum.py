@@ -89,3 +89,10 @@ def test_vacuum_gripper_commands_state_and_statuses(pump):
     )
     assert pump.requests[1] == (vp.VacuumCommand.DROP_OFF, {"timeout": 200})
     assert len(pump.requests) == 3  # the bad setpoint was never sent
+
+
+@pytest.mark.parametrize("cls", [lf.Gripper, lf.VacuumGripper])
+@pytest.mark.parametrize("timeout", [0, -1.0, "5", True])
+def test_hand_clients_reject_a_bad_timeout_before_connecting(cls, timeout):
+    with pytest.raises(ValueError, match=r"timeout: expected a time > 0 \[s\], got"):
+        cls("127.0.0.1", timeout=timeout)  # nothing listens there: no connect attempted

@@ -6,15 +6,11 @@ import math
 from typing import Any
 
 from panda_py import fci
-from panda_py.fci import GripperCommand, GripperConnectStatus, GripperStatus
-from panda_py.libfranka._network import Network, translate
-from panda_py.libfranka.errors import CommandException, IncompatibleVersionException
+from panda_py.fci import GripperCommand
+from panda_py.libfranka._hand import ACTION_TIMEOUT, HandClient
 from panda_py.libfranka.state import GripperState
 
-__all__ = ["Gripper"]
-
-#: Gripper actions (homing, grasp, move) block until done; this bounds the wait [s].
-ACTION_TIMEOUT = 60.0
+__all__ = ["ACTION_TIMEOUT", "Gripper"]
 
 _NAMES = {
     GripperCommand.HOMING: "Homing",
@@ -35,78 +31,26 @@ def _number(name: str, value: Any, unit: str, *, positive: bool = False) -> floa
     return x
 
 
-class Gripper:
+class Gripper(HandClient):
     """The Franka Hand (libfranka's ``franka::Gripper``). Commands block until the hand is
     done and return True on success, False if it was unsuccessful (e.g. nothing grasped);
     a failure raises :class:`CommandException`."""
 
     def __init__(self, hostname: str, *, timeout: float = ACTION_TIMEOUT) -> None:
-        if not (isinstance(timeout, (int, float)) and timeout > 0):
-            raise ValueError(f"timeout: expected a time > 0 [s], got {timeout!r}")
-        self._net = Network(
+        super().__init__(
             hostname,
             fci.GRIPPER_COMMAND_PORT,
-            fci.GripperMessageReader(),
-            udp_size=fci.GRIPPER_STATE_DTYPE.itemsize,
-            timeout=timeout,
+            fci.GRIPPER_STATE_DTYPE.itemsize,
+            fci.GRIPPER_VERSION,
+            timeout,
         )
-        self._next_id = 0
-        try:
-            cid = self._take_id()
-            self._net.send(fci.encode_gripper_connect_request(self._net.udp_port, command_id=cid))
-            msg = self._net.wait_response(cid)
-            try:
-                _, status, version = fci.decode_gripper_connect_response(msg.raw)
-            except fci.ProtocolError as exc:
-                raise translate(exc, "Gripper Connect") from exc
-            if status == GripperConnectStatus.INCOMPATIBLE_LIBRARY_VERSION:
-                raise IncompatibleVersionException(
-                    f"libfranka gripper: Incompatible library version (server version: "
-                    f"{version}, library version: {fci.GRIPPER_VERSION}).",
-                    server_version=version,
-                    library_version=fci.GRIPPER_VERSION,
-                )
-            self._server_version = int(version)
-        except BaseException:
-            self._net.close()
-            raise
-
-    def _take_id(self) -> int:
-        cid = self._next_id
-        self._next_id = (cid + 1) & 0xFFFFFFFF
-        return cid
-
-    def close(self) -> None:
-        self._net.close()
-
-    def __enter__(self) -> Gripper:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def server_version(self) -> int:
-        """The hand's protocol version."""
-        return self._server_version
 
     def _execute(self, command: GripperCommand, **fields: Any) -> bool:
-        cid = self._take_id()
         payload = fci.GRIPPER_REQUESTS[command].encode(**fields)
-        self._net.send(fci.encode_gripper_message(command, cid, payload))
-        msg = self._net.wait_response(cid)
-        try:
-            status = fci.decode_gripper_status(msg.payload)
-        except fci.ProtocolError as exc:
-            raise translate(exc, f"Gripper {_NAMES[command]} response") from exc
-        if status == GripperStatus.SUCCESS:
-            return True
-        if status == GripperStatus.UNSUCCESSFUL:
-            return False
-        what = "failed" if status == GripperStatus.FAIL else "aborted"
-        raise CommandException(
-            f"libfranka gripper: {_NAMES[command]} command {what}!",
-            command=_NAMES[command],
-            status=status,
+        return self._run(
+            _NAMES[command],
+            lambda cid: fci.encode_gripper_message(command, cid, payload),
+            fci.decode_gripper_status,
         )
 
     def homing(self) -> bool:

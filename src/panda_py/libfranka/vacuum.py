@@ -8,11 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from panda_py import fci
 from panda_py.fci import vacuum as vp
-from panda_py.libfranka._network import Network, translate
-from panda_py.libfranka.errors import CommandException, IncompatibleVersionException
-from panda_py.libfranka.gripper import ACTION_TIMEOUT
+from panda_py.libfranka._hand import ACTION_TIMEOUT, HandClient
 from panda_py.libfranka.types import Duration
 
 __all__ = [
@@ -68,74 +65,28 @@ def _milliseconds(timeout: Any) -> int:
     return ms
 
 
-class VacuumGripper:
+class VacuumGripper(HandClient):
     """The Cobot Pump (libfranka's ``franka::VacuumGripper``); commands block until done
     and return True on success, False if unsuccessful; failures raise CommandException."""
 
+    _LABEL = "vacuum gripper"
+    _TITLE = "Vacuum Gripper"
+
     def __init__(self, hostname: str, *, timeout: float = ACTION_TIMEOUT) -> None:
-        self._net = Network(
+        super().__init__(
             hostname,
             vp.VACUUM_COMMAND_PORT,
-            fci.GripperMessageReader(),  # the same 10-byte header as the hand
-            udp_size=vp.VACUUM_STATE_DTYPE.itemsize,
-            timeout=timeout,
+            vp.VACUUM_STATE_DTYPE.itemsize,
+            vp.VACUUM_VERSION,
+            timeout,
         )
-        self._next_id = 0
-        try:
-            request = fci.encode_gripper_connect_request(
-                self._net.udp_port, version=vp.VACUUM_VERSION, command_id=self._take_id()
-            )
-            self._net.send(request)
-            msg = self._net.wait_response(0)
-            try:
-                _, status, version = fci.decode_gripper_connect_response(msg.raw)
-            except fci.ProtocolError as exc:
-                raise translate(exc, "Vacuum Gripper Connect") from exc
-            if status != fci.GripperConnectStatus.SUCCESS:
-                raise IncompatibleVersionException(
-                    f"libfranka vacuum gripper: Incompatible library version (server version: "
-                    f"{version}, library version: {vp.VACUUM_VERSION}).",
-                    server_version=version,
-                    library_version=vp.VACUUM_VERSION,
-                )
-            self._server_version = int(version)
-        except BaseException:
-            self._net.close()
-            raise
-
-    def _take_id(self) -> int:
-        cid = self._next_id
-        self._next_id = (cid + 1) & 0xFFFFFFFF
-        return cid
-
-    def close(self) -> None:
-        self._net.close()
-
-    def __enter__(self) -> VacuumGripper:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def server_version(self) -> int:
-        return self._server_version
 
     def _execute(self, command: vp.VacuumCommand, name: str, **fields: Any) -> bool:
-        cid = self._take_id()
         payload = vp.VACUUM_REQUESTS[command].encode(**fields)
-        self._net.send(vp.encode_vacuum_message(command, cid, payload))
-        msg = self._net.wait_response(cid)
-        try:
-            status = vp.decode_vacuum_status(msg.payload)
-        except fci.ProtocolError as exc:
-            raise translate(exc, f"Vacuum Gripper {name} response") from exc
-        if status == vp.VacuumStatus.SUCCESS:
-            return True
-        if status == vp.VacuumStatus.UNSUCCESSFUL:
-            return False
-        what = "failed" if status == vp.VacuumStatus.FAIL else "aborted"
-        raise CommandException(
-            f"libfranka vacuum gripper: {name} command {what}!", command=name, status=status
+        return self._run(
+            name,
+            lambda cid: vp.encode_vacuum_message(command, cid, payload),
+            vp.decode_vacuum_status,
         )
 
     def vacuum(self, vacuum: int, timeout: Any,
