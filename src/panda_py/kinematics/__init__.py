@@ -172,7 +172,6 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
     kernel_name = "ik_full_one" if full else "ik_one"
     kernel: Any = None  # the numba kernel, once loaded
     scalar = kin._ik_fast  # the pure path's single-pose solver
-    general_name = "_ik_full_selected" if full else "_ik_selected"
 
     def ik(
         O_T_EE: Any = _NOARG, q_init: Any = _NOARG, q_7: Any = _NOARG, /, *more: Any, **kw: Any
@@ -209,7 +208,7 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
         args = tuple(a for a in (O_T_EE, q_init, q_7) if a is not _NOARG) + more
         robot = kw.pop("robot", None)
         kin_ = get_kinematics(robot if robot is not None else "fer", kw.pop("F_T_EE", None))
-        return getattr(kin_, general_name)(*args, **kw)
+        return kin_._ik_general(full, *args, **kw)
 
     return ik
 

@@ -352,20 +352,7 @@ class Kinematics:
             q = self._ik_fast(*args)
             if q is not None:
                 return q
-        return self._ik_selected(*args, **kwargs)
-
-    def _ik_selected(
-        self,
-        *args: Any,
-        O_T_EE: Any = None,
-        position: Any = None,
-        orientation: Any = None,
-        q_init: Any = None,
-        q_7: Any = None,
-        q7_search: float = 0.0,
-    ) -> FloatArray:
-        """ik for a batch without the other three branches (a quarter of the work)."""
-        return self._ik_any(False, args, O_T_EE, position, orientation, q_init, q_7, q7_search)
+        return self._ik_general(False, *args, **kwargs)
 
     def ik_full(self, *args: Any, **kwargs: Any) -> FloatArray:
         """See :func:`panda_py.kinematics.ik_full`."""
@@ -373,10 +360,11 @@ class Kinematics:
             q = self._ik_fast(*args, full=True)
             if q is not None:
                 return q
-        return self._ik_full_selected(*args, **kwargs)
+        return self._ik_general(True, *args, **kwargs)
 
-    def _ik_full_selected(
+    def _ik_general(
         self,
+        full: bool,
         *args: Any,
         O_T_EE: Any = None,
         position: Any = None,
@@ -385,8 +373,8 @@ class Kinematics:
         q_7: Any = None,
         q7_search: float = 0.0,
     ) -> FloatArray:
-        """ik_full without the result object."""
-        return self._ik_any(True, args, O_T_EE, position, orientation, q_init, q_7, q7_search)
+        """ik (full: ik_full) with every overload and keyword, without the result object."""
+        return self._ik_any(full, args, O_T_EE, position, orientation, q_init, q_7, q7_search)
 
     def _ik_any(
         self,
