@@ -6,13 +6,12 @@ to :meth:`Physics.step` is gravity-free, exactly like ``tau_J_d`` on a real Fran
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from panda_py.kinematics import get_kinematics
+from panda_py.kinematics import get_kinematics, hand_F_T_EE
 from panda_py.robots.mjcf import model_xml
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
 
@@ -25,15 +24,6 @@ _OMEGA = 60.0  # [rad/s]
 _IK_ITERATIONS = 3
 _IK_DAMPING = 1e-6
 _ELBOW_HELD = np.array([0, 1, 3, 4, 5, 6])  # the joints IK moves when joint 3 is commanded
-
-
-def _tcp_transform() -> np.ndarray:
-    """F_T_NE of the Franka Hand: flange -> TCP [m]."""
-    c, s = math.cos(FRANKA_HAND.tcp_rotz), math.sin(FRANKA_HAND.tcp_rotz)
-    T = np.eye(4)
-    T[:2, :2] = [[c, -s], [s, c]]
-    T[2, 3] = FRANKA_HAND.tcp_offset
-    return T
 
 
 class Physics:
@@ -102,7 +92,7 @@ class Physics:
         self._flange_kin.zero_jacobian(np.zeros(7))
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
-        self.F_T_NE = _tcp_transform()
+        self.F_T_NE = hand_F_T_EE()  # flange -> the hand's TCP
 
     def _descends(self, body: int, root: int) -> bool:
         while body > 0:

@@ -377,14 +377,18 @@ class RobotCore:
         self.guiding_elbow = bool(elbow)
         return GetterSetterStatus.SUCCESS
 
-    def _set_transform(self, flat: np.ndarray, attr: str) -> GetterSetterStatus:
+    def _set_transform(
+        self, flat: np.ndarray, attr: str, *, relative_to_ne: bool = False
+    ) -> GetterSetterStatus:
+        """Set the column-major transform ``flat`` as ``attr``; ``relative_to_ne``: it is
+        given from the flange and stored from the nominal EE."""
         T = from_col_major(flat)
         bad = self._setter_check(T)
         if bad is not None:
             return bad
         if not is_valid_transform(T):
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        setattr(self, attr, T)
+        setattr(self, attr, np.linalg.inv(self.F_T_NE) @ T if relative_to_ne else T)
         self._fill_static()
         return GetterSetterStatus.SUCCESS
 
@@ -396,15 +400,7 @@ class RobotCore:
 
     def set_f_to_ee(self, F_T_EE: np.ndarray) -> GetterSetterStatus:
         """Protocol v3's SetFToEE: the whole flange-to-EE transform (NE_T_EE follows)."""
-        T = from_col_major(F_T_EE)
-        bad = self._setter_check(T)
-        if bad is not None:
-            return bad
-        if not is_valid_transform(T):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.NE_T_EE = np.linalg.inv(self.F_T_NE) @ T
-        self._fill_static()
-        return GetterSetterStatus.SUCCESS
+        return self._set_transform(F_T_EE, "NE_T_EE", relative_to_ne=True)
 
     def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
         F_x_C = np.asarray(F_x_C, dtype=float)
