@@ -154,3 +154,23 @@ def test_control_loops_run_fifo_and_restore_the_policy(sim6):
                       lf.motion_finished(lf.Torques(np.zeros(7))))  # fmt: skip
     assert seen == [os.SCHED_FIFO]
     assert os.sched_getscheduler(0) == before
+
+
+def test_set_ee_on_protocol_3_sets_the_whole_flange_to_ee_transform():
+    """v3 has no nominal EE: ``set_ee`` sends SetFToEE, and the state's F_T_EE is it."""
+    T = np.eye(4)
+    T[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = (0.01, 0.0, 0.2)
+    with (
+        Simulator(free_loopback_host(), lockstep=True, versions=(3,)) as sim,
+        lf.Robot(sim.host) as robot,
+    ):
+        assert robot.server_version() == 3
+        robot.set_ee(T)
+        robot.read(lambda s: not np.allclose(s.F_T_EE[12:15], (0.01, 0.0, 0.2)))
+        s = robot.read_once()
+        np.testing.assert_allclose(s.F_T_EE.reshape(4, 4, order="F"), T, atol=1e-12)
+        bad = T.copy()
+        bad[:3, :3] *= 2.0  # not a rotation
+        with pytest.raises(lf.CommandException, match="invalid argument"):
+            robot.set_ee(bad)
