@@ -685,22 +685,16 @@ class RobotCore:
         moving = moving_cart or mg in _JOINT_GENERATORS
         # O_T_EE of the measured joints: the arm's own kinematics (the same as MuJoCo's
         # flange site times F_T_EE, to rounding; the tests hold them together).
-        kin, joint = self._kin, self.joint
+        joint = self.joint
         O_T_EE = Tv["O_T_EE"]
-        if self._NE_identity:
-            O_T_EE[:] = kin.fk(q)
-        else:
-            np.matmul(kin.fk(q), self.NE_T_EE, out=O_T_EE)
+        self._ee_pose(q, O_T_EE)
         if moving_cart:
             Tv["O_T_EE_d"][:] = self.cart.T
-        elif self._NE_identity:
-            Tv["O_T_EE_d"][:] = kin.fk(joint.q)
         else:
-            np.matmul(kin.fk(joint.q), self.NE_T_EE, out=Tv["O_T_EE_d"])
-        flip = self.spec.elbow_flip_q
-        s["elbow"][:] = (q[2], 1.0 if q[3] > flip else -1.0)
+            self._ee_pose(joint.q, Tv["O_T_EE_d"])
+        s["elbow"][:] = (q[2], self._elbow_sign(q[3]))
         elbow_d = s["elbow_d"]
-        elbow_d[:] = (joint.q[2], 1.0 if joint.q[3] > flip else -1.0)
+        elbow_d[:] = (joint.q[2], self._elbow_sign(joint.q[3]))
         if moving_cart:
             s["elbow_c"][:] = self.elbow_c
             s["delbow_c"][:] = self.delbow_c
@@ -740,6 +734,13 @@ class RobotCore:
         top = s["accelerometer_top"]
         np.multiply(ph.link_z_rows(), -GRAVITY[2], out=top)
         s["accelerometer_bottom"][:] = top
+
+    def _ee_pose(self, q: np.ndarray, out: np.ndarray) -> None:
+        """O_T_EE at joints ``q`` into ``out`` (4x4; fk of the nominal EE, then NE_T_EE)."""
+        if self._NE_identity:
+            out[:] = self._kin.fk(q)
+        else:
+            np.matmul(self._kin.fk(q), self.NE_T_EE, out=out)
 
     def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
         s, t = self.state, self.thresholds
