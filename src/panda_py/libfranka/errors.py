@@ -28,7 +28,22 @@ __all__ = [
 
 
 class FrankaException(RuntimeError):
-    """Base of every error raised by :mod:`panda_py.libfranka` (libfranka's ``Exception``)."""
+    """Base of every error raised by :mod:`panda_py.libfranka` (libfranka's ``Exception``).
+
+    Every subclass pickles with its structured fields (errors cross from the control
+    process to the user's process)."""
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild, (type(self), self.args, self.__dict__))
+
+
+def _rebuild(
+    cls: type[FrankaException], args: tuple[Any, ...], fields: dict[str, Any]
+) -> FrankaException:
+    exc = cls.__new__(cls)
+    exc.args = args
+    exc.__dict__.update(fields)
+    return exc
 
 
 class CommandException(FrankaException):

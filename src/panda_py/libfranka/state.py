@@ -256,11 +256,22 @@ class RobotState:
         "control_command_success_rate", "Fraction of the last commands that arrived [0..1]."
     )
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # the dialect (a per-version singleton) travels as its version number, so states
+        # cross process boundaries (e.g. in ControlException.log)
+        return (_state_from_version, (self._dialect.version, self._data))
+
     def __repr__(self) -> str:
         return (
             f"RobotState(time={self.message_id} ms, robot_mode={self.robot_mode.name}, "
             f"q={np.round(self.q, 4).tolist()})"
         )
+
+
+def _state_from_version(version: int, data: bytes) -> RobotState:
+    from panda_py.fci import dialect
+
+    return RobotState(dialect(version), data)
 
 
 class GripperState:
