@@ -18,12 +18,21 @@ _LAZY: dict[str, str] = {
     "ik_full": "panda_py.kinematics",
     "JointTrajectory": "panda_py.motion",
     "CartesianTrajectory": "panda_py.motion",
+    "Panda": "panda_py.panda",
+    "PandaContext": "panda_py.context",
+    "realtime_priority_available": "panda_py.panda",
+    "ControlProcessError": "panda_py.rt.process",
 }
 
-__all__ = ["__version__", *sorted(_LAZY)]
+# submodules panda-py exposes as attributes (``panda_py.controllers``, ...), imported lazily
+_SUBMODULES = ("constants", "controllers", "libfranka", "motion")
+
+__all__ = ["__version__", *sorted(_LAZY), *_SUBMODULES]
 
 
 def __getattr__(name: str) -> Any:
+    if name in _SUBMODULES:
+        return importlib.import_module(f"panda_py.{name}")
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'panda_py' has no attribute {name!r}")
@@ -33,4 +42,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))

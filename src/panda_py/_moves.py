@@ -1,0 +1,249 @@
+"""``Panda``'s moves on the user's side: panda-py's overloaded arguments, their checks,
+and the time-optimal plan sampled at the robot's 1 ms period for the control process.
+
+Everything here runs before anything is sent: a bad target is a ``ValueError`` naming the
+argument, and a target outside the joint limits or out of the arm's reach never starts a
+motion.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.controllers import _args
+from panda_py.motion import CartesianTrajectory, JointTrajectory
+from panda_py.motion.cartesian import _parse_poses, _stack
+from panda_py.robots.params import RobotSpec
+
+__all__ = [
+    "JOINT_MOVE_DEFAULTS",
+    "POSE_MOVE_DEFAULTS",
+    "joint_move",
+    "parse_joint_targets",
+    "parse_pose_targets",
+    "pose_move",
+]
+
+FloatArray = NDArray[np.float64]
+PERIOD = 1e-3  # [s] the robot's control period
+
+# panda-python 1.1.1's defaults
+JOINT_MOVE_DEFAULTS: dict[str, Any] = {
+    "speed_factor": 0.2,
+    "stiffness": (600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0),
+    "damping": (50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0),
+    "dq_threshold": 0.001,
+    "success_threshold": 0.01,
+}
+POSE_MOVE_DEFAULTS: dict[str, Any] = {
+    "speed_factor": 0.2,
+    "impedance": np.diag([800.0, 800.0, 800.0, 40.0, 40.0, 40.0]),
+    "damping_ratio": 1.0,
+    "nullspace_stiffness": 15.0,
+    "dq_threshold": 0.001,
+    "success_threshold": 0.02,
+    "orientation_threshold": 0.1,
+}
+
+
+def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict[str, Any]:
+    unknown = sorted(set(given) - set(defaults))
+    if unknown:
+        raise TypeError(f"{what}() got unexpected keyword arguments {unknown}")
+    return {**defaults, **given}
+
+
+def _speed(value: Any) -> float:
+    v = _args.scalar("speed_factor", value)
+    if not 0.0 < v <= 1.0:
+        raise ValueError(f"speed_factor: expected a number in (0, 1], got {v}")
+    return v
+
+
+def _positive(name: str, value: Any, unit: str) -> float:
+    v = _args.scalar(name, value, unit)
+    if v <= 0.0:
+        raise ValueError(f"{name}: expected a number > 0 {unit}, got {v}")
+    return v
+
+
+def parse_joint_targets(args: tuple[Any, ...], kwargs: dict[str, Any]) -> tuple[FloatArray, dict]:
+    """``(waypoints (N, 7), options)`` from ``move_to_joint_position``'s overloads:
+    ``(positions, ...)`` one 7-vector or ``(waypoints, ...)`` a sequence of them."""
+    kwargs = dict(kwargs)
+    names = ("speed_factor", "stiffness", "damping", "dq_threshold", "success_threshold")
+    if args:
+        target, rest = args[0], args[1:]
+        if "positions" in kwargs or "waypoints" in kwargs:
+            raise TypeError("move_to_joint_position() got the target twice")
+    else:
+        target = kwargs.pop("positions", kwargs.pop("waypoints", None))
+        rest = ()
+        if target is None:
+            raise TypeError("move_to_joint_position() missing the target: positions or waypoints")
+    if len(rest) > len(names):
+        raise TypeError(f"move_to_joint_position() takes at most {len(names) + 1} arguments")
+    for name, value in zip(names, rest, strict=False):
+        if name in kwargs:
+            raise TypeError(f"move_to_joint_position() got multiple values for {name!r}")
+        kwargs[name] = value
+    try:
+        arr = np.array(target, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"waypoints: expected 7 joint positions [rad] or a sequence of "
+                         f"them, got {target!r}") from exc  # fmt: skip
+    if arr.shape in ((7,), (7, 1)):
+        arr = arr.reshape(1, 7)
+    waypoints = _stack("waypoints", arr, 7, "[rad]")
+    opts = _options(JOINT_MOVE_DEFAULTS, kwargs, "move_to_joint_position")
+    checked = {
+        "speed_factor": _speed(opts["speed_factor"]),
+        "stiffness": np.array(_args.nonnegative("stiffness", opts["stiffness"], 7, "[Nm/rad]")),
+        "damping": np.array(_args.nonnegative("damping", opts["damping"], 7, "[Nm s/rad]")),
+        "dq_threshold": _positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
+        "success_threshold": _positive("success_threshold", opts["success_threshold"], "[rad]"),
+    }
+    return waypoints, checked
+
+
+def parse_pose_targets(
+    args: tuple[Any, ...], kwargs: dict[str, Any]
+) -> tuple[FloatArray, FloatArray, dict]:
+    """``(positions (N, 3), unit quaternions (N, 4), options)`` from ``move_to_pose``'s
+    overloads: ``(positions, orientations)``, ``(position, orientation)``, ``(poses)`` or
+    ``(pose)`` (4x4 homogeneous transforms)."""
+    kwargs = dict(kwargs)
+    names = [
+        "speed_factor", "impedance", "damping_ratio", "nullspace_stiffness",
+        "dq_threshold", "success_threshold", "orientation_threshold",
+    ]  # fmt: skip
+    rest = list(args)
+    pose = kwargs.pop("pose", None)
+    position = kwargs.pop("positions", kwargs.pop("position", None))
+    orientation = kwargs.pop("orientations", kwargs.pop("orientation", None))
+    if pose is None and position is None and rest:
+        first = np.asarray(rest[0], dtype=object)
+        is_pose = np.shape(first)[-2:] == (4, 4) if np.ndim(first) >= 2 else False
+        if is_pose:
+            pose = rest.pop(0)
+        else:
+            position = rest.pop(0)
+            if orientation is None:
+                if not rest:
+                    raise TypeError("move_to_pose() missing the orientation(s)")
+                orientation = rest.pop(0)
+    if len(rest) > len(names):
+        raise TypeError(f"move_to_pose() takes at most {len(names)} option arguments")
+    for name, value in zip(names, rest, strict=False):
+        if name in kwargs:
+            raise TypeError(f"move_to_pose() got multiple values for {name!r}")
+        kwargs[name] = value
+    if pose is not None:
+        arr = np.array(pose, dtype=np.float64) if _numeric(pose) else pose
+        if isinstance(arr, np.ndarray) and arr.shape == (4, 4):
+            arr = arr.reshape(1, 4, 4)
+        positions, quats = _parse_poses(arr)
+    elif position is not None and orientation is not None:
+        p = np.array(position, dtype=np.float64) if _numeric(position) else position
+        o = np.array(orientation, dtype=np.float64) if _numeric(orientation) else orientation
+        if isinstance(p, np.ndarray) and p.shape in ((3,), (3, 1)):
+            p = p.reshape(1, 3)
+        if isinstance(o, np.ndarray) and o.shape in ((4,), (4, 1)):
+            o = o.reshape(1, 4)
+        positions = _stack("positions", p, 3, "[m]")
+        quats = _stack("orientations", o, 4, "(unit quaternions x, y, z, w)")
+        if len(positions) != len(quats):
+            raise ValueError(f"orientations: expected one per position ({len(positions)}), "
+                             f"got {len(quats)}")  # fmt: skip
+        for i, qv in enumerate(quats):
+            quats[i] = _args.quaternion(f"orientations[{i}]", qv)
+    else:
+        raise TypeError("move_to_pose() missing the target: pose(s) or position(s) and "
+                        "orientation(s)")  # fmt: skip
+    opts = _options(POSE_MOVE_DEFAULTS, kwargs, "move_to_pose")
+    checked = {
+        "speed_factor": _speed(opts["speed_factor"]),
+        "impedance": np.array(_args.matrix6("impedance", opts["impedance"])).reshape(6, 6),
+        "damping_ratio": _args.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
+        "nullspace_stiffness": _args.nonnegative_scalar(
+            "nullspace_stiffness", opts["nullspace_stiffness"]
+        ),
+        "dq_threshold": _positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
+        "success_threshold": _positive("success_threshold", opts["success_threshold"], "[m]"),
+        "orientation_threshold": _positive(
+            "orientation_threshold", opts["orientation_threshold"], "[rad]"
+        ),
+    }
+    return positions, quats, checked
+
+
+def _numeric(value: Any) -> bool:
+    try:
+        np.array(value, dtype=np.float64)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
+def _times(duration: float) -> FloatArray:
+    n = math.ceil(duration / PERIOD)
+    t = np.arange(n + 1, dtype=np.float64) * PERIOD
+    t[-1] = duration
+    return t
+
+
+def joint_move(q_now: FloatArray, waypoints: FloatArray, speed_factor: float,
+               spec: RobotSpec) -> dict[str, FloatArray] | None:  # fmt: skip
+    """The sampled plan from ``q_now`` through ``waypoints``; None if already there."""
+    traj = JointTrajectory(np.vstack([q_now, waypoints]), speed_factor, robot=spec)
+    if traj.get_duration() == 0.0:
+        return None
+    samples = traj.sample(_times(traj.get_duration()))
+    return {"q": samples.positions, "dq": samples.velocities}
+
+
+def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
+                    spec: RobotSpec, F_T_EE: FloatArray) -> None:  # fmt: skip
+    """Raise ValueError for the first target pose the arm cannot reach (no IK solution
+    within the joint limits for any q7 near the current one)."""
+    from panda_py.kinematics import get_kinematics
+    from panda_py.motion._rotation import to_matrix
+
+    kin = get_kinematics(spec, F_T_EE)
+    for i, (p, quat) in enumerate(zip(positions, quats, strict=True)):
+        T = np.eye(4)
+        T[:3, :3] = to_matrix(quat)
+        T[:3, 3] = p
+        found = False
+        for q7 in (q_now[6], *np.linspace(spec.joints.q_min[6], spec.joints.q_max[6], 25)):
+            sols = kin.ik_full(T, q_now, float(q7))
+            if np.isfinite(sols).all(axis=1).any():
+                found = True
+                break
+        if not found:
+            raise ValueError(
+                f"pose[{i}]: position {np.round(p, 4).tolist()} with orientation "
+                f"{np.round(quat, 4).tolist()} is out of reach of the {spec.name} (no inverse "
+                "kinematics solution within the joint limits)"
+            )
+
+
+def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
+              quats: FloatArray, speed_factor: float,
+              spec: RobotSpec) -> dict[str, FloatArray] | None:  # fmt: skip
+    """The sampled Cartesian plan from the current pose through the targets."""
+    traj = CartesianTrajectory(
+        np.vstack([p_now, positions]), np.vstack([quat_now, quats]), speed_factor, robot=spec
+    )
+    if traj.get_duration() == 0.0:
+        return None
+    s = traj.sample(_times(traj.get_duration()))
+    return {
+        "position": s.positions,
+        "orientation": s.orientations,
+        "twist": np.hstack([s.velocities, s.angular_velocities]),
+    }

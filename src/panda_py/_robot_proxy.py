@@ -1,0 +1,144 @@
+"""``Panda.get_robot()``: libfranka's ``Robot`` interface for a robot whose connection the
+control process owns. Each call is checked here (the same checks as
+:class:`panda_py.libfranka.Robot`, so nothing malformed leaves this process) and then
+runs in the control process between ticks.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from panda_py.libfranka.model import Model
+from panda_py.libfranka.robot import _vec
+from panda_py.libfranka.state import RobotState
+
+if TYPE_CHECKING:
+    from panda_py.panda import Panda
+
+__all__ = ["RobotProxy"]
+
+_COLLISION_EIGHT = (
+    "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
+    "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
+    "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
+    "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
+)  # fmt: skip
+_COLLISION_FOUR = (
+    "lower_torque_thresholds", "upper_torque_thresholds",
+    "lower_force_thresholds", "upper_force_thresholds",
+)  # fmt: skip
+
+
+def _collision_args(args: tuple[Any, ...], kwargs: dict[str, Any]) -> list[np.ndarray]:
+    n = len(args) + len(kwargs)
+    names = _COLLISION_EIGHT if n == 8 else _COLLISION_FOUR if n == 4 else None
+    if names is None:
+        raise ValueError(f"set_collision_behavior: expected 4 or 8 arguments, got {n}")
+    values = dict(zip(names, args, strict=False))
+    for key, value in kwargs.items():
+        if key not in names or key in values:
+            raise ValueError(f"set_collision_behavior: unexpected argument {key!r}")
+        values[key] = value
+    out = []
+    for name in names:
+        torque = "torque" in name
+        arr = _vec(name, values[name], 7 if torque else 6, "[Nm]" if torque else "[N]")
+        if (arr < 0.0).any():
+            raise ValueError(f"{name}: expected thresholds >= 0, got {arr.tolist()}")
+        out.append(arr)
+    return out
+
+
+class RobotProxy:
+    """The ``libfranka.Robot`` of a :class:`~panda_py.Panda` (setters, error recovery,
+    ``read_once``), forwarded to its control process."""
+
+    def __init__(self, panda: Panda) -> None:
+        self._panda = panda
+
+    def _call(self, method: str, *args: Any) -> Any:
+        return self._panda._process().call("robot", method, args, {})
+
+    def server_version(self) -> int:
+        return int(self._panda._info["server_version"])
+
+    def read_once(self) -> RobotState:
+        """A fresh robot state (newer than any returned before)."""
+        state: RobotState = self._call("read_once")
+        return state
+
+    readOnce = read_once
+
+    def load_model(self) -> Model:
+        return self._panda.get_model()
+
+    def set_collision_behavior(self, *args: Any, **kwargs: Any) -> None:
+        """Contact/collision thresholds: 4 or 8 arrays as libfranka's
+        ``setCollisionBehavior`` (torques (7,) [Nm], forces (6,) [N, Nm])."""
+        self._call("set_collision_behavior", *_collision_args(args, kwargs))
+
+    def set_joint_impedance(self, K_theta: Any) -> None:
+        arr = _vec("K_theta", K_theta, 7, "[Nm/rad]")
+        if (arr < 0.0).any():
+            raise ValueError(f"K_theta: expected stiffness >= 0 [Nm/rad], got {arr.tolist()}")
+        self._call("set_joint_impedance", arr)
+
+    def set_cartesian_impedance(self, K_x: Any) -> None:
+        arr = _vec("K_x", K_x, 6, "[N/m, Nm/rad]")
+        if (arr < 0.0).any():
+            raise ValueError(f"K_x: expected stiffness >= 0 [N/m, Nm/rad], got {arr.tolist()}")
+        self._call("set_cartesian_impedance", arr)
+
+    def set_guiding_mode(self, guiding_mode: Any, elbow: bool) -> None:
+        axes = np.asarray(guiding_mode)
+        if axes.shape != (6,) or axes.dtype.kind not in "bi":
+            raise ValueError(f"guiding_mode: expected 6 bools, got {guiding_mode!r}")
+        if not isinstance(elbow, (bool, np.bool_)):
+            raise ValueError(f"elbow: expected a bool, got {elbow!r}")
+        self._call("set_guiding_mode", axes.astype(bool), bool(elbow))
+
+    def _transform(self, name: str, value: Any) -> np.ndarray:
+        arr = np.asarray(value, dtype=np.float64)
+        flat = arr.reshape(4, 4).reshape(16, order="F") if arr.shape == (4, 4) else arr
+        T = _vec(name, flat, 16, "(transform, column-major)")
+        M = T.reshape(4, 4, order="F")
+        R = M[:3, :3]
+        rigid = np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.array_equal(
+            M[3], [0.0, 0.0, 0.0, 1.0]
+        )
+        if not rigid or abs(np.linalg.det(R) - 1.0) > 1e-6:
+            raise ValueError(f"{name}: expected a rigid transform, got {M.tolist()}")
+        return T
+
+    def set_k(self, EE_T_K: Any) -> None:
+        self._call("set_k", self._transform("EE_T_K", EE_T_K))
+
+    def set_ee(self, NE_T_EE: Any) -> None:
+        self._call("set_ee", self._transform("NE_T_EE", NE_T_EE))
+
+    set_K = set_k
+    set_EE = set_ee
+
+    def set_load(self, load_mass: float, F_x_Cload: Any, load_inertia: Any) -> None:
+        m = float(_vec("load_mass", [load_mass], 1, "[kg]")[0])
+        if m < 0.0:
+            raise ValueError(f"load_mass: expected a mass >= 0 [kg], got {m}")
+        c = _vec("F_x_Cload", F_x_Cload, 3, "[m]")
+        inertia = _vec("load_inertia", np.asarray(load_inertia, dtype=float).reshape(-1), 9,
+                       "[kg m^2]")  # fmt: skip
+        self._call("set_load", m, c, inertia)
+
+    def set_filters(self, *frequencies: float) -> None:
+        values = _vec("filter frequencies", list(frequencies), 5, "[Hz]")
+        if ((values < 1.0) | (values > 1000.0)).any():
+            raise ValueError(f"filter frequencies: expected 1..1000 Hz, got {values.tolist()}")
+        self._call("set_filters", *values.tolist())
+
+    def automatic_error_recovery(self) -> None:
+        self._call("automatic_error_recovery")
+
+    def stop(self) -> None:
+        """Stop whatever runs: the controller or move of the Panda."""
+        self._panda.stop_controller()

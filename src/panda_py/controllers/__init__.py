@@ -1,0 +1,29 @@
+"""Torque controllers (panda-py's ``panda_py.controllers``).
+
+Instantiate one and hand it to :meth:`panda_py.Panda.start_controller`; it runs at 1 kHz in
+the control process while this process feeds it with ``set_control`` and its setters, all
+changeable while it runs. Subclass :class:`TorqueController` (declare ``signals``,
+implement ``step(state, model) -> tau``) to run a control law of your own at 1 kHz.
+"""
+
+from __future__ import annotations
+
+from panda_py.controllers._base import TorqueController
+from panda_py.controllers._builtin import (
+    AppliedForce,
+    AppliedTorque,
+    CartesianImpedance,
+    Force,
+    IntegratedVelocity,
+    JointPosition,
+)
+
+__all__ = [
+    "AppliedForce",
+    "AppliedTorque",
+    "CartesianImpedance",
+    "Force",
+    "IntegratedVelocity",
+    "JointPosition",
+    "TorqueController",
+]

@@ -1,0 +1,183 @@
+"""``TorqueController``: a control law defined once, run in the control process, fed from
+the user's process through shared memory.
+
+A controller declares its inputs (``signals``: name -> number of float64) and outputs
+(``outputs``). The object the user holds is a handle: ``set_signals`` (and the built-in
+controllers' ``set_control``/``set_*``) checks the values and writes them into the
+running controller's input slot; ``get_time``/``get_output`` read what the loop
+published. ``Panda.start_controller`` pickles the object into the control process, where
+``start(state, model)`` runs once and ``step(state, model) -> tau`` at 1 kHz on the
+newest consistent copy of the inputs (``signal(name)``).
+
+A user-written controller subclasses :class:`TorqueController` in Python, declares its
+``signals`` and implements ``step``; it runs at 1 kHz in the control process, never in the
+user's interpreter, so nothing the user's process does can make it miss a tick. Its
+class is sent by value if it lives in a script (``__main__``), by reference otherwise.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.controllers import _args
+
+if TYPE_CHECKING:
+    from panda_py.rt.shm import SharedBlock
+
+__all__ = ["TorqueController"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _offsets(decl: dict[str, int], first: int = 0) -> tuple[dict[str, tuple[int, int]], int]:
+    out, pos = {}, first
+    for name, size in decl.items():
+        if not isinstance(size, int) or size < 1:
+            raise TypeError(f"declared size of {name!r}: expected an int >= 1, got {size!r}")
+        out[name] = (pos, size)
+        pos += size
+    return out, pos
+
+
+class TorqueController:
+    """Base class of all torque controllers: they give the robot joint torques at 1 kHz
+    (gravity is compensated by the robot) and the user an asynchronous interface for
+    control signals (panda-py's ``TorqueController``)."""
+
+    #: the controller's inputs: name -> number of float64 values (override in subclasses)
+    signals: ClassVar[dict[str, int]] = {}
+    #: values the loop publishes besides the time: name -> number of float64 values
+    outputs: ClassVar[dict[str, int]] = {}
+
+    def __init__(self) -> None:
+        sig, n_sig = _offsets(type(self).signals)
+        out, n_out = _offsets(type(self).outputs, 1)  # outputs[0] is the time
+        self._sig_layout = sig
+        self._out_layout = out
+        self._values = np.zeros(n_sig)  # the inputs (user side: as last set)
+        self._out = np.zeros(n_out)
+        self._block: SharedBlock | None = None  # set while running (either side)
+        self._lock = threading.Lock()
+        self._time = 0.0
+        #: inside ``step``: the time since the previous tick [s] (0 at the first)
+        self.dt = 0.0
+        self._views: dict[str, FloatArray] = {}
+        self._make_views()
+
+    # --- declared data --------------------------------------------------------------
+
+    def _make_views(self) -> None:
+        self._views = {n: self._values[o : o + s] for n, (o, s) in self._sig_layout.items()}
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        for key in ("_block", "_lock", "_views"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._block = None
+        self._lock = threading.Lock()
+        self._make_views()
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        """Hook: built-in controllers keep attribute views of their signals."""
+
+    def _check_initialized(self) -> None:
+        if "_values" not in self.__dict__:
+            raise TypeError(
+                f"{type(self).__name__}.__init__ must call super().__init__() "
+                "(TorqueController keeps its signals there)"
+            )
+
+    # --- user side ------------------------------------------------------------------
+
+    def set_signals(self, **values: Any) -> None:
+        """Set declared inputs by name (each a number or an array of its declared size);
+        all are checked before any is written, and the loop sees them together."""
+        self._check_initialized()
+        checked: dict[str, list[float]] = {}
+        for name, value in values.items():
+            if name not in self._sig_layout:
+                raise ValueError(
+                    f"{name}: expected one of the signals {sorted(self._sig_layout)} "
+                    f"of {type(self).__name__}"
+                )
+            checked[name] = _args.vector(name, value, self._sig_layout[name][1])
+        self._write(**checked)
+
+    def _write(self, **checked: list[float]) -> None:
+        """Write checked values of signals (by name) locally and, while running, into the
+        shared input slot, all under one seqlock write."""
+        layout = self._sig_layout
+        with self._lock:
+            for name, vals in checked.items():
+                offset = layout[name][0]
+                self._values[offset : offset + len(vals)] = vals
+            block = self._block
+            if block is not None:
+                block.write_signal_array(self._values)
+
+    def get_signal(self, name: str) -> FloatArray:
+        """The input ``name`` as last set (a copy)."""
+        if name not in self._sig_layout:
+            raise ValueError(f"{name}: expected one of the signals {sorted(self._sig_layout)}")
+        offset, size = self._sig_layout[name]
+        return self._values[offset : offset + size].copy()
+
+    def _outputs(self) -> FloatArray:
+        block = self._block
+        if block is not None:
+            return block.read_outputs(len(self._out))
+        return self._out
+
+    def get_time(self) -> float:
+        """Time since this controller was started [s] (of the robot's clock)."""
+        return float(self._outputs()[0])
+
+    def get_output(self, name: str) -> FloatArray:
+        """The declared output ``name`` as the loop last published it."""
+        if name not in self._out_layout:
+            raise ValueError(f"{name}: expected one of the outputs {sorted(self._out_layout)}")
+        offset, size = self._out_layout[name]
+        return self._outputs()[offset : offset + size].copy()
+
+    @property
+    def name(self) -> str:
+        """A human-readable name of the control law."""
+        return type(self).__name__
+
+    # --- control-process side (override start/step/stop) --------------------------------
+
+    def start(self, state: Any, model: Any) -> None:
+        """Called once in the control process with the state the controller starts from."""
+
+    def step(self, state: Any, model: Any) -> Any:
+        """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot);
+        runs at 1 kHz in the control process."""
+        raise NotImplementedError(f"{type(self).__name__} must implement step(state, model)")
+
+    def stop(self, state: Any, model: Any) -> None:
+        """Called once in the control process when the controller is stopped."""
+
+    def signal(self, name: str) -> FloatArray:
+        """Inside ``step``: the input ``name`` of this tick (a view; do not keep it)."""
+        return self._views[name]
+
+    def set_output(self, name: str, value: Any) -> None:
+        """Inside ``step``: publish the output ``name``."""
+        offset, size = self._out_layout[name]
+        self._out[offset : offset + size] = value
+
+    def initial_signals(self, **values: Any) -> None:
+        """Inside ``start``: set inputs the user has not set (e.g. the target to the
+        current pose); the user's handle sees them once the controller runs."""
+        for name, value in values.items():
+            offset, size = self._sig_layout[name]
+            self._values[offset : offset + size] = np.asarray(value, dtype=np.float64).ravel()

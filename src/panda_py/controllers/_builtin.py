@@ -1,0 +1,419 @@
+"""panda-py's controller library: the same constructors, ``set_control`` signatures,
+setters and defaults (panda-python 1.1.1), each law written once and run at 1 kHz in the
+control process. Targets and gains pass panda-py's first-order input filter
+(``filter_coeff``); the loop adds the joint walls, the torque-rate saturation and the
+torque limits after ``step``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from panda_py.controllers import _args, laws
+from panda_py.controllers._base import FloatArray, TorqueController
+from panda_py.libfranka.errors import ControlException
+from panda_py.robots.params import START_POSE
+
+__all__ = [
+    "AppliedForce",
+    "AppliedTorque",
+    "CartesianImpedance",
+    "Force",
+    "IntegratedVelocity",
+    "JointPosition",
+]
+
+# panda-python 1.1.1's defaults
+JOINT_STIFFNESS = (600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0)  # [Nm/rad]
+JOINT_DAMPING = (50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0)  # [Nm s/rad]
+CARTESIAN_IMPEDANCE = np.diag([600.0, 600.0, 600.0, 30.0, 30.0, 30.0])  # [N/m], [Nm/rad]
+FORCE_DAMPING = (1.0, 1.0, 1.0, 1.0, 0.33, 0.33, 0.17)  # [Nm s/rad]
+ZERO7 = (0.0,) * 7
+
+
+def _sqrtm_psd(K: FloatArray) -> FloatArray:
+    """Square root of a symmetric PSD matrix (the element-wise root for diagonal ones)."""
+    if np.count_nonzero(K - np.diag(np.diagonal(K))) == 0:
+        return np.diag(np.sqrt(np.maximum(np.diagonal(K), 0.0)))
+    w, v = np.linalg.eigh(K)
+    return (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
+
+
+class JointPosition(TorqueController):
+    """Joint impedance around a desired joint position and velocity:
+    ``tau = K (q_d - q) + D (dq_d - dq)``; ``q_d`` starts at the current position."""
+
+    signals: ClassVar[dict[str, int]] = {
+        "position": 7,
+        "velocity": 7,
+        "stiffness": 7,
+        "damping": 7,
+        "filter_coeff": 1,
+    }
+
+    def __init__(
+        self,
+        stiffness: Any = JOINT_STIFFNESS,
+        damping: Any = JOINT_DAMPING,
+        filter_coeff: float = 1.0,
+    ) -> None:
+        super().__init__()
+        self._values[:] = 0.0
+        self._write(
+            stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
+            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._q_t, self._dq_t, self._K_t, self._D_t = v[0:7], v[7:14], v[14:21], v[21:28]
+
+    def set_control(self, position: Any, velocity: Any = ZERO7) -> None:
+        """Desired joint position [rad] and velocity [rad/s]."""
+        self._write(
+            position=_args.vector("position", position, 7, "[rad]"),
+            velocity=_args.vector("velocity", velocity, 7, "[rad/s]"),
+        )
+
+    def set_stiffness(self, stiffness: Any) -> None:
+        self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
+
+    def set_damping(self, damping: Any) -> None:
+        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+
+    def set_filter(self, filter_coeff: float) -> None:
+        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+
+    def start(self, state: Any, model: Any) -> None:
+        q = state.q
+        self.initial_signals(position=q, velocity=np.zeros(7))
+        self._q_d, self._dq_d = q.copy(), np.zeros(7)
+        self._K, self._D = self._K_t.copy(), self._D_t.copy()
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        a = float(self._values[28])
+        laws.ema(self._q_d, self._q_t, a)
+        laws.ema(self._dq_d, self._dq_t, a)
+        laws.ema(self._K, self._K_t, a)
+        laws.ema(self._D, self._D_t, a)
+        return self._K * (self._q_d - state.q) + self._D * (self._dq_d - state.dq)
+
+
+class IntegratedVelocity(TorqueController):
+    """Joint impedance around a position integrated from the desired joint velocity
+    (``q_d += dt dq_d``, kept within the joint limits): ``tau = K (q_d - q) - D dq``."""
+
+    signals: ClassVar[dict[str, int]] = {"velocity": 7, "stiffness": 7, "damping": 7}
+    outputs: ClassVar[dict[str, int]] = {"q_d": 7}
+
+    def __init__(self, stiffness: Any = JOINT_STIFFNESS, damping: Any = JOINT_DAMPING) -> None:
+        super().__init__()
+        self._write(
+            stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
+            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._dq_t, self._K, self._D = v[0:7], v[7:14], v[14:21]
+
+    def set_control(self, velocity: Any) -> None:
+        """Desired joint velocity [rad/s]."""
+        self._write(velocity=_args.vector("velocity", velocity, 7, "[rad/s]"))
+
+    def set_stiffness(self, stiffness: Any) -> None:
+        self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
+
+    def set_damping(self, damping: Any) -> None:
+        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+
+    def get_qd(self) -> FloatArray:
+        """The integrated desired joint position [rad]."""
+        return self.get_output("q_d")
+
+    def start(self, state: Any, model: Any) -> None:
+        self.initial_signals(velocity=np.zeros(7))
+        self._q_d = state.q.copy()
+        self._lower = np.array(model.spec.joints.q_min) if hasattr(model, "spec") else None
+        self._upper = np.array(model.spec.joints.q_max) if hasattr(model, "spec") else None
+        self.set_output("q_d", self._q_d)
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        self._q_d += self.dt * self._dq_t
+        if self._lower is not None:
+            np.clip(self._q_d, self._lower, self._upper, out=self._q_d)
+        self.set_output("q_d", self._q_d)
+        return self._K * (self._q_d - state.q) - self._D * state.dq
+
+
+class AppliedTorque(TorqueController):
+    """Applies the given joint torques plus joint damping: ``tau = tau_d - D dq``."""
+
+    signals: ClassVar[dict[str, int]] = {"torque": 7, "damping": 7, "filter_coeff": 1}
+
+    def __init__(self, damping: Any = ZERO7, filter_coeff: float = 1.0) -> None:
+        super().__init__()
+        self._write(
+            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._tau_t, self._D_t = v[0:7], v[7:14]
+
+    def set_control(self, torque: Any) -> None:
+        """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
+        self._write(torque=_args.vector("torque", torque, 7, "[Nm]"))
+
+    def set_damping(self, damping: Any) -> None:
+        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+
+    def set_filter(self, filter_coeff: float) -> None:
+        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+
+    def start(self, state: Any, model: Any) -> None:
+        self.initial_signals(torque=np.zeros(7))
+        self._tau, self._D = np.zeros(7), self._D_t.copy()
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        a = float(self._values[14])
+        laws.ema(self._tau, self._tau_t, a)
+        laws.ema(self._D, self._D_t, a)
+        return self._tau - self._D * state.dq
+
+
+class AppliedForce(TorqueController):
+    """Applies a wrench at the end effector (base frame) plus joint damping:
+    ``tau = J^T f - D dq``."""
+
+    signals: ClassVar[dict[str, int]] = {"force": 6, "damping": 7, "filter_coeff": 1}
+
+    def __init__(self, damping: Any = ZERO7, filter_coeff: float = 1.0) -> None:
+        super().__init__()
+        self._write(
+            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._f_t, self._D_t = v[0:6], v[6:13]
+
+    def set_control(self, force: Any) -> None:
+        """Wrench at the end effector in the base frame [N, Nm]."""
+        self._write(force=_args.vector("force", force, 6, "[N, Nm]"))
+
+    def set_damping(self, damping: Any) -> None:
+        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+
+    def set_filter(self, filter_coeff: float) -> None:
+        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+
+    def start(self, state: Any, model: Any) -> None:
+        self.initial_signals(force=np.zeros(6))
+        self._f, self._D = np.zeros(6), self._D_t.copy()
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        a = float(self._values[13])
+        laws.ema(self._f, self._f_t, a)
+        laws.ema(self._D, self._D_t, a)
+        return model.ee_jacobian(state).T @ self._f - self._D * state.dq
+
+
+class Force(TorqueController):
+    """Force control at the end effector: feed-forward plus PI on the joint torques of the
+    desired force (base frame, [N]) against the measured external torques. Aborts when
+    the end effector moves more than ``threshold`` [m] from where it started."""
+
+    signals: ClassVar[dict[str, int]] = {
+        "force": 3,
+        "k_p": 1,
+        "k_i": 1,
+        "damping": 7,
+        "threshold": 1,
+        "filter_coeff": 1,
+    }
+
+    def __init__(
+        self,
+        k_p: float = 1.0,
+        k_i: float = 2.0,
+        damping: Any = FORCE_DAMPING,
+        threshold: float = 0.01,
+        filter_coeff: float = 0.001,
+    ) -> None:
+        super().__init__()
+        self._write(
+            k_p=[_args.nonnegative_scalar("k_p", k_p)],
+            k_i=[_args.nonnegative_scalar("k_i", k_i)],
+            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            threshold=[_args.nonnegative_scalar("threshold", threshold, "[m]")],
+            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._f_t, self._gains_t, self._D_t = v[0:3], v[3:5], v[5:12]
+
+    @property
+    def name(self) -> str:
+        return "Force Controller"
+
+    def set_control(self, force: Any) -> None:
+        """Desired force at the end effector in the base frame [N]."""
+        self._write(force=_args.vector("force", force, 3, "[N]"))
+
+    def set_proportional_gain(self, k_p: float) -> None:
+        self._write(k_p=[_args.nonnegative_scalar("k_p", k_p)])
+
+    def set_integral_gain(self, k_i: float) -> None:
+        self._write(k_i=[_args.nonnegative_scalar("k_i", k_i)])
+
+    def set_threshold(self, threshold: float) -> None:
+        self._write(threshold=[_args.nonnegative_scalar("threshold", threshold, "[m]")])
+
+    def set_damping(self, damping: Any) -> None:
+        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+
+    def set_filter(self, filter_coeff: float) -> None:
+        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+
+    def start(self, state: Any, model: Any) -> None:
+        self.initial_signals(force=np.zeros(3))
+        self._f = np.zeros(3)
+        self._gains = self._gains_t.copy()
+        self._D = self._D_t.copy()
+        self._threshold = float(self._values[12])
+        self._p0 = state.O_T_EE[12:15].copy()
+        self._tau_ext0 = state.tau_J - model.gravity_of(state)  # bias of the torque sensors
+        self._integral = np.zeros(7)
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        a = float(self._values[13])
+        laws.ema(self._f, self._f_t, a)
+        laws.ema(self._gains, self._gains_t, a)
+        laws.ema(self._D, self._D_t, a)
+        self._threshold += a * (float(self._values[12]) - self._threshold)
+        moved = float(np.linalg.norm(state.O_T_EE[12:15] - self._p0))
+        if self._time > 0.0 and moved > self._threshold:
+            raise ControlException(
+                f"{self.name}: distance threshold exceeded ({moved:.4f} m > "
+                f"{self._threshold:.4f} m)"
+            )
+        J = model.ee_jacobian(state)
+        tau_ext = state.tau_J - model.gravity_of(state) - self._tau_ext0
+        tau_d = J[:3].T @ self._f
+        self._integral += self.dt * (tau_d - tau_ext)
+        k_p, k_i = self._gains
+        return tau_d + k_p * (tau_d - tau_ext) + k_i * self._integral - self._D * state.dq
+
+
+class CartesianImpedance(TorqueController):
+    """Cartesian impedance around a desired end-effector pose (base frame), with a joint
+    impedance toward ``q_nullspace`` in the nullspace of the task:
+    ``tau = J^T (-K e - D J dq) + N (k_n (q_n - q) - 2 sqrt(k_n) dq) + coriolis``,
+    ``D = 2 damping_ratio sqrt(K)``."""
+
+    _Kd_key: tuple[FloatArray, float] | None = None
+
+    signals: ClassVar[dict[str, int]] = {
+        "position": 3,
+        "orientation": 4,
+        "q_nullspace": 7,
+        "impedance": 36,
+        "damping_ratio": 1,
+        "nullspace_stiffness": 1,
+        "filter_coeff": 1,
+    }
+
+    def __init__(
+        self,
+        impedance: Any = CARTESIAN_IMPEDANCE,
+        damping_ratio: float = 1.0,
+        nullspace_stiffness: float = 0.5,
+        filter_coeff: float = 1.0,
+    ) -> None:
+        super().__init__()
+        self._write(
+            orientation=[0.0, 0.0, 0.0, 1.0],  # x, y, z, w
+            impedance=_args.matrix6("impedance", impedance, "[N/m, Nm/rad]"),
+            damping_ratio=[_args.nonnegative_scalar("damping_ratio", damping_ratio)],
+            nullspace_stiffness=[
+                _args.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
+            ],
+            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+        )
+        self._bind_views()
+
+    def _bind_views(self) -> None:
+        v = self._values
+        self._p_t, self._quat_t, self._qn_t = v[0:3], v[3:7], v[7:14]
+        self._K_t = v[14:50].reshape(6, 6)
+
+    def set_control(self, position: Any, orientation: Any, q_nullspace: Any = START_POSE) -> None:
+        """Desired end-effector position [m] and orientation (quaternion x, y, z, w) in the
+        base frame, and the joint positions the nullspace term pulls toward [rad]."""
+        self._write(
+            position=_args.vector("position", position, 3, "[m]"),
+            orientation=_args.quaternion("orientation", orientation),
+            q_nullspace=_args.vector("q_nullspace", q_nullspace, 7, "[rad]"),
+        )
+
+    def set_impedance(self, impedance: Any) -> None:
+        self._write(impedance=_args.matrix6("impedance", impedance, "[N/m, Nm/rad]"))
+
+    def set_damping_ratio(self, damping: float) -> None:
+        self._write(damping_ratio=[_args.nonnegative_scalar("damping", damping)])
+
+    def set_nullspace_stiffness(self, nullspace_stiffness: float) -> None:
+        value = _args.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
+        self._write(nullspace_stiffness=[value])
+
+    def set_filter(self, filter_coeff: float) -> None:
+        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+
+    def _damping_target(self) -> FloatArray:
+        K, ratio = self._K_t, float(self._values[50])
+        if self._Kd_key is None or not (
+            np.array_equal(K, self._Kd_key[0]) and ratio == self._Kd_key[1]
+        ):
+            self._Kd_target = 2.0 * ratio * _sqrtm_psd(K)
+            self._Kd_key = (K.copy(), ratio)
+        return self._Kd_target
+
+    def start(self, state: Any, model: Any) -> None:
+        T = state.O_T_EE
+        self.initial_signals(
+            position=T[12:15], orientation=laws.quat_from_matrix(T), q_nullspace=state.q
+        )
+        self._p, self._quat, self._qn = self._p_t.copy(), self._quat_t.copy(), self._qn_t.copy()
+        self._Kd_key = None
+        self._K = self._K_t.copy()
+        self._Kd = self._damping_target().copy()
+        self._kn = float(self._values[51])
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        a = float(self._values[52])
+        laws.ema(self._K, self._K_t, a)
+        laws.ema(self._Kd, self._damping_target(), a)
+        laws.ema(self._p, self._p_t, a)
+        laws.ema(self._qn, self._qn_t, a)
+        self._kn += a * (float(self._values[51]) - self._kn)
+        self._quat = laws.slerp(self._quat, self._quat_t, a)
+        q, dq = state.q, state.dq
+        J = model.ee_jacobian(state)
+        err = laws.cartesian_error(state.O_T_EE, self._p, self._quat)
+        tau = J.T @ (-(self._K @ err) - self._Kd @ (J @ dq))
+        kn = self._kn
+        tau += laws.nullspace_projector(J) @ (kn * (self._qn - q) - 2.0 * math.sqrt(kn) * dq)
+        return tau + model.coriolis_of(state)

@@ -1,0 +1,195 @@
+"""The math of panda-py's control laws: input filters, pose errors, the nullspace
+projector, joint walls and torque saturation. Pure NumPy on small arrays, no I/O; the
+control process calls them once a tick.
+
+Conventions: quaternions (x, y, z, w); ``O_T_EE`` flat column-major (16,) as in
+``RobotState``; Jacobians (6, 7) with linear rows first.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "DTAU_MAX_PER_TICK",
+    "JointWalls",
+    "cartesian_error",
+    "clip_torques",
+    "ema",
+    "nullspace_projector",
+    "quat_from_matrix",
+    "saturate_torque_rate",
+    "slerp",
+]
+
+FloatArray = NDArray[np.float64]
+
+# panda-py's torque-rate saturation: 1 Nm per 1 ms tick (kDeltaTauMax = 1.0), i.e. the
+# robot's documented 1000 Nm/s (FCI docs, "dtau_max").
+DTAU_MAX_PER_TICK = 1.0  # [Nm]
+# Damping of the pseudo-inverse in the nullspace projector. panda-py uses 0.2, which
+# leaks the nullspace torques into the task (measured: 7 mm and 4 deg left at the end of
+# a 14 cm move_to_pose with nullspace stiffness 15); 0.01 leaks nothing measurable and
+# still bounds the inverse near singular configurations.
+PINV_DAMPING = 0.01
+
+
+def ema(filtered: FloatArray, target: FloatArray, alpha: float) -> None:
+    """In place: ``filtered <- alpha target + (1 - alpha) filtered`` (panda-py's first-order
+    input filter; alpha = 1 follows the target at once)."""
+    if alpha >= 1.0:
+        filtered[:] = target
+    else:
+        filtered += alpha * (target - filtered)
+
+
+def quat_from_matrix(O_T_EE: FloatArray) -> FloatArray:
+    """Unit quaternion (x, y, z, w) of the rotation of a flat column-major transform."""
+    m = O_T_EE
+    r00, r10, r20 = m[0], m[1], m[2]
+    r01, r11, r21 = m[4], m[5], m[6]
+    r02, r12, r22 = m[8], m[9], m[10]
+    tr = r00 + r11 + r22
+    if tr > 0.0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s, 0.25 * s
+    elif r00 > r11 and r00 > r22:
+        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
+        q = 0.25 * s, (r01 + r10) / s, (r02 + r20) / s, (r21 - r12) / s
+    elif r11 > r22:
+        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
+        q = (r01 + r10) / s, 0.25 * s, (r12 + r21) / s, (r02 - r20) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
+        q = (r02 + r20) / s, (r12 + r21) / s, 0.25 * s, (r10 - r01) / s
+    out = np.array(q)
+    return out / math.sqrt(float(out @ out))
+
+
+def slerp(q0: FloatArray, q1: FloatArray, t: float) -> FloatArray:
+    """Spherical interpolation from ``q0`` (t = 0) to ``q1`` (t = 1), shortest arc."""
+    if t >= 1.0:
+        return q1.copy()
+    d = float(q0 @ q1)
+    target = q1 if d >= 0.0 else -q1
+    d = abs(d)
+    if d > 1.0 - 1e-9:
+        out = q0 + t * (target - q0)
+    else:
+        theta = math.acos(d)
+        s = math.sin(theta)
+        out = (math.sin((1.0 - t) * theta) / s) * q0 + (math.sin(t * theta) / s) * target
+    return out / math.sqrt(float(out @ out))
+
+
+def cartesian_error(O_T_EE: FloatArray, position_d: FloatArray, quat_d: FloatArray) -> FloatArray:
+    """panda-py's Cartesian impedance error (6,): position minus desired position [m], and
+    the vector part of the rotation from desired to actual, in the base frame."""
+    err = np.empty(6)
+    err[0] = O_T_EE[12] - position_d[0]
+    err[1] = O_T_EE[13] - position_d[1]
+    err[2] = O_T_EE[14] - position_d[2]
+    q = quat_from_matrix(O_T_EE)
+    if float(quat_d @ q) < 0.0:
+        q = -q
+    # e = q^-1 * q_d (vector part), then -R e in the base frame
+    x, y, z, w = q
+    xd, yd, zd, wd = quat_d
+    ex = w * xd - x * wd - (y * zd - z * yd)
+    ey = w * yd - y * wd - (z * xd - x * zd)
+    ez = w * zd - z * wd - (x * yd - y * xd)
+    R = O_T_EE.reshape(4, 4, order="F")[:3, :3]
+    err[3:] = -(R @ np.array((ex, ey, ez)))
+    return err
+
+
+def nullspace_projector(J: FloatArray) -> FloatArray:
+    """``I - J^T pinv(J^T)`` with a damped pseudo-inverse (lambda = ``PINV_DAMPING``)."""
+    # pinv_damped(J^T) = (J J^T + lambda^2 I)^-1 J  (6x7), by the push-through identity
+    JJt = J @ J.T
+    JJt[np.diag_indices(6)] += PINV_DAMPING * PINV_DAMPING
+    pinv = np.linalg.solve(JJt, J)
+    return np.eye(7) - J.T @ pinv
+
+
+def saturate_torque_rate(tau: FloatArray, tau_J_d: FloatArray) -> FloatArray:
+    """Limit the change from the last commanded torque to 1 Nm per tick (panda-py)."""
+    return tau_J_d + np.clip(tau - tau_J_d, -DTAU_MAX_PER_TICK, DTAU_MAX_PER_TICK)
+
+
+def clip_torques(tau: FloatArray, tau_max: FloatArray) -> FloatArray:
+    return np.clip(tau, -tau_max, tau_max)
+
+
+# panda-py's joint walls: PD zone and D zone widths [rad], PD stiffness [Nm/rad] and the
+# dampings [Nm s/rad] per joint (panda-py include/constants.h).
+WALL_PD_WIDTH = (0.12, 0.09, 0.09, 0.09, 0.0349, 0.0349, 0.0349)
+WALL_D_WIDTH = (0.12, 0.09, 0.09, 0.09, 0.0349, 0.0349, 0.0349)
+WALL_PD_STIFFNESS = (2000.0, 2000.0, 1000.0, 1000.0, 500.0, 200.0, 200.0)
+WALL_PD_DAMPING = (30.0, 30.0, 30.0, 10.0, 5.0, 5.0, 5.0)
+WALL_D_DAMPING = (30.0, 30.0, 30.0, 10.0, 5.0, 5.0, 5.0)
+
+
+class JointWalls:
+    """Virtual walls inside the joint limits: pure damping in a zone near each limit, a
+    spring plus damping in the zone next to it (panda-py's ``VirtualWall`` per joint).
+
+    If a joint starts inside a zone, the zone shrinks to where the joint is, so starting
+    near a limit does not kick the arm; it widens back as the joint leaves.
+    """
+
+    def __init__(self, lower: Any, upper: Any) -> None:
+        self.lower = [float(v) for v in lower]
+        self.upper = [float(v) for v in upper]
+        self.reset()
+
+    def reset(self) -> None:
+        self._scale = [1.0] * 7
+        self._moving = [False] * 7
+        self._initialized = False
+
+    def _motion(self, i: int, q: float, dq: float) -> int:
+        """0 normal, -1 penetrating/leaving the lower zone, +1 the upper (sign of dq kept
+        in the second value)."""
+        width = WALL_PD_WIDTH[i] + WALL_D_WIDTH[i]
+        if q < self.lower[i] + width:
+            return -2 if dq <= 0.0 else -1  # -2 penetrating, -1 leaving
+        if q > self.upper[i] - width:
+            return 2 if dq >= 0.0 else 1
+        return 0
+
+    def torques(self, q: Any, dq: Any) -> list[float]:
+        out = [0.0] * 7
+        for i in range(7):
+            qi, dqi = float(q[i]), float(dq[i])
+            width = WALL_PD_WIDTH[i] + WALL_D_WIDTH[i]
+            motion = self._motion(i, qi, dqi)
+            if not self._initialized:
+                if motion != 0:
+                    limit = self.lower[i] if motion < 0 else self.upper[i]
+                    self._scale[i] = min(1.0, abs(qi - limit) / width)
+                    self._moving[i] = True
+            elif self._moving[i]:
+                if motion == 0:
+                    self._moving[i] = False
+                    self._scale[i] = 1.0
+                elif abs(motion) == 1:
+                    limit = self.lower[i] if motion < 0 else self.upper[i]
+                    self._scale[i] = min(1.0, max(self._scale[i], abs(qi - limit) / width))
+            s = self._scale[i]
+            d_max = self.upper[i] - s * width
+            pd_max = self.upper[i] - s * WALL_PD_WIDTH[i]
+            d_min = self.lower[i] + s * width
+            pd_min = self.lower[i] + s * WALL_PD_WIDTH[i]
+            if d_max <= qi <= pd_max or pd_min <= qi <= d_min:
+                out[i] = -WALL_D_DAMPING[i] * dqi
+            elif qi > pd_max:
+                out[i] = -WALL_PD_DAMPING[i] * dqi + WALL_PD_STIFFNESS[i] * (pd_max - qi)
+            elif qi < pd_min:
+                out[i] = -WALL_PD_DAMPING[i] * dqi + WALL_PD_STIFFNESS[i] * (pd_min - qi)
+        self._initialized = True
+        return out

@@ -1,0 +1,431 @@
+"""``Panda``: panda-py's high-level interface to one robot, on a control process.
+
+    panda = panda_py.Panda("172.16.0.2")
+    panda.move_to_start()
+    pose = panda.get_pose()
+
+The robot's 1 kHz loop runs in a process of its own (:mod:`panda_py.rt`), so nothing the
+user's Python does (a busy loop, a long computation, the garbage collector) can make the
+robot miss a cycle. This process reads the newest state from shared memory (``q``,
+``get_pose`` cost microseconds and never wait for the network), feeds controllers through
+shared memory, and sends everything else as requests handled between ticks.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py import _moves, fci
+from panda_py._robot_proxy import RobotProxy
+from panda_py.context import PandaContext
+from panda_py.controllers import laws
+from panda_py.controllers._base import TorqueController
+from panda_py.libfranka._realtime import has_realtime_kernel
+from panda_py.libfranka.model import Model
+from panda_py.libfranka.state import RobotState
+from panda_py.libfranka.types import RealtimeConfig
+from panda_py.robots.params import START_POSE, get_robot
+from panda_py.rt import byvalue
+from panda_py.rt.moves import MoveResult
+from panda_py.rt.process import ControlProcess, ControlProcessError
+from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, anonymous_file
+
+__all__ = ["Panda", "realtime_priority_available"]
+
+FloatArray = NDArray[np.float64]
+CONNECT_TIMEOUT = 5.0  # [s] for the robot to answer the connection
+LOG_MAX_BYTES = 8 << 30  # [bytes] the largest log buffer enable_logging allocates
+_warned_realtime = False
+
+
+def realtime_priority_available() -> tuple[bool, str]:
+    """Whether a process may run under ``SCHED_FIFO`` (what the control process asks for),
+    and why not (an empty message when it may)."""
+    import os
+
+    if not hasattr(os, "sched_setscheduler"):
+        return False, "this platform has no SCHED_FIFO"
+    try:
+        top = os.sched_get_priority_max(os.SCHED_FIFO)
+        policy = os.sched_getscheduler(0)
+        param = os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(top))
+        os.sched_setscheduler(0, policy, param)
+    except OSError as exc:
+        return False, f"SCHED_FIFO is not permitted: {exc.strerror}"
+    return True, ""
+
+
+class Panda:
+    """The main interface to control one robot (panda-py's ``Panda``).
+
+    Connects to the robot at ``hostname`` (its FCI address) from a new control process,
+    which speaks whichever protocol version (3-10) the robot does. ``name`` names the
+    logger. ``realtime_config``: ``kIgnore`` runs without ``SCHED_FIFO`` when it is not
+    permitted (with a warning), ``kEnforce`` refuses to.
+    """
+
+    def __init__(
+        self,
+        hostname: str,
+        name: str = "panda",
+        realtime_config: RealtimeConfig = RealtimeConfig.kIgnore,
+    ) -> None:
+        if not isinstance(hostname, str) or not hostname:
+            raise ValueError(f"hostname: expected the robot's address, got {hostname!r}")
+        if not isinstance(name, str):
+            raise ValueError(f"name: expected a str (the logger's name), got {name!r}")
+        try:
+            config = RealtimeConfig(realtime_config)
+        except ValueError:
+            raise ValueError(
+                f"realtime_config: expected RealtimeConfig.kEnforce or kIgnore, "
+                f"got {realtime_config!r}"
+            ) from None
+        self._name = name
+        self._logger = logging.getLogger(name)
+        self._controller: TorqueController | None = None
+        self._log_ring: LogRing | None = None
+        self._proc = ControlProcess(hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger)
+        self._info: dict[str, Any] = self._proc.info
+        self._hostname = hostname
+        self._dialect = fci.dialect(self._info["server_version"])
+        self._spec = get_robot(self._info["robot"])
+        self._limits = get_robot(self._info["limits"])
+        self._model = Model(self._spec)
+        self._logger.info("Connected to robot (%s).", hostname)
+        self._logger.info(
+            "Using %s joint limits (robot server version %d).",
+            self._limits.name,
+            self._info["server_version"],
+        )
+        self._warn_realtime()
+
+    def _warn_realtime(self) -> None:
+        global _warned_realtime
+        if _warned_realtime:
+            return
+        _warned_realtime = True
+        ok, why = realtime_priority_available()
+        if not ok:
+            self._logger.warning(
+                "Realtime scheduling is unavailable, so the control process runs at normal "
+                "priority and can miss its deadline when the machine is busy (%s).",
+                why,
+            )
+        if not has_realtime_kernel():
+            self._logger.info("The running kernel is not a realtime (PREEMPT_RT) kernel.")
+
+    # --- lifecycle ---------------------------------------------------------------------
+
+    def _process(self) -> ControlProcess:
+        return self._proc
+
+    def close(self) -> None:
+        """Stop what runs, close the connection and end the control process."""
+        proc = getattr(self, "_proc", None)
+        if proc is not None:
+            self._unbind()
+            proc.close()
+        ring, self._log_ring = getattr(self, "_log_ring", None), None
+        if ring is not None:
+            ring.close()
+
+    def __enter__(self) -> Panda:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:
+            pass
+
+    @property
+    def name(self) -> str:
+        """The name given at construction (the logger's)."""
+        return self._name
+
+    # --- state -------------------------------------------------------------------------
+
+    def _data(self) -> bytes:
+        proc = self._proc
+        if proc.dead:
+            raise proc._gone()
+        data = proc.block.read_state()
+        if data is None:
+            raise ControlProcessError("no robot state received yet")
+        return data
+
+    def get_state(self) -> RobotState:
+        """A copy of the newest robot state (the control process reads it at 1 kHz)."""
+        return RobotState(self._dialect, self._data())
+
+    @property
+    def q(self) -> FloatArray:
+        """Current joint positions [rad]."""
+        return RobotState(self._dialect, self._data()).q
+
+    def get_pose(self) -> FloatArray:
+        """Current end-effector pose in the base frame (4x4)."""
+        T = RobotState(self._dialect, self._data()).O_T_EE
+        return T.reshape(4, 4).T.copy()
+
+    def get_position(self) -> FloatArray:
+        """Current end-effector position in the base frame [m]."""
+        return RobotState(self._dialect, self._data()).O_T_EE[12:15].copy()
+
+    def get_orientation(self, scalar_first: bool = False) -> FloatArray:
+        """Current end-effector orientation as a unit quaternion: (x, y, z, w), or
+        (w, x, y, z) with ``scalar_first``."""
+        quat = laws.quat_from_matrix(RobotState(self._dialect, self._data()).O_T_EE)
+        return np.roll(quat, 1) if scalar_first else quat
+
+    def refresh_state(self) -> None:
+        """Wait for the next state from the robot (at most a few periods)."""
+        header = self._proc.block.header
+        ticks = header[HEADER.TICKS]
+        deadline = time.monotonic() + 0.1
+        while header[HEADER.TICKS] == ticks and time.monotonic() < deadline:
+            time.sleep(50e-6)
+        self._proc.check()
+
+    def get_robot(self) -> RobotProxy:
+        """The libfranka-level robot (setters, ``automatic_error_recovery``,
+        ``read_once``), run in the control process that owns the connection."""
+        return RobotProxy(self)
+
+    def get_model(self) -> Model:
+        """The robot's dynamics model (computed locally)."""
+        return self._model
+
+    def get_joint_limits_lower(self) -> FloatArray:
+        """Lower joint position limits of the connected robot [rad] (FER, FR3 before robot
+        system 5.9, or FR3 from 5.9 on, from its protocol version)."""
+        return np.array(self._limits.joints.q_min)
+
+    def get_joint_limits_upper(self) -> FloatArray:
+        """Upper joint position limits of the connected robot [rad]."""
+        return np.array(self._limits.joints.q_max)
+
+    # --- errors ------------------------------------------------------------------------
+
+    def raise_error(self) -> None:
+        """Raise the error that ended the last controller or move (a
+        :class:`~panda_py.libfranka.ControlException` with its reflex flags), if any; or
+        :class:`~panda_py.rt.process.ControlProcessError` if the control process is gone."""
+        self._proc.check()
+
+    def recover(self) -> None:
+        """Automatic error recovery if the robot is in a reflex or has errors."""
+        self._proc.call("recover")
+
+    def is_moving(self) -> bool:
+        """True while a controller or a move runs."""
+        return bool(self._proc.block.header[HEADER.RUNNING])
+
+    def set_default_behavior(self) -> None:
+        """Recover, then set panda-py's default collision thresholds and impedances."""
+        self.recover()
+        self._logger.info("Resetting impedance and collision behavior.")
+        robot = self.get_robot()
+        robot.set_collision_behavior(
+            [20.0] * 7, [20.0] * 7, [10.0] * 7, [10.0] * 7,
+            [20.0] * 6, [20.0] * 6, [10.0] * 6, [10.0] * 6,
+        )  # fmt: skip
+        robot.set_joint_impedance([3000, 3000, 3000, 2500, 2500, 2000, 2000])
+        robot.set_cartesian_impedance([3000, 3000, 3000, 300, 300, 300])
+
+    # --- controllers ---------------------------------------------------------------------
+
+    def _unbind(self) -> None:
+        ctrl, self._controller = self._controller, None
+        if ctrl is not None and ctrl._block is not None:
+            try:
+                ctrl._out[:] = ctrl._block.read_outputs(len(ctrl._out))
+            except Exception:
+                pass
+            ctrl._block = None
+
+    def start_controller(self, controller: TorqueController) -> None:
+        """Stop what runs, recover from errors, and start ``controller`` at 1 kHz in the
+        control process; feed it with its ``set_control``/setters from here."""
+        if not isinstance(controller, TorqueController):
+            raise ValueError(
+                f"controller: expected a panda_py.controllers.TorqueController, got "
+                f"{type(controller).__name__}"
+            )
+        controller._check_initialized()
+        self.stop_controller()
+        self.recover()
+        self._logger.info("Starting new controller (%s).", controller.name)
+        payload = byvalue.dumps(controller)
+        values = self._proc.call("start", payload)
+        with controller._lock:
+            controller._values[:] = values
+            controller._out[:] = 0.0
+            controller._block = self._proc.block
+        self._controller = controller
+
+    def stop_controller(self) -> None:
+        """Stop the running controller (the robot holds its position)."""
+        if self._controller is not None:
+            self._logger.info("Stopping active controller (%s).", self._controller.name)
+        self._proc.call("stop")
+        self._unbind()
+
+    def teaching_mode(self, active: bool, damping: Any = (0.0,) * 7) -> None:
+        """Hand guiding: gravity compensation with the given joint damping [Nm s/rad]."""
+        from panda_py.controllers import AppliedTorque
+
+        ctrl = AppliedTorque(damping=damping) if active else None
+        self.stop_controller()
+        self.recover()
+        if ctrl is not None:
+            self.start_controller(ctrl)
+
+    # --- moves -------------------------------------------------------------------------
+
+    def _move(self, kind: str, plan: dict[str, FloatArray] | None,
+              params: dict[str, Any]) -> bool:  # fmt: skip
+        if plan is None:
+            self._logger.info("Already at goal.")
+            return True
+        result: MoveResult = self._proc.call("move", kind, plan, params)
+        if result.error is not None:
+            self._proc.errors.append(result.error)
+            self._logger.error("Control loop interrupted: %s", result.error)
+        if not result.success:
+            self._logger.warning("Motion %s", result.reason)
+        return bool(result.success)
+
+    def move_to_joint_position(self, *args: Any, **kwargs: Any) -> bool:
+        """Move through joint positions (``positions`` (7,) or ``waypoints``, a sequence
+        of them) on a time-optimal trajectory tracked by joint impedance; True if the arm
+        ends within ``success_threshold`` [rad] of the goal. Keywords as panda-py:
+        ``speed_factor=0.2, stiffness, damping, dq_threshold=0.001,
+        success_threshold=0.01``."""
+        waypoints, opts = _moves.parse_joint_targets(args, kwargs)
+        lower, upper = self.get_joint_limits_lower(), self.get_joint_limits_upper()
+        for i, q in enumerate(waypoints):
+            bad = np.flatnonzero((q < lower) | (q > upper))
+            if bad.size:
+                j = int(bad[0])
+                raise ValueError(
+                    f"waypoints[{i}]: joint {j + 1} at {q[j]:.4f} rad is outside the "
+                    f"{self._limits.name} joint limits [{lower[j]}, {upper[j]}] rad"
+                )
+        self.stop_controller()
+        self.recover()
+        self._logger.info("Initializing motion generation (moveToJointPosition).")
+        q_now = np.clip(self.q, lower, upper)
+        plan = _moves.joint_move(q_now, waypoints, opts.pop("speed_factor"), self._limits)
+        return self._move("joint", plan, opts)
+
+    def move_to_start(
+        self,
+        speed_factor: float = 0.2,
+        stiffness: Any = _moves.JOINT_MOVE_DEFAULTS["stiffness"],
+        damping: Any = _moves.JOINT_MOVE_DEFAULTS["damping"],
+        dq_threshold: float = 0.001,
+        success_threshold: float = 0.01,
+    ) -> bool:
+        """Move to panda-py's start pose (``constants.JOINT_POSITION_START``)."""
+        return self.move_to_joint_position(
+            np.array(START_POSE),
+            speed_factor=speed_factor,
+            stiffness=stiffness,
+            damping=damping,
+            dq_threshold=dq_threshold,
+            success_threshold=success_threshold,
+        )
+
+    def move_to_pose(self, *args: Any, **kwargs: Any) -> bool:
+        """Move the end effector through poses on straight, time-optimal segments
+        tracked by Cartesian impedance: ``(positions, orientations)``, ``(position,
+        orientation)`` (quaternions x, y, z, w), ``(poses)`` or ``(pose)`` (4x4). True if
+        it ends within ``success_threshold`` [m] and ``orientation_threshold`` [rad].
+        Keywords as panda-py: ``speed_factor=0.2, impedance, damping_ratio=1.0,
+        nullspace_stiffness=15.0, dq_threshold=0.001, success_threshold=0.02,
+        orientation_threshold=0.1``."""
+        positions, quats, opts = _moves.parse_pose_targets(args, kwargs)
+        state = self.get_state()
+        q_now = state.q
+        F_T_EE = state.F_T_EE.reshape(4, 4, order="F")
+        _moves.check_reachable(positions, quats, q_now, self._limits, F_T_EE)
+        self.stop_controller()
+        self.recover()
+        self._logger.info("Initializing motion generation (moveToPose).")
+        state = self.get_state()
+        p_now = state.O_T_EE[12:15].copy()
+        quat_now = laws.quat_from_matrix(state.O_T_EE)
+        plan = _moves.pose_move(
+            p_now, quat_now, positions, quats, opts.pop("speed_factor"), self._limits
+        )
+        opts["q_nullspace"] = state.q
+        return self._move("pose", plan, opts)
+
+    # --- logging -----------------------------------------------------------------------
+
+    def enable_logging(self, buffer_size: int) -> None:
+        """Keep the last ``buffer_size`` robot states (1 kHz, while connected) for
+        :meth:`get_log`; clears the log. An integral float (``2e3``) is accepted."""
+        size: Any = buffer_size
+        if isinstance(size, float) and math.isfinite(size) and size.is_integer():
+            size = int(size)
+        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+            raise ValueError(f"buffer_size: expected a whole number >= 1, got {buffer_size!r}")
+        record, spans = LogRing.layout(self._dialect.state_dtype, LOG_FIELDS)
+        nbytes = LogRing.nbytes(int(size), record)
+        if nbytes > LOG_MAX_BYTES:
+            raise ValueError(
+                f"buffer_size: {size} states need {nbytes / 2**30:.1f} GiB, more than the "
+                f"{LOG_MAX_BYTES / 2**30:.0f} GiB allowed"
+            )
+        fd = anonymous_file(nbytes, "panda_py-log")
+        try:
+            ring = LogRing(fd, int(size), record, spans)
+            self._proc.call("log_enable", int(size), fds=(fd,))
+        finally:
+            import os
+
+            os.close(fd)
+        old, self._log_ring = self._log_ring, ring
+        if old is not None:
+            old.close()
+
+    def disable_logging(self) -> None:
+        """Stop logging; :meth:`get_log` keeps returning what was logged."""
+        self._proc.call("log_disable")
+
+    def get_log(self) -> dict[str, list[FloatArray]]:
+        """The logged states, oldest first: panda-py's keys (``q``, ``dq``, ``tau_J``,
+        ``O_T_EE``, ``O_F_ext_hat_K``, ``K_F_ext_hat_K``, ``tau_ext_hat_filtered``,
+        ``elbow``, ``control_command_success_rate``, ``time`` [ms]), each a list of 1-D
+        arrays."""
+        ring = self._log_ring
+        keys = [n for n in LOG_FIELDS if n != "message_id"] + ["time"]
+        if ring is None:
+            return {k: [] for k in keys}
+        recs = ring.snapshot(self._proc.block.header)
+        n = len(recs)
+        out: dict[str, list[FloatArray]] = {}
+        for key in keys:
+            field = "message_id" if key == "time" else key
+            arr = np.asarray(recs[field], dtype=np.float64).reshape(n, -1).copy()
+            out[key] = list(arr)
+        return out
+
+    def create_context(
+        self, frequency: float, max_runtime: float = 0.0, max_iter: int = 0
+    ) -> PandaContext:
+        """A fixed-frequency loop (see :class:`~panda_py.PandaContext`)."""
+        return PandaContext(self, frequency, max_runtime, max_iter)

@@ -1,0 +1,462 @@
+"""The control process: one per ``Panda``; owns the FCI connection and runs the 1 kHz loop.
+
+Started by :mod:`panda_py.rt.process` as ``python -m panda_py.rt.child CHANNEL SHM PARENT``
+(never by importing the user's script). It connects, warms every code path the loop runs,
+answers "ready", then serves:
+
+* idle: it reads every state the robot sends (1 kHz), publishes it to shared memory and
+  appends it to the log, and answers requests from the channel between states;
+* running a controller or a move: ``state -> law -> joint walls, torque-rate saturation,
+  torque limits -> command``, then publish and log, then a non-blocking look at the
+  channel. The loop reads its inputs from shared memory without waiting and never takes
+  a lock the user's process can hold; the cyclic garbage collector is off.
+
+If the user's process goes away (its end of the channel closes, or this process is
+re-parented), a running motion is finished at once and the process exits. Errors become
+replies or asynchronous events on the channel; the user's process raises them.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import os
+import pickle
+import select
+import sys
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+
+from panda_py import kinematics
+from panda_py.controllers import laws
+from panda_py.controllers._base import TorqueController
+from panda_py.libfranka import (
+    ControlException,
+    FrankaException,
+    InvalidOperationException,
+    Robot,
+    RobotMode,
+    RobotState,
+    Torques,
+)
+from panda_py.libfranka._realtime import set_current_thread_to_highest_priority
+from panda_py.libfranka.types import RealtimeConfig
+from panda_py.robots.params import get_robot
+from panda_py.rt.channel import Channel, ChannelClosed
+from panda_py.rt.model import ControlModel
+from panda_py.rt.moves import JointMove, MoveResult, PoseMove
+from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
+
+__all__ = ["ControlServer", "limits_spec_for_version", "main"]
+
+PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
+IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
+LIMIT_RATE = True  # libfranka's defaults for robot.control(), as panda-py uses them
+CUTOFF_FREQUENCY = 100.0  # [Hz]
+
+
+def limits_spec_for_version(server_version: int) -> str:
+    """Whose joint limits apply, from the robot's protocol version (as panda-py):
+    <= 5 FER; 6-9 FR3 before robot system 5.9; >= 10 FR3 with 5.9's wider limits."""
+    if server_version <= 5:
+        return "fer"
+    return "fr3-pre-5.9" if server_version < 10 else "fr3"
+
+
+def _transferable(exc: BaseException, where: str) -> BaseException:
+    """``exc`` if it pickles, else a ControlException carrying its description."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:
+        text = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+        return ControlException(f"{where}: {text}")
+
+
+class _Deferred:
+    """A request whose reply is sent later (when a motion ends)."""
+
+
+DEFERRED = _Deferred()
+
+
+class ControlServer:
+    """The control process's state and its two loops."""
+
+    def __init__(self, channel: Channel, block: SharedBlock, parent: int) -> None:
+        self.chan = channel
+        self.block = block
+        self.parent = parent
+        self.robot: Robot | None = None
+        self.model: ControlModel | None = None
+        self.walls: laws.JointWalls | None = None
+        self.tau_max = np.zeros(7)
+        self.log: LogRing | None = None
+        self.logging = False
+        self.closing = False
+        self.pending: tuple[Any, ...] | None = None  # (law, move request id) to run
+        self.stopping = False
+        self.stop_waiters: list[int] = []
+        self._current_rid = 0
+
+    # --- channel ---------------------------------------------------------------------
+
+    def reply(self, rid: int, ok: bool, value: Any) -> None:
+        try:
+            self.chan.send(("reply", rid, ok, value))
+        except ChannelClosed:
+            self.closing = True
+
+    def event(self, kind: str, *payload: Any) -> None:
+        try:
+            self.chan.send(("event", kind, *payload))
+            self.block.header[HEADER.EVENTS] += 1
+        except ChannelClosed:
+            self.closing = True
+
+    def _parent_gone(self) -> bool:
+        return os.getppid() != self.parent
+
+    # --- start -------------------------------------------------------------------------
+
+    def connect(self, hostname: str, realtime_config: int, timeout: float) -> dict[str, Any]:
+        config = RealtimeConfig(realtime_config)
+        robot = Robot(hostname, config, timeout=timeout)
+        self.robot = robot
+        version = robot.server_version()
+        limits = get_robot(limits_spec_for_version(version))
+        self.model = ControlModel(robot.robot_spec)
+        self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
+        self.tau_max = np.array(limits.joints.tau_max)
+        if set_current_thread_to_highest_priority() is None and config == RealtimeConfig.kEnforce:
+            raise FrankaException("realtime scheduling (SCHED_FIFO) is not permitted")
+        data = robot._conn.receive_state()
+        self.block.publish_state(data)
+        self._warm_up(RobotState(robot._conn.dialect, data))
+        return {
+            "server_version": version,
+            "robot": robot.robot_spec.name,
+            "limits": limits.name,
+        }
+
+    def _warm_up(self, state: RobotState) -> None:
+        """Run every law once (results discarded) so nothing compiles or loads mid-loop."""
+        assert self.model is not None and self.walls is not None
+        warm = getattr(kinematics, "warmup", None)
+        if warm is not None:
+            warm()
+        from panda_py.controllers import _builtin
+
+        for cls in (
+            _builtin.CartesianImpedance,
+            _builtin.JointPosition,
+            _builtin.IntegratedVelocity,
+            _builtin.AppliedTorque,
+            _builtin.AppliedForce,
+            _builtin.Force,
+        ):
+            ctrl = cls()
+            ctrl.dt = 0.001
+            ctrl.start(state, self.model)
+            self._finalize(ctrl.step(state, self.model), state)
+        self.walls.reset()
+        self.model.gravity_of(state)
+        q = state.q
+        JointMove(np.array([q, q]), np.zeros((2, 7)), np.ones(7), np.ones(7), 1e-3, 1e-2).step(
+            state, self.model
+        )
+
+    # --- the idle loop -------------------------------------------------------------------
+
+    def serve(self) -> None:
+        assert self.robot is not None
+        conn = self.robot._conn
+        udp = conn.net._udp
+        assert udp is not None
+        chan = self.chan.sock
+        last_gc = time.monotonic()
+        while not self.closing:
+            if self.pending is not None:
+                pending, self.pending = self.pending, None
+                self._run(*pending)
+                continue
+            readable = select.select([udp, chan], [], [], IDLE_WAIT)[0]
+            if udp in readable:
+                data = conn.receive_state()
+                self._publish(data)
+            if chan in readable:
+                self._receive(running=False)
+            if self._parent_gone():
+                self.closing = True
+            now = time.monotonic()
+            if now - last_gc > 10.0:  # the collector is off; tidy up between motions
+                gc.collect()
+                last_gc = now
+
+    def _publish(self, data: bytes) -> None:
+        block = self.block
+        block.publish_state(data)
+        if self.logging and self.log is not None:
+            self.log.append(data, block.header)
+
+    def _receive(self, running: bool) -> None:
+        try:
+            msg, fds = self.chan.recv()
+        except ChannelClosed:
+            self.closing = True
+            self.stopping = True
+            return
+        kind, rid, *args = msg
+        self._current_rid = rid
+        handler = getattr(self, "_req_" + kind, None)
+        try:
+            if handler is None:
+                raise ValueError(f"unknown request {kind!r}")
+            value = handler(*args, fds=fds, running=running)
+        except Exception as exc:
+            for fd in fds:
+                os.close(fd)
+            self.reply(rid, False, _transferable(exc, kind))
+            return
+        if value is DEFERRED:
+            return
+        self.reply(rid, True, value)
+
+    # --- requests ----------------------------------------------------------------------
+
+    def _not_running(self, running: bool, what: str) -> None:
+        if running:
+            raise InvalidOperationException(
+                f"{what}: not while a controller or a move runs (stop it first)"
+            )
+
+    def _fresh_state(self) -> RobotState:
+        assert self.robot is not None
+        conn = self.robot._conn
+        data = conn.receive_state()
+        self._publish(data)
+        return RobotState(conn.dialect, data)
+
+    def _req_start(self, payload: bytes, *, fds: list[int], running: bool) -> Any:
+        self._not_running(running, "start_controller")
+        ctrl = pickle.loads(payload)
+        if not isinstance(ctrl, TorqueController):
+            raise ValueError(f"controller: expected a TorqueController, got {type(ctrl)!r}")
+        state = self._fresh_state()
+        ctrl._time = 0.0
+        ctrl.dt = 0.0
+        ctrl.start(state, self.model)
+        block = self.block
+        n = len(ctrl._values)
+        block.write_signal_array(ctrl._values)
+        ctrl._out[0] = 0.0
+        block.write_outputs(ctrl._out)
+        self.pending = (ctrl, None)
+        return ctrl._values[:n].copy()
+
+    def _req_move(self, kind: str, arrays: dict[str, Any], params: dict[str, Any], *,
+                  fds: list[int], running: bool) -> Any:  # fmt: skip
+        self._not_running(running, "move")
+        law: JointMove | PoseMove
+        if kind == "joint":
+            law = JointMove(arrays["q"], arrays["dq"], **params)
+        else:
+            law = PoseMove(arrays["position"], arrays["orientation"], arrays["twist"], **params)
+        self.pending = (law, self._current_rid)
+        return DEFERRED
+
+    def _req_stop(self, *, fds: list[int], running: bool) -> Any:
+        if not running:
+            return None
+        self.stopping = True
+        self.stop_waiters.append(self._current_rid)
+        return DEFERRED
+
+    def _req_robot(self, method: str, args: tuple, kwargs: dict, *, fds: list[int],
+                   running: bool) -> Any:  # fmt: skip
+        allowed = {
+            "set_collision_behavior",
+            "set_joint_impedance",
+            "set_cartesian_impedance",
+            "set_guiding_mode",
+            "set_k",
+            "set_ee",
+            "set_load",
+            "set_filters",
+            "automatic_error_recovery",
+            "stop",
+            "read_once",
+            "server_version",
+            "get_robot_model",
+        }
+        if method not in allowed:
+            raise ValueError(f"method: expected one of {sorted(allowed)}, got {method!r}")
+        if method == "read_once":
+            self._not_running(running, "read_once")
+            return self._fresh_state()
+        if method != "server_version":
+            self._not_running(running, method)
+        return getattr(self.robot, method)(*args, **kwargs)
+
+    def _req_recover(self, *, fds: list[int], running: bool) -> Any:
+        self._not_running(running, "recover")
+        assert self.robot is not None
+        state = self._fresh_state()
+        if state.current_errors or state.robot_mode in (RobotMode.kReflex, RobotMode.kOther):
+            self.event("log", logging.WARNING, "Irregular state detected. Attempting "
+                       "automatic error recovery.")  # fmt: skip
+            self.robot.automatic_error_recovery()
+            return True
+        return False
+
+    def _req_log_enable(self, size: int, *, fds: list[int], running: bool) -> Any:
+        if len(fds) != 1:
+            raise ValueError("log_enable: expected one file descriptor")
+        assert self.robot is not None
+        record, spans = LogRing.layout(self.robot._conn.dialect.state_dtype, LOG_FIELDS)
+        ring = LogRing(fds[0], size, record, spans)
+        os.close(fds[0])
+        old, self.log = self.log, ring
+        self.block.header[HEADER.LOG_COUNT] = 0
+        self.logging = True
+        if old is not None:
+            old.close()
+        return None
+
+    def _req_log_disable(self, *, fds: list[int], running: bool) -> Any:
+        self.logging = False
+        return None
+
+    def _req_close(self, *, fds: list[int], running: bool) -> Any:
+        self.closing = True
+        self.stopping = True
+        return None
+
+    # --- the control loop ----------------------------------------------------------------
+
+    def _finalize(self, tau: Any, state: RobotState) -> list[float]:
+        """Joint walls, torque-rate saturation and torque limits; refuses non-finite."""
+        assert self.walls is not None
+        values = np.asarray(tau, dtype=np.float64).reshape(-1)
+        if values.shape != (7,):
+            raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
+        walls = self.walls.torques(state.q, state.dq)
+        out = laws.clip_torques(
+            laws.saturate_torque_rate(values + walls, state.tau_J_d), self.tau_max
+        ).tolist()
+        s = sum(out)
+        if s - s != 0.0:
+            raise ControlException(f"the controller commanded non-finite torques: {out}")
+        return out
+
+    def _run(self, law: Any, move_rid: int | None) -> None:
+        assert self.robot is not None and self.model is not None and self.walls is not None
+        robot, model, block, chan = self.robot, self.model, self.block, self.chan
+        header = block.header
+        user = isinstance(law, TorqueController)
+        self.stopping = False
+        self.walls.reset()
+        in_seq = -1
+        error: BaseException | None = None
+        state: RobotState | None = None
+        header[HEADER.RUNNING] = 1
+        active = robot.start_torque_control(
+            limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY
+        )
+        ticks = 0
+        try:
+            while True:
+                state, dt = active.readOnce()
+                t = dt.to_sec()
+                if user:
+                    in_seq = block.read_signals(law._values, in_seq)
+                    law.dt = t
+                    law._time += t
+                else:
+                    law.t += t
+                tau = self._finalize(law.step(state, model), state)
+                finished = self.stopping or (not user and law.finished(state))
+                cmd = Torques(tau)
+                cmd.motion_finished = finished
+                active.writeOnce(cmd)
+                self._publish(state._data)
+                if user:
+                    law._out[0] = law._time
+                    block.write_outputs(law._out)
+                if finished:
+                    break
+                if chan.poll(0.0):
+                    self._receive(running=True)
+                ticks += 1
+                if ticks % PARENT_CHECK_TICKS == 0 and self._parent_gone():
+                    self.closing = self.stopping = True
+        except BaseException as exc:
+            active.cancel()
+            error = _transferable(exc, getattr(law, "name", "control loop"))
+        finally:
+            header[HEADER.RUNNING] = 0
+        if user:
+            try:
+                law.stop(state, model)
+            except Exception as exc:
+                error = error or _transferable(exc, f"{law.name}.stop")
+        if error is not None and move_rid is None:
+            self.event("error", error)
+        if move_rid is not None:
+            self._finish_move(law, move_rid, error)
+        for rid in self.stop_waiters:
+            self.reply(rid, True, None)
+        self.stop_waiters.clear()
+
+    def _finish_move(self, law: Any, rid: int, error: BaseException | None) -> None:
+        try:
+            state = self._fresh_state()
+            result: MoveResult = law.result(state)
+        except Exception as exc:
+            result = MoveResult(False, f"no state after the move: {exc}", elapsed=law.t)
+            state = None
+        if error is not None:
+            result.success = False
+            result.error = error
+            result.reason = f"aborted after {law.t:.3f} s: {error}"
+        elif self.stopping and law.t < law.duration:
+            result.success = False
+            result.reason = f"stopped after {law.t:.3f} s of {law.duration:.3f} s"
+        self.reply(rid, True, result)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    chan_fd, shm_fd, parent = (int(a) for a in args[:3])
+    chan = Channel.from_fd(chan_fd)
+    block = SharedBlock(shm_fd)
+    os.close(shm_fd)
+    server = ControlServer(chan, block, parent)
+    try:
+        msg, _ = chan.recv()
+        _, rid, hostname, realtime_config, timeout = msg
+    except (ChannelClosed, ValueError):
+        return 1
+    try:
+        info = server.connect(hostname, realtime_config, timeout)
+    except BaseException as exc:
+        server.reply(rid, False, _transferable(exc, "connect"))
+        return 1
+    server.reply(rid, True, info)
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        server.serve()
+    finally:
+        if server.robot is not None:
+            server.robot.close()
+        chan.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

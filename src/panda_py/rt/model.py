@@ -1,0 +1,76 @@
+"""The model controllers get in the control process: libfranka's :class:`Model` plus fast
+per-state helpers on the compiled kinematics and the recursive dynamics.
+
+``ee_jacobian(state)``, ``coriolis_of(state)`` and ``gravity_of(state)`` take the
+end effector and the load from the state (as libfranka's ``Model`` does with a
+``RobotState``) and remember the last answer, so several terms of one tick pay once.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py import dynamics, kinematics
+from panda_py.libfranka.model import Model
+
+__all__ = ["ControlModel"]
+
+FloatArray = NDArray[np.float64]
+
+
+class ControlModel(Model):
+    """:class:`~panda_py.libfranka.Model` with cached per-state helpers for control laws."""
+
+    def __init__(self, robot: Any = "fer") -> None:
+        super().__init__(robot)
+        self._kin_key: bytes | None = None
+        self._kin: Any = None
+        self._jac: tuple[Any, FloatArray] | None = None
+        self._cor: tuple[Any, FloatArray] | None = None
+        self._grav: tuple[Any, FloatArray] | None = None
+
+    def _kinematics(self, F_T_EE: FloatArray) -> Any:
+        key = F_T_EE.tobytes()
+        if key != self._kin_key:
+            self._kin = kinematics.get_kinematics(self.spec, F_T_EE.reshape(4, 4, order="F"))
+            self._kin_key = key
+        return self._kin
+
+    def ee_jacobian(self, state: Any) -> FloatArray:
+        """Zero Jacobian (6, 7) of the end effector (the state's ``F_T_EE``)."""
+        cached = self._jac
+        if cached is not None and cached[0] is state:
+            return cached[1]
+        J = self._kinematics(state.F_T_EE).zero_jacobian(state.q)
+        self._jac = (state, J)
+        return J
+
+    def coriolis_of(self, state: Any) -> FloatArray:
+        """Coriolis and centrifugal torques (7,) [Nm] with the state's total load."""
+        cached = self._cor
+        if cached is not None and cached[0] is state:
+            return cached[1]
+        tau = dynamics.coriolis(
+            state.q,
+            state.dq,
+            m_load=state.m_total,
+            F_x_Cload=state.F_x_Ctotal,
+            I_load=state.I_total,
+            robot=self.spec,
+        )
+        self._cor = (state, tau)
+        return tau
+
+    def gravity_of(self, state: Any) -> FloatArray:
+        """Gravity torques (7,) [Nm] with the state's total load."""
+        cached = self._grav
+        if cached is not None and cached[0] is state:
+            return cached[1]
+        tau = dynamics.gravity(
+            state.q, m_load=state.m_total, F_x_Cload=state.F_x_Ctotal, robot=self.spec
+        )
+        self._grav = (state, tau)
+        return tau

@@ -1,0 +1,170 @@
+"""The laws that track a planned motion in the control process: a joint trajectory under
+joint impedance, a Cartesian trajectory under Cartesian impedance (panda-py's
+``move_to_joint_position`` and ``move_to_pose``).
+
+The user's process plans the time-optimal trajectory and samples it at the robot's 1 ms
+period; the loop only indexes the samples (no planning or sampling inside a tick). A move
+ends when the trajectory is over and the arm has settled at the goal (at rest within
+``dq_threshold`` and within the settle tolerance), or 1 s after the trajectory's end.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.controllers import laws
+
+__all__ = ["JointMove", "MoveResult", "PoseMove"]
+
+FloatArray = NDArray[np.float64]
+
+SETTLE_JOINT = 2e-3  # [rad] at goal: every joint within this
+SETTLE_POSITION = 2e-3  # [m]
+SETTLE_ORIENTATION = 2e-3  # [rad]
+SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
+
+
+@dataclass
+class MoveResult:
+    """How a move ended: ``success`` as panda-py judges it and why not."""
+
+    success: bool
+    reason: str  # "" on success
+    joint_error: float = math.nan  # [rad] largest joint distance to the goal
+    position_error: float = math.nan  # [m]
+    orientation_error: float = math.nan  # [rad]
+    duration: float = 0.0  # [s] the trajectory's
+    elapsed: float = 0.0  # [s] until the move ended
+    error: BaseException | None = None  # what aborted it
+
+
+def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
+    """Angle of the rotation between two unit quaternions [rad] (q and -q are equal)."""
+    d = min(1.0, abs(float(q0 @ q1)) / math.sqrt(float(q0 @ q0) * float(q1 @ q1)))
+    return 2.0 * math.acos(d)
+
+
+class JointMove:
+    """``tau = K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``, ``dq_d``."""
+
+    def __init__(
+        self,
+        q: FloatArray,
+        dq: FloatArray,
+        stiffness: FloatArray,
+        damping: FloatArray,
+        dq_threshold: float,
+        success_threshold: float,
+    ) -> None:
+        self.q, self.dq = q, dq
+        self.K, self.D = stiffness, damping
+        self.dq_threshold = dq_threshold
+        self.success_threshold = success_threshold
+        self.duration = (len(q) - 1) * 1e-3
+        self.goal = q[-1]
+        self.t = 0.0
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        k = min(round(self.t * 1e3), len(self.q) - 1)
+        tau = self.K * (self.q[k] - state.q) + self.D * (self.dq[k] - state.dq)
+        return tau + model.coriolis_of(state)
+
+    def finished(self, state: Any) -> bool:
+        over = self.t - self.duration
+        if over <= 0.0:
+            return False
+        at_rest = float(np.abs(state.dq).max()) <= self.dq_threshold
+        at_goal = float(np.abs(self.goal - state.q).max()) <= SETTLE_JOINT
+        return (at_rest and at_goal) or over >= SETTLE_TIMEOUT
+
+    def result(self, state: Any) -> MoveResult:
+        err = float(np.abs(self.goal - state.q).max())
+        ok = err <= self.success_threshold
+        reason = (
+            ""
+            if ok
+            else (
+                f"finished {err:.4f} rad from the goal, above the success threshold of "
+                f"{self.success_threshold:.4f} rad; consider a higher stiffness or a lower "
+                "speed_factor"
+            )
+        )
+        return MoveResult(ok, reason, joint_error=err, duration=self.duration, elapsed=self.t)
+
+
+class PoseMove:
+    """Cartesian impedance along sampled positions, orientations and their velocities,
+    with a joint impedance toward the start configuration in the task's nullspace:
+    ``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``."""
+
+    def __init__(
+        self,
+        position: FloatArray,
+        orientation: FloatArray,
+        twist: FloatArray,
+        q_nullspace: FloatArray,
+        impedance: FloatArray,
+        damping_ratio: float,
+        nullspace_stiffness: float,
+        dq_threshold: float,
+        success_threshold: float,
+        orientation_threshold: float,
+    ) -> None:
+        self.p, self.quat, self.v = position, orientation, twist
+        self.qn = q_nullspace
+        self.K = impedance
+        w, v = np.linalg.eigh(impedance)
+        self.D = 2.0 * damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
+        self.kn = nullspace_stiffness
+        self.dq_threshold = dq_threshold
+        self.success_threshold = success_threshold
+        self.orientation_threshold = orientation_threshold
+        self.duration = (len(position) - 1) * 1e-3
+        self.t = 0.0
+
+    def step(self, state: Any, model: Any) -> FloatArray:
+        k = min(round(self.t * 1e3), len(self.p) - 1)
+        q, dq = state.q, state.dq
+        J = model.ee_jacobian(state)
+        err = laws.cartesian_error(state.O_T_EE, self.p[k], self.quat[k])
+        tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
+        kn = self.kn
+        tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
+        return tau + model.coriolis_of(state)
+
+    def _errors(self, state: Any) -> tuple[float, float]:
+        T = state.O_T_EE
+        pos = float(np.linalg.norm(T[12:15] - self.p[-1]))
+        return pos, rotation_angle(laws.quat_from_matrix(T), self.quat[-1])
+
+    def finished(self, state: Any) -> bool:
+        over = self.t - self.duration
+        if over <= 0.0:
+            return False
+        at_rest = float(np.abs(state.dq).max()) <= self.dq_threshold
+        pos, rot = self._errors(state)
+        at_goal = pos <= SETTLE_POSITION and rot <= SETTLE_ORIENTATION
+        return (at_rest and at_goal) or over >= SETTLE_TIMEOUT
+
+    def result(self, state: Any) -> MoveResult:
+        pos, rot = self._errors(state)
+        ok = pos <= self.success_threshold and rot <= self.orientation_threshold
+        reason = (
+            ""
+            if ok
+            else (
+                f"finished {pos:.4f} m and {math.degrees(rot):.2f} deg from the goal, above the "
+                f"success threshold of {self.success_threshold:.4f} m and "
+                f"{math.degrees(self.orientation_threshold):.2f} deg; consider a higher "
+                "impedance or a lower speed_factor"
+            )
+        )
+        return MoveResult(
+            ok, reason, position_error=pos, orientation_error=rot,
+            duration=self.duration, elapsed=self.t,
+        )  # fmt: skip

@@ -1,0 +1,223 @@
+"""The user's side of the control process: start it, talk to it, notice when it dies.
+
+The control process is started as ``python -m panda_py.rt.child`` (not with
+``multiprocessing``, which would import the user's script again in the child). It gets
+its end of a Unix socket pair and the shared-memory file as inherited descriptors and
+nothing else. A reader thread in this process takes its messages: replies go to the
+caller waiting for them, events (errors of the loop, log lines) to the error queue and
+the logger. Only this process's threads take this process's locks.
+
+No orphans: the control process exits when its channel closes (this process died) or it
+is re-parented; :meth:`ControlProcess.close` (also at interpreter exit) asks it to finish,
+then terminates it, then kills it.
+"""
+
+from __future__ import annotations
+
+import atexit
+import collections
+import itertools
+import logging
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import weakref
+from typing import Any
+
+from panda_py.libfranka.errors import FrankaException
+from panda_py.rt.channel import Channel, ChannelClosed
+from panda_py.rt.shm import SharedBlock
+
+__all__ = ["ControlProcess", "ControlProcessError"]
+
+CLOSE_TIMEOUT = 5.0  # [s] for the control process to finish a motion and exit
+READY_TIMEOUT = 300.0  # [s] after connecting: first-run JIT compilation can take this long
+
+
+class ControlProcessError(FrankaException):
+    """The control process is gone (it crashed or was killed); ``exitcode`` as
+    ``subprocess`` reports it (negative: the signal that ended it)."""
+
+    def __init__(self, message: str, *, exitcode: int | None = None) -> None:
+        super().__init__(message)
+        self.exitcode = exitcode
+
+
+class _Waiter:
+    __slots__ = ("event", "ok", "value")
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.ok = False
+        self.value: Any = None
+
+
+_LIVE: weakref.WeakSet[ControlProcess] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_all() -> None:
+    for proc in list(_LIVE):
+        proc.close()
+
+
+class ControlProcess:
+    """One control process, connected to the robot at ``hostname``."""
+
+    def __init__(
+        self,
+        hostname: str,
+        realtime_config: int,
+        *,
+        timeout: float,
+        logger: logging.Logger,
+    ) -> None:
+        self.logger = logger
+        self.block, shm_fd = SharedBlock.create()
+        mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.chan = Channel(mine)
+        env = dict(os.environ)
+        src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        # the same panda_py as this process, even if it is not installed (a source tree)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
+        try:
+            self.proc = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "panda_py.rt.child",
+                    str(theirs.fileno()),
+                    str(shm_fd),
+                    str(os.getpid()),
+                ],
+                pass_fds=(theirs.fileno(), shm_fd),
+                env=env,
+                stdin=subprocess.DEVNULL,
+            )
+        finally:
+            theirs.close()
+            os.close(shm_fd)
+        self._ids = itertools.count(1)
+        self._waiters: dict[int, _Waiter] = {}
+        self._send_lock = threading.Lock()
+        self._state_lock = threading.Lock()
+        self.errors: collections.deque[BaseException] = collections.deque()
+        self.dead = False
+        self.closed = False
+        self._reader = threading.Thread(target=self._read, name="panda_py-rt-reader", daemon=True)
+        self._reader.start()
+        _LIVE.add(self)
+        try:
+            self.info = self.call("connect", hostname, int(realtime_config), float(timeout),
+                                  timeout=timeout + READY_TIMEOUT)  # fmt: skip
+        except BaseException:
+            self.close()
+            raise
+
+    # --- messages ------------------------------------------------------------------------
+
+    def _read(self) -> None:
+        try:
+            while True:
+                msg, fds = self.chan.recv()
+                for fd in fds:
+                    os.close(fd)
+                if msg[0] == "reply":
+                    _, rid, ok, value = msg
+                    waiter = self._waiters.pop(rid, None)
+                    if waiter is not None:
+                        waiter.ok, waiter.value = ok, value
+                        waiter.event.set()
+                elif msg[0] == "event":
+                    self._event(msg[1], *msg[2:])
+        except (ChannelClosed, OSError, EOFError):
+            pass
+        finally:
+            self.dead = True
+            for waiter in list(self._waiters.values()):
+                waiter.event.set()
+            self._waiters.clear()
+
+    def _event(self, kind: str, *payload: Any) -> None:
+        if kind == "error":
+            (exc,) = payload
+            self.errors.append(exc)
+            self.logger.error("Control loop interrupted: %s", exc)
+        elif kind == "log":
+            level, message = payload
+            self.logger.log(level, message)
+
+    def _gone(self) -> ControlProcessError:
+        try:
+            code = self.proc.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            code = None
+        how = (
+            f"killed by signal {signal.Signals(-code).name}"
+            if code is not None and code < 0
+            else f"exit code {code}"
+        )
+        return ControlProcessError(
+            f"the control process (pid {self.proc.pid}) is gone ({how}); create a new "
+            "Panda to reconnect",
+            exitcode=code,
+        )
+
+    def call(self, kind: str, *args: Any, fds: tuple[int, ...] = (),
+             timeout: float | None = None) -> Any:  # fmt: skip
+        """Send a request and wait for its reply; raises what the control process raised."""
+        if self.closed:
+            raise ControlProcessError("this Panda is closed")
+        if self.dead:
+            raise self._gone()
+        rid = next(self._ids)
+        waiter = _Waiter()
+        self._waiters[rid] = waiter
+        try:
+            with self._send_lock:
+                self.chan.send((kind, rid, *args), fds)
+        except (ChannelClosed, OSError):
+            self._waiters.pop(rid, None)
+            raise self._gone() from None
+        if not waiter.event.wait(timeout):
+            self._waiters.pop(rid, None)
+            raise ControlProcessError(f"the control process did not answer {kind!r} in time")
+        if not waiter.ok and waiter.value is None and self.dead:
+            raise self._gone()
+        if not waiter.ok:
+            raise waiter.value
+        return waiter.value
+
+    def check(self) -> None:
+        """Raise the oldest pending error of the loop, or that the process is gone."""
+        if self.errors:
+            raise self.errors.popleft()
+        if self.dead and not self.closed:
+            raise self._gone()
+
+    # --- shutdown ------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Finish any motion, let the process exit; terminate or kill it if it does not."""
+        if self.closed:
+            return
+        if not self.dead:
+            try:
+                self.call("close", timeout=CLOSE_TIMEOUT)
+            except Exception:
+                pass
+        self.closed = True
+        try:
+            self.proc.wait(timeout=CLOSE_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self.chan.close()
+        _LIVE.discard(self)

@@ -1,0 +1,275 @@
+"""The memory the user's process and the control process share.
+
+One anonymous file (``memfd``, already unlinked: nothing can leak when either process
+dies) holds, at fixed offsets:
+
+* a header of int64 counters (:class:`Slot` numbers below);
+* the newest robot state datagram, under a seqlock (the control process writes it once a
+  tick; readers copy it and retry if the sequence number moved meanwhile);
+* the running controller's inputs (``signals``), under a seqlock written by the user's
+  process and read by the loop, which keeps its last consistent copy instead of waiting;
+* the controller's outputs (its time and declared outputs), under a seqlock written by the
+  loop.
+
+A seqlock's writer makes the sequence number odd, writes, and makes it even again;
+aligned 8-byte stores are atomic and x86-64 keeps stores in order, so a reader that sees
+the same even number before and after its copy has a consistent copy. No side ever waits
+for the other, so the 1 kHz loop never takes a lock the user's process can hold.
+
+The log ring buffer lives in its own file (:class:`LogRing`), made when logging is enabled.
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+import struct
+import tempfile
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "HEADER",
+    "LOG_FIELDS",
+    "SIGNALS_MAX",
+    "STATE_MAX",
+    "LogRing",
+    "SharedBlock",
+    "anonymous_file",
+]
+
+# the RobotState fields the log keeps (panda-py's get_log keys; message_id gives "time")
+LOG_FIELDS = (
+    "message_id",
+    "q",
+    "dq",
+    "tau_J",
+    "O_T_EE",
+    "O_F_ext_hat_K",
+    "K_F_ext_hat_K",
+    "tau_ext_hat_filtered",
+    "elbow",
+    "control_command_success_rate",
+)
+STATE_MAX = 4096  # [bytes] the largest state datagram of any protocol version fits
+SIGNALS_MAX = 1024  # float64 values a controller may declare as inputs
+OUTPUTS_MAX = 256  # float64 values of outputs (time first)
+
+
+class HEADER:
+    """Indices of the int64 header counters."""
+
+    STATE_SEQ = 0  # seqlock of the state slot
+    STATE_LEN = 1  # bytes in the state slot
+    TICKS = 2  # states published so far
+    RUNNING = 3  # 1 while a controller or a move runs
+    EVENTS = 4  # asynchronous events (errors, log lines) posted on the channel
+    IN_SEQ = 5  # seqlock of the controller inputs (writer: user's process)
+    OUT_SEQ = 6  # seqlock of the controller outputs (writer: control process)
+    LOG_COUNT = 7  # states appended to the log ring so far
+    COUNT = 16
+
+
+_HEADER_BYTES = 8 * HEADER.COUNT
+_STATE_OFF = _HEADER_BYTES
+_IN_OFF = _STATE_OFF + STATE_MAX
+_OUT_OFF = _IN_OFF + 8 * SIGNALS_MAX
+_SIZE = _OUT_OFF + 8 * OUTPUTS_MAX
+
+
+def anonymous_file(size: int, name: str = "panda_py") -> int:
+    """A file descriptor of ``size`` zero bytes that no path names (memfd where the
+    platform has it, else an unlinked temporary file)."""
+    if hasattr(os, "memfd_create"):
+        fd = os.memfd_create(name, 0)
+    else:  # pragma: no cover - non-Linux
+        fd, path = tempfile.mkstemp(prefix=name)
+        os.unlink(path)
+    try:
+        os.ftruncate(fd, size)
+    except OSError:
+        os.close(fd)
+        raise
+    return fd
+
+
+class SharedBlock:
+    """The header, state and controller slots over one shared file ``fd``."""
+
+    SIZE = _SIZE
+
+    def __init__(self, fd: int) -> None:
+        self._mm = mmap.mmap(fd, _SIZE)
+        self._mv = memoryview(self._mm)
+        self.header = self._mv[:_HEADER_BYTES].cast("q")
+        self._state = self._mv[_STATE_OFF:_IN_OFF]
+        self.signals = np.frombuffer(self._mm, np.float64, SIGNALS_MAX, _IN_OFF)
+        self.outputs = np.frombuffer(self._mm, np.float64, OUTPUTS_MAX, _OUT_OFF)
+        self._in = self._mv[_IN_OFF:_OUT_OFF]
+
+    @classmethod
+    def create(cls) -> tuple[SharedBlock, int]:
+        """A new zeroed block and the descriptor to hand to the other process."""
+        fd = anonymous_file(_SIZE)
+        return cls(fd), fd
+
+    def close(self) -> None:
+        for view in (self.header, self._state, self._in, self._mv):
+            view.release()
+        self.signals = self.outputs = np.zeros(0)
+        try:
+            self._mm.close()
+        except BufferError:  # a caller still holds a view; the mapping goes with it
+            pass
+
+    # --- the state slot (writer: control process) ---------------------------------------
+
+    def publish_state(self, data: bytes) -> None:
+        h = self.header
+        n = len(data)
+        h[HEADER.STATE_SEQ] += 1
+        self._state[:n] = data
+        h[HEADER.STATE_LEN] = n
+        h[HEADER.STATE_SEQ] += 1
+        h[HEADER.TICKS] += 1
+
+    def read_state(self) -> bytes | None:
+        """A consistent copy of the newest state datagram (None before the first)."""
+        h = self.header
+        state = self._state
+        for _ in range(10000):
+            seq = h[HEADER.STATE_SEQ]
+            if seq & 1:
+                continue
+            n = h[HEADER.STATE_LEN]
+            data = bytes(state[:n])
+            if h[HEADER.STATE_SEQ] == seq:
+                return data if n else None
+        raise RuntimeError("the control process holds the state slot (it stopped mid-write)")
+
+    # --- controller inputs (writer: user's process) -------------------------------------
+
+    def write_signals(self, packer: struct.Struct, offset: int, values: Any) -> None:
+        """Write ``values`` packed by ``packer`` at float64 index ``offset``."""
+        h = self.header
+        h[HEADER.IN_SEQ] += 1
+        packer.pack_into(self._in, 8 * offset, *values)
+        h[HEADER.IN_SEQ] += 1
+
+    def write_signal_array(self, values: np.ndarray, offset: int = 0) -> None:
+        h = self.header
+        h[HEADER.IN_SEQ] += 1
+        self.signals[offset : offset + len(values)] = values
+        h[HEADER.IN_SEQ] += 1
+
+    def read_signals(self, out: np.ndarray, last_seq: int) -> int:
+        """Copy the inputs into ``out`` if they changed since ``last_seq`` and are
+        consistent; returns the sequence number ``out`` now holds (``last_seq`` if the
+        copy was skipped or torn: the caller keeps its previous values)."""
+        h = self.header
+        seq = h[HEADER.IN_SEQ]
+        if seq == last_seq or seq & 1:
+            return last_seq
+        n = len(out)
+        scratch = self.signals[:n].copy()
+        if h[HEADER.IN_SEQ] != seq:
+            return last_seq
+        out[:] = scratch
+        return int(seq)
+
+    # --- controller outputs (writer: control process) -----------------------------------
+
+    def write_outputs(self, values: np.ndarray) -> None:
+        h = self.header
+        h[HEADER.OUT_SEQ] += 1
+        self.outputs[: len(values)] = values
+        h[HEADER.OUT_SEQ] += 1
+
+    def read_outputs(self, n: int) -> np.ndarray:
+        h = self.header
+        for _ in range(10000):
+            seq = h[HEADER.OUT_SEQ]
+            if seq & 1:
+                continue
+            out = self.outputs[:n].copy()
+            if h[HEADER.OUT_SEQ] == seq:
+                return out
+        raise RuntimeError("the control process holds the output slot (it stopped mid-write)")
+
+
+class LogRing:
+    """The last ``size`` states' logged fields, one packed record per tick.
+
+    The record holds the byte ranges of the logged fields of one state datagram, so a
+    tick's append is a few slice copies; :meth:`snapshot` decodes them into arrays with the
+    dialect's own field types. The writer appends at ``count % size`` and then counts; a
+    reader copies the ring between two reads of the count and drops the records the
+    writer may have overwritten meanwhile.
+    """
+
+    def __init__(self, fd: int, size: int, record: np.dtype, spans: list[tuple[int, int, int]]):
+        self.size = size
+        self.record = record
+        self.spans = spans  # (source offset, record offset, length) in bytes
+        self._mm = mmap.mmap(fd, max(1, size * record.itemsize))
+        self._mv = memoryview(self._mm)
+
+    @staticmethod
+    def layout(state_dtype: np.dtype, names: tuple[str, ...]) -> tuple[np.dtype, list]:
+        """The packed record dtype of ``names`` (those ``state_dtype`` has) and the copy
+        spans from a datagram, adjacent fields merged into one copy."""
+        all_fields = state_dtype.fields
+        assert all_fields is not None
+        fields = sorted((all_fields[n][1], n) for n in names if n in all_fields)
+        names_out: list[str] = []
+        formats: list[np.dtype] = []
+        offsets: list[int] = []
+        spans: list[tuple[int, int, int]] = []
+        pos = 0
+        for src, name in fields:
+            sub = all_fields[name][0]
+            names_out.append(name)
+            formats.append(sub)
+            offsets.append(pos)
+            if spans and spans[-1][0] + spans[-1][2] == src and spans[-1][1] + spans[-1][2] == pos:
+                s, d, n = spans[-1]
+                spans[-1] = (s, d, n + sub.itemsize)
+            else:
+                spans.append((src, pos, sub.itemsize))
+            pos += sub.itemsize
+        record = np.dtype({"names": names_out, "formats": formats, "offsets": offsets})
+        return record, spans
+
+    @staticmethod
+    def nbytes(size: int, record: np.dtype) -> int:
+        return max(1, size * record.itemsize)
+
+    def close(self) -> None:
+        self._mv.release()
+        try:
+            self._mm.close()
+        except BufferError:
+            pass
+
+    def append(self, data: bytes, header: Any) -> None:
+        """Append one state datagram (control process)."""
+        count = header[HEADER.LOG_COUNT]
+        base = (count % self.size) * self.record.itemsize
+        mv = self._mv
+        for src, dst, n in self.spans:
+            mv[base + dst : base + dst + n] = data[src : src + n]
+        header[HEADER.LOG_COUNT] = count + 1
+
+    def snapshot(self, header: Any) -> np.ndarray:
+        """The logged records, oldest first (user's process)."""
+        before = header[HEADER.LOG_COUNT]
+        raw = np.frombuffer(self._mm, self.record, self.size).copy()
+        after = header[HEADER.LOG_COUNT]
+        # a record is intact if the writer has not reached its slot again: logical index
+        # i with i >= after + 1 - size (the writer may be inside slot ``after``'s now)
+        start = max(before - min(before, self.size), after + 1 - self.size)
+        if start >= before:
+            return raw[:0]
+        idx = np.arange(start, before) % self.size
+        return raw[idx]
