@@ -203,7 +203,7 @@ def joint_move(q_now: FloatArray, waypoints: FloatArray, speed_factor: float,
     if traj.get_duration() == 0.0:
         return None
     samples = traj.sample(_times(traj.get_duration()))
-    return {"q": samples.positions, "dq": samples.velocities}
+    return {"q": samples.positions, "dq": samples.velocities, "ddq": samples.accelerations}
 
 
 def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
@@ -242,8 +242,11 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     if traj.get_duration() == 0.0:
         return None
     s = traj.sample(_times(traj.get_duration()))
+    # the angular acceleration, by central differences of the sampled angular velocity
+    alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
     return {
         "position": s.positions,
         "orientation": s.orientations,
         "twist": np.hstack([s.velocities, s.angular_velocities]),
+        "accel": np.hstack([s.accelerations, alpha]),
     }

@@ -19,6 +19,7 @@ __all__ = [
     "JointWalls",
     "cartesian_error",
     "clip_torques",
+    "damped_pinv",
     "ema",
     "nullspace_projector",
     "quat_from_matrix",
@@ -107,13 +108,17 @@ def cartesian_error(O_T_EE: FloatArray, position_d: FloatArray, quat_d: FloatArr
     return err
 
 
+def damped_pinv(J: FloatArray) -> FloatArray:
+    """``J^T (J J^T + lambda^2 I)^-1`` (7x6), lambda = ``PINV_DAMPING``."""
+    JJt = J @ J.T
+    JJt[np.diag_indices(6)] += PINV_DAMPING * PINV_DAMPING
+    return np.linalg.solve(JJt, J).T  # JJt is symmetric
+
+
 def nullspace_projector(J: FloatArray) -> FloatArray:
     """``I - J^T pinv(J^T)`` with a damped pseudo-inverse (lambda = ``PINV_DAMPING``)."""
     # pinv_damped(J^T) = (J J^T + lambda^2 I)^-1 J  (6x7), by the push-through identity
-    JJt = J @ J.T
-    JJt[np.diag_indices(6)] += PINV_DAMPING * PINV_DAMPING
-    pinv = np.linalg.solve(JJt, J)
-    return np.eye(7) - J.T @ pinv
+    return np.eye(7) - J.T @ damped_pinv(J).T
 
 
 def saturate_torque_rate(tau: FloatArray, tau_J_d: FloatArray) -> FloatArray:

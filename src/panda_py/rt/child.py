@@ -165,7 +165,8 @@ class ControlServer:
         self.walls.reset()
         self.model.gravity_of(state)
         q = state.q
-        JointMove(np.array([q, q]), np.zeros((2, 7)), np.ones(7), np.ones(7), 1e-3, 1e-2).step(
+        z = np.zeros((2, 7))
+        JointMove(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2).step(
             state, self.model
         )
 
@@ -262,9 +263,15 @@ class ControlServer:
         self._not_running(running, "move")
         law: JointMove | PoseMove
         if kind == "joint":
-            law = JointMove(arrays["q"], arrays["dq"], **params)
+            law = JointMove(arrays["q"], arrays["dq"], arrays["ddq"], **params)
         else:
-            law = PoseMove(arrays["position"], arrays["orientation"], arrays["twist"], **params)
+            law = PoseMove(
+                arrays["position"],
+                arrays["orientation"],
+                arrays["twist"],
+                arrays["accel"],
+                **params,
+            )
         self.pending = (law, self._current_rid)
         return DEFERRED
 
@@ -377,6 +384,7 @@ class ControlServer:
                     law._time += t
                 else:
                     law.t += t
+                    law.dt = t
                 tau = self._finalize(law.step(state, model), state)
                 finished = self.stopping or (not user and law.finished(state))
                 cmd = Torques(tau)

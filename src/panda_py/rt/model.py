@@ -31,6 +31,7 @@ class ControlModel(Model):
         self._jac: tuple[Any, FloatArray] | None = None
         self._cor: tuple[Any, FloatArray] | None = None
         self._grav: tuple[Any, FloatArray] | None = None
+        self._mass: tuple[Any, FloatArray] | None = None
 
     def _kinematics(self, F_T_EE: FloatArray) -> Any:
         key = F_T_EE.tobytes()
@@ -63,6 +64,21 @@ class ControlModel(Model):
         )
         self._cor = (state, tau)
         return tau
+
+    def mass_of(self, state: Any) -> FloatArray:
+        """Joint-space mass matrix (7, 7) [kg m^2] with the state's total load."""
+        cached = self._mass
+        if cached is not None and cached[0] is state:
+            return cached[1]
+        M = dynamics.mass_matrix(
+            state.q,
+            m_load=state.m_total,
+            F_x_Cload=state.F_x_Ctotal,
+            I_load=state.I_total,
+            robot=self.spec,
+        )
+        self._mass = (state, M)
+        return M
 
     def gravity_of(self, state: Any) -> FloatArray:
         """Gravity torques (7,) [Nm] with the state's total load."""

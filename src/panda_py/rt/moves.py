@@ -50,29 +50,33 @@ def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
 
 
 class JointMove:
-    """``tau = K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``, ``dq_d``."""
+    """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
+    ``dq_d``, ``ddq_d`` (the inertial feed-forward keeps the arm on the planned path
+    instead of lagging behind it)."""
 
     def __init__(
         self,
         q: FloatArray,
         dq: FloatArray,
+        ddq: FloatArray,
         stiffness: FloatArray,
         damping: FloatArray,
         dq_threshold: float,
         success_threshold: float,
     ) -> None:
-        self.q, self.dq = q, dq
+        self.q, self.dq, self.ddq = q, dq, ddq
         self.K, self.D = stiffness, damping
         self.dq_threshold = dq_threshold
         self.success_threshold = success_threshold
         self.duration = (len(q) - 1) * 1e-3
         self.goal = q[-1]
         self.t = 0.0
+        self.dt = 0.0
 
     def step(self, state: Any, model: Any) -> FloatArray:
         k = min(round(self.t * 1e3), len(self.q) - 1)
         tau = self.K * (self.q[k] - state.q) + self.D * (self.dq[k] - state.dq)
-        return tau + model.coriolis_of(state)
+        return tau + model.mass_of(state) @ self.ddq[k] + model.coriolis_of(state)
 
     def finished(self, state: Any) -> bool:
         over = self.t - self.duration
@@ -98,15 +102,18 @@ class JointMove:
 
 
 class PoseMove:
-    """Cartesian impedance along sampled positions, orientations and their velocities,
-    with a joint impedance toward the start configuration in the task's nullspace:
-    ``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``."""
+    """Cartesian impedance along sampled positions, orientations, twists and their
+    derivatives, with a joint impedance toward the start configuration in the task's
+    nullspace and an inertial feed-forward of the planned acceleration:
+    ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
+    + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``."""
 
     def __init__(
         self,
         position: FloatArray,
         orientation: FloatArray,
         twist: FloatArray,
+        accel: FloatArray,
         q_nullspace: FloatArray,
         impedance: FloatArray,
         damping_ratio: float,
@@ -115,7 +122,8 @@ class PoseMove:
         success_threshold: float,
         orientation_threshold: float,
     ) -> None:
-        self.p, self.quat, self.v = position, orientation, twist
+        self.p, self.quat, self.v, self.a = position, orientation, twist, accel
+        self._J_prev: FloatArray | None = None
         self.qn = q_nullspace
         self.K = impedance
         w, v = np.linalg.eigh(impedance)
@@ -126,6 +134,7 @@ class PoseMove:
         self.orientation_threshold = orientation_threshold
         self.duration = (len(position) - 1) * 1e-3
         self.t = 0.0
+        self.dt = 0.0
 
     def step(self, state: Any, model: Any) -> FloatArray:
         k = min(round(self.t * 1e3), len(self.p) - 1)
@@ -133,6 +142,11 @@ class PoseMove:
         J = model.ee_jacobian(state)
         err = laws.cartesian_error(state.O_T_EE, self.p[k], self.quat[k])
         tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
+        a = self.a[k]
+        if self._J_prev is not None and self.dt > 0.0:
+            a = a - ((J - self._J_prev) @ dq) / self.dt
+        self._J_prev = J
+        tau += model.mass_of(state) @ laws.damped_pinv(J) @ a
         kn = self.kn
         tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
         return tau + model.coriolis_of(state)
