@@ -111,9 +111,9 @@ class ControlServer:
             self.closing = True
 
     def event(self, kind: str, *payload: Any) -> None:
+        self.block.header[HEADER.EVENTS] += 1  # counted first: the reader may be quick
         try:
             self.chan.send(("event", kind, *payload))
-            self.block.header[HEADER.EVENTS] += 1
         except ChannelClosed:
             self.closing = True
 
@@ -404,8 +404,6 @@ class ControlServer:
         except BaseException as exc:
             active.cancel()
             error = _transferable(exc, getattr(law, "name", "control loop"))
-        finally:
-            header[HEADER.RUNNING] = 0
         if user:
             try:
                 law.stop(state, model)
@@ -413,6 +411,9 @@ class ControlServer:
                 error = error or _transferable(exc, f"{law.name}.stop")
         if error is not None and move_rid is None:
             self.event("error", error)
+        # the error is posted before the loop shows as stopped: whoever sees is_moving()
+        # turn False finds it in raise_error()
+        header[HEADER.RUNNING] = 0
         if move_rid is not None:
             self._finish_move(law, move_rid, error)
         for rid in self.stop_waiters:

@@ -24,12 +24,13 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 import weakref
 from typing import Any
 
 from panda_py.libfranka.errors import FrankaException
 from panda_py.rt.channel import Channel, ChannelClosed
-from panda_py.rt.shm import SharedBlock
+from panda_py.rt.shm import HEADER, SharedBlock
 
 __all__ = ["ControlProcess", "ControlProcessError"]
 
@@ -81,8 +82,10 @@ class ControlProcess:
         self.chan = Channel(mine)
         env = dict(os.environ)
         src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        # the same panda_py as this process, even if it is not installed (a source tree)
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
+        # The same panda_py as this process (even from a source tree), and every module this
+        # process can import (a controller class is sent by reference to its module).
+        paths = [src, *(p for p in sys.path if p and os.path.isdir(p))]
+        env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
         try:
             self.proc = subprocess.Popen(
                 [
@@ -105,6 +108,7 @@ class ControlProcess:
         self._send_lock = threading.Lock()
         self._state_lock = threading.Lock()
         self.errors: collections.deque[BaseException] = collections.deque()
+        self.events_seen = 0  # events the reader has taken (the loop counts those it sent)
         self.dead = False
         self.closed = False
         self._reader = threading.Thread(target=self._read, name="panda_py-rt-reader", daemon=True)
@@ -133,6 +137,7 @@ class ControlProcess:
                         waiter.event.set()
                 elif msg[0] == "event":
                     self._event(msg[1], *msg[2:])
+                    self.events_seen += 1
         except (ChannelClosed, OSError, EOFError):
             pass
         finally:
@@ -193,6 +198,15 @@ class ControlProcess:
 
     def check(self) -> None:
         """Raise the oldest pending error of the loop, or that the process is gone."""
+        if self.block.header[HEADER.EVENTS] > self.events_seen and not self.dead:
+            # an event is on its way through the channel: let the reader take it
+            deadline = time.monotonic() + 1.0
+            while (
+                self.block.header[HEADER.EVENTS] > self.events_seen
+                and not self.dead
+                and time.monotonic() < deadline
+            ):
+                time.sleep(1e-4)
         if self.errors:
             raise self.errors.popleft()
         if self.dead and not self.closed:

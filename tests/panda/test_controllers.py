@@ -1,0 +1,170 @@
+"""Each controller moves the simulated arm as its law says, its inputs changeable while it
+runs; a user-written Python controller runs at 1 kHz in the control process."""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+
+import panda_py
+from panda_py import constants, controllers
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _run_for(panda: panda_py.Panda, ctrl: controllers.TorqueController, seconds: float) -> None:
+    """Wait until the controller has run ``seconds`` of robot time."""
+    deadline = time.monotonic() + 60.0
+    while ctrl.get_time() < seconds:
+        panda.raise_error()
+        assert time.monotonic() < deadline, "the controller's time does not advance"
+        time.sleep(0.005)
+
+
+def test_joint_position_reaches_target_and_takes_new_ones(panda: panda_py.Panda) -> None:
+    ctrl = controllers.JointPosition(filter_coeff=0.003)  # a step target, filtered
+    panda.start_controller(ctrl)
+    assert panda.is_moving()
+    target = constants.JOINT_POSITION_START + np.array([0.2, -0.1, 0.1, 0.1, 0.0, 0.1, -0.2])
+    ctrl.set_control(target)
+    _run_for(panda, ctrl, 3.0)
+    assert np.abs(panda.q - target).max() < 0.02
+    ctrl.set_stiffness(np.array([800.0] * 4 + [300.0] * 3))
+    ctrl.set_control(constants.JOINT_POSITION_START)
+    _run_for(panda, ctrl, 6.0)
+    assert np.abs(panda.q - constants.JOINT_POSITION_START).max() < 0.02
+    panda.stop_controller()
+    assert not panda.is_moving()
+    t = ctrl.get_time()
+    assert t >= 6.0 and ctrl.get_time() == t  # frozen after the stop
+
+
+def test_integrated_velocity_integrates(panda: panda_py.Panda) -> None:
+    ctrl = controllers.IntegratedVelocity()
+    panda.start_controller(ctrl)
+    q0 = ctrl.get_qd()
+    assert np.allclose(q0, panda.q, atol=1e-3)
+    velocity = np.array([0.1, 0, 0, 0, 0, 0, -0.1])
+    ctrl.set_control(velocity)
+    t0 = ctrl.get_time()
+    _run_for(panda, ctrl, t0 + 1.0)
+    ctrl.set_control(np.zeros(7))
+    t1 = ctrl.get_time()
+    qd = ctrl.get_qd()
+    moved = qd - q0
+    assert moved[0] == pytest.approx(0.1 * (t1 - t0), abs=0.02)
+    assert moved[6] == pytest.approx(-0.1 * (t1 - t0), abs=0.02)
+    assert np.abs(moved[1:6]).max() < 1e-9
+    _run_for(panda, ctrl, t1 + 1.0)
+    assert np.abs(panda.q - ctrl.get_qd()).max() < 0.02
+    panda.stop_controller()
+
+
+def test_applied_torque_and_teaching_mode(panda: panda_py.Panda) -> None:
+    ctrl = controllers.AppliedTorque(damping=np.full(7, 2.0))
+    panda.start_controller(ctrl)
+    q0 = panda.q
+    ctrl.set_control([0, 0, 0, 0, 0, 0, 1.0])  # joint 7 is pushed positive
+    _run_for(panda, ctrl, 0.3)
+    assert panda.q[6] - q0[6] > 0.01
+    panda.stop_controller()
+    panda.teaching_mode(True)
+    assert panda.is_moving()
+    panda.teaching_mode(False)
+    assert not panda.is_moving()
+
+
+def test_applied_force_pushes_the_end_effector(panda: panda_py.Panda) -> None:
+    ctrl = controllers.AppliedForce(damping=np.full(7, 5.0))
+    panda.start_controller(ctrl)
+    z0 = panda.get_position()[2]
+    ctrl.set_control([0, 0, 5.0, 0, 0, 0])  # 5 N up
+    _run_for(panda, ctrl, 0.4)
+    assert panda.get_position()[2] - z0 > 0.005
+    panda.stop_controller()
+
+
+def test_cartesian_impedance_holds_and_moves(panda: panda_py.Panda) -> None:
+    ctrl = controllers.CartesianImpedance(filter_coeff=0.05)
+    panda.start_controller(ctrl)
+    x0, q0 = panda.get_position(), panda.get_orientation()
+    x_d = x0 + np.array([0.0, 0.05, -0.05])
+    ctrl.set_control(x_d, q0)
+    ctrl.set_impedance(np.diag([900.0] * 3 + [40.0] * 3))
+    _run_for(panda, ctrl, 3.0)
+    assert np.linalg.norm(panda.get_position() - x_d) < 5e-3
+    panda.stop_controller()
+
+
+def test_force_controller_aborts_past_its_threshold(panda: panda_py.Panda) -> None:
+    ctrl = controllers.Force(threshold=0.005, filter_coeff=1.0)
+    assert ctrl.name == "Force Controller"
+    panda.start_controller(ctrl)
+    ctrl.set_control([0, 0, -10.0])  # nothing to push against: the arm moves, then aborts
+    deadline = time.monotonic() + 30
+    while panda.is_moving() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not panda.is_moving()
+    with pytest.raises(panda_py.libfranka.ControlException, match="threshold"):
+        panda.raise_error()
+
+
+class Spring(controllers.TorqueController):
+    """A user-written law: a joint spring toward ``target``, counting its ticks."""
+
+    signals: ClassVar[dict[str, int]] = {"target": 7, "gain": 1}
+    outputs: ClassVar[dict[str, int]] = {"ticks": 1}
+
+    def start(self, state: Any, model: Any) -> None:
+        self.initial_signals(target=state.q, gain=[200.0])
+        self.ticks = 0
+
+    def step(self, state: Any, model: Any) -> np.ndarray:
+        self.ticks += 1
+        self.set_output("ticks", [self.ticks])
+        k = self.signal("gain")[0]
+        return k * (self.signal("target") - state.q) - 10.0 * state.dq
+
+
+def test_user_written_controller_runs_in_the_control_process(panda: panda_py.Panda) -> None:
+    ctrl = Spring()
+    panda.start_controller(ctrl)
+    target = panda.q + np.array([0.05, 0, 0, 0.05, 0, 0, 0])
+    ctrl.set_signals(target=target, gain=300.0)
+    _run_for(panda, ctrl, 2.0)
+    assert np.abs(panda.q - target).max() < 0.02
+    ticks = ctrl.get_output("ticks")[0]
+    assert ticks == pytest.approx(ctrl.get_time() * 1000, abs=5)  # one step per 1 ms tick
+    with pytest.raises(ValueError, match="target"):
+        ctrl.set_signals(target=[1, 2, 3])
+    with pytest.raises(ValueError, match="expected one of the signals"):
+        ctrl.set_signals(nothing=1.0)
+    panda.stop_controller()
+
+
+class Broken(controllers.TorqueController):
+    def step(self, state: Any, model: Any) -> np.ndarray:
+        raise ZeroDivisionError("user bug")
+
+
+class Bad(controllers.TorqueController):
+    def step(self, state: Any, model: Any) -> np.ndarray:
+        return np.full(7, np.nan)
+
+
+@pytest.mark.parametrize(
+    ("ctrl", "error"), [(Broken(), ZeroDivisionError), (Bad(), panda_py.libfranka.ControlException)]
+)
+def test_a_failing_user_controller_stops_with_its_error(
+    panda: panda_py.Panda, ctrl: controllers.TorqueController, error: type
+) -> None:
+    panda.start_controller(ctrl)
+    deadline = time.monotonic() + 10
+    while panda.is_moving() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    with pytest.raises(error):
+        panda.raise_error()
+    assert panda.move_to_start()  # the robot is usable again
