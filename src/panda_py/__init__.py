@@ -22,6 +22,8 @@ _LAZY: dict[str, str] = {
     "PandaContext": "panda_py.context",
     "realtime_priority_available": "panda_py.panda",
     "ControlProcessError": "panda_py.rt.process",
+    # panda-py's name for a robot speaking a protocol version no client here speaks
+    "IncompatibleVersionError": "panda_py.libfranka.errors",
 }
 
 # submodules panda-py exposes as attributes (``panda_py.controllers``, ...), imported lazily

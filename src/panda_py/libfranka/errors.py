@@ -102,6 +102,10 @@ class IncompatibleVersionException(FrankaException):
         self.library_version = library_version
 
 
+#: panda-py's name (``panda_py.IncompatibleVersionError``) for the same error
+IncompatibleVersionError = IncompatibleVersionException
+
+
 class RealtimeException(FrankaException):
     """Realtime scheduling was required (``RealtimeConfig.kEnforce``) but is not available."""
 
