@@ -203,16 +203,18 @@ class LogRing:
 
     The record holds the byte ranges of the logged fields of one state datagram, so a
     tick's append is a few slice copies; :meth:`snapshot` decodes them into arrays with the
-    dialect's own field types. The writer appends at ``count % size`` and then counts; a
-    reader copies the ring between two reads of the count and drops the records the
-    writer may have overwritten meanwhile.
+    dialect's own field types. The ring has one slot more than it keeps: the writer fills
+    slot ``count % (size + 1)`` and then counts, so the slot it may be inside is never one
+    of the ``size`` newest. A reader copies the ring between two reads of the count and
+    drops the records the writer reached meanwhile.
     """
 
     def __init__(self, fd: int, size: int, record: np.dtype, spans: list[tuple[int, int, int]]):
         self.size = size
+        self.slots = size + 1
         self.record = record
         self.spans = spans  # (source offset, record offset, length) in bytes
-        self._mm = mmap.mmap(fd, max(1, size * record.itemsize))
+        self._mm = mmap.mmap(fd, LogRing.nbytes(size, record))
         self._mv = memoryview(self._mm)
 
     @staticmethod
@@ -243,7 +245,7 @@ class LogRing:
 
     @staticmethod
     def nbytes(size: int, record: np.dtype) -> int:
-        return max(1, size * record.itemsize)
+        return (size + 1) * record.itemsize
 
     def close(self) -> None:
         self._mv.release()
@@ -255,7 +257,7 @@ class LogRing:
     def append(self, data: bytes, header: Any) -> None:
         """Append one state datagram (control process)."""
         count = header[HEADER.LOG_COUNT]
-        base = (count % self.size) * self.record.itemsize
+        base = (count % self.slots) * self.record.itemsize
         mv = self._mv
         for src, dst, n in self.spans:
             mv[base + dst : base + dst + n] = data[src : src + n]
@@ -264,12 +266,12 @@ class LogRing:
     def snapshot(self, header: Any) -> np.ndarray:
         """The logged records, oldest first (user's process)."""
         before = header[HEADER.LOG_COUNT]
-        raw = np.frombuffer(self._mm, self.record, self.size).copy()
+        raw = np.frombuffer(self._mm, self.record, self.slots).copy()
         after = header[HEADER.LOG_COUNT]
         # a record is intact if the writer has not reached its slot again: logical index
-        # i with i >= after + 1 - size (the writer may be inside slot ``after``'s now)
-        start = max(before - min(before, self.size), after + 1 - self.size)
+        # i with i >= after + 1 - slots (the writer may be inside slot ``after``'s now)
+        start = max(before - min(before, self.size), after + 1 - self.slots)
         if start >= before:
             return raw[:0]
-        idx = np.arange(start, before) % self.size
+        idx = np.arange(start, before) % self.slots
         return raw[idx]
