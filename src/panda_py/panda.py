@@ -99,6 +99,9 @@ class Panda:
         self._spec = get_robot(self._info["robot"])
         self._limits = get_robot(self._info["limits"])
         self._model = Model(self._spec)
+        block = self._proc.block
+        self._q_view = block.field_views(self._dialect.state_dtype, "q")
+        self._T_view = block.field_views(self._dialect.state_dtype, "O_T_EE")
         self._logger.info("Connected to robot (%s).", hostname)
         self._logger.info(
             "Using %s joint limits (robot server version %d).",
@@ -172,16 +175,25 @@ class Panda:
     @property
     def q(self) -> FloatArray:
         """Current joint positions [rad]."""
-        return RobotState(self._dialect, self._data()).q
+        proc = self._proc
+        if proc.dead:
+            raise proc._gone()
+        return proc.block.read_field(self._q_view)
 
     def get_pose(self) -> FloatArray:
         """Current end-effector pose in the base frame (4x4)."""
-        T = RobotState(self._dialect, self._data()).O_T_EE
+        proc = self._proc
+        if proc.dead:
+            raise proc._gone()
+        T = proc.block.read_field(self._T_view)
         return T.reshape(4, 4).T.copy()
 
     def get_position(self) -> FloatArray:
         """Current end-effector position in the base frame [m]."""
-        return RobotState(self._dialect, self._data()).O_T_EE[12:15].copy()
+        proc = self._proc
+        if proc.dead:
+            raise proc._gone()
+        return proc.block.read_field(self._T_view)[12:15]
 
     def get_orientation(self, scalar_first: bool = False) -> FloatArray:
         """Current end-effector orientation as a unit quaternion: (x, y, z, w), or
@@ -251,6 +263,7 @@ class Panda:
         if ctrl is not None and ctrl._block is not None:
             try:
                 ctrl._out[:] = ctrl._block.read_outputs(len(ctrl._out))
+                ctrl._sync_from(ctrl._block)
             except Exception:
                 pass
             ctrl._block = None
@@ -417,6 +430,8 @@ class Panda:
             return {k: [] for k in keys}
         recs = ring.snapshot(self._proc.block.header)
         n = len(recs)
+        if n == 0:
+            return {k: [] for k in keys}
         out: dict[str, list[FloatArray]] = {}
         for key in keys:
             field = "message_id" if key == "time" else key

@@ -49,6 +49,19 @@ def test_state_slot_round_trip_and_torn_reads_never_seen() -> None:
     assert reader.header[HEADER.TICKS] == block.header[HEADER.TICKS] > 0
 
 
+def test_a_writer_stopped_mid_write_does_not_hold_readers() -> None:
+    block, fd = SharedBlock.create()
+    reader = SharedBlock(fd)
+    block.publish_state(b"a" * 100)
+    views = reader.field_views(fci.dialect(5).state_dtype, "q")
+    block.header[HEADER.STATE_SEQ] += 1  # the writer stopped inside copy 0
+    block._states[0][:100] = b"b" * 100
+    assert reader.read_state() == b"a" * 100  # copy 1, at once
+    assert reader.read_field(views).shape == (7,)
+    block.header[HEADER.STATE_SEQ] += 1  # copy 0 complete
+    assert reader.read_state() == b"b" * 100
+
+
 def test_signals_reader_keeps_its_copy_while_a_write_is_open() -> None:
     block, _fd = SharedBlock.create()
     out = np.zeros(4)

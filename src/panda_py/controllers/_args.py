@@ -21,6 +21,19 @@ __all__ = [
 ]
 
 
+_F64 = np.dtype(np.float64)
+
+
+def fast_vector(name: str, value: Any, n: int, unit: str = "") -> list[float]:
+    """:func:`vector` with a shortcut for the common case, a finite float64 array (n,)."""
+    if type(value) is np.ndarray and value.dtype is _F64 and value.shape == (n,):
+        values: list[float] = value.tolist()
+        s = sum(values)
+        if s - s == 0.0:
+            return values
+    return vector(name, value, n, unit)
+
+
 def vector(name: str, value: Any, n: int, unit: str = "") -> list[float]:
     """``value`` as ``n`` finite floats (any array-like of n elements, e.g. (n,) or (n, 1))."""
     if type(value) is np.ndarray and value.dtype == np.float64 and value.size == n:

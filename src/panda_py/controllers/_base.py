@@ -17,6 +17,7 @@ class is sent by value if it lives in a script (``__main__``), by reference othe
 
 from __future__ import annotations
 
+import struct
 import threading
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -31,6 +32,17 @@ if TYPE_CHECKING:
 __all__ = ["TorqueController"]
 
 FloatArray = NDArray[np.float64]
+
+
+_PACKERS: dict[int, struct.Struct] = {}
+
+
+def packer(n: int) -> struct.Struct:
+    """The (shared) packer of ``n`` float64 values."""
+    p = _PACKERS.get(n)
+    if p is None:
+        p = _PACKERS[n] = struct.Struct(f"<{n}d")
+    return p
 
 
 def _offsets(decl: dict[str, int], first: int = 0) -> tuple[dict[str, tuple[int, int]], int]:
@@ -113,22 +125,48 @@ class TorqueController:
         self._write(**checked)
 
     def _write(self, **checked: list[float]) -> None:
-        """Write checked values of signals (by name) locally and, while running, into the
-        shared input slot, all under one seqlock write."""
+        """Write checked values of signals (by name): while running into the shared input
+        slot, all under one seqlock write; before, into this object."""
         layout = self._sig_layout
         with self._lock:
-            for name, vals in checked.items():
-                offset = layout[name][0]
-                self._values[offset : offset + len(vals)] = vals
             block = self._block
-            if block is not None:
-                block.write_signal_array(self._values)
+            if block is None:
+                for name, vals in checked.items():
+                    offset = layout[name][0]
+                    self._values[offset : offset + len(vals)] = vals
+                return
+            h = block.header
+            h[5] += 1  # HEADER.IN_SEQ: odd while writing
+            try:
+                for name, vals in checked.items():
+                    packer(len(vals)).pack_into(block._in, 8 * layout[name][0], *vals)
+            finally:
+                h[5] += 1
+
+    def _send(self, offset: int, values: list[float]) -> None:
+        """The fast path of ``set_control``: checked, contiguous values at ``offset``."""
+        block = self._block
+        if block is None:
+            with self._lock:
+                self._values[offset : offset + len(values)] = values
+            return
+        with self._lock:
+            block.write_packed(packer(len(values)), offset, values)
+
+    def _sync_from(self, block: SharedBlock) -> None:
+        """Take the inputs as the running controller last had them (before unbinding)."""
+        n = len(self._values)
+        with self._lock:
+            self._values[:] = block.signals[:n]
 
     def get_signal(self, name: str) -> FloatArray:
         """The input ``name`` as last set (a copy)."""
         if name not in self._sig_layout:
             raise ValueError(f"{name}: expected one of the signals {sorted(self._sig_layout)}")
         offset, size = self._sig_layout[name]
+        block = self._block
+        if block is not None:
+            return block.signals[offset : offset + size].copy()
         return self._values[offset : offset + size].copy()
 
     def _outputs(self) -> FloatArray:

@@ -32,6 +32,9 @@ JOINT_DAMPING = (50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0)  # [Nm s/rad]
 CARTESIAN_IMPEDANCE = np.diag([600.0, 600.0, 600.0, 30.0, 30.0, 30.0])  # [N/m], [Nm/rad]
 FORCE_DAMPING = (1.0, 1.0, 1.0, 1.0, 0.33, 0.33, 0.17)  # [Nm s/rad]
 ZERO7 = (0.0,) * 7
+_ZERO7_LIST = list(ZERO7)
+_START_LIST = list(START_POSE)
+_fast = _args.fast_vector
 
 
 def _sqrtm_psd(K: FloatArray) -> FloatArray:
@@ -75,10 +78,9 @@ class JointPosition(TorqueController):
 
     def set_control(self, position: Any, velocity: Any = ZERO7) -> None:
         """Desired joint position [rad] and velocity [rad/s]."""
-        self._write(
-            position=_args.vector("position", position, 7, "[rad]"),
-            velocity=_args.vector("velocity", velocity, 7, "[rad/s]"),
-        )
+        q = _fast("position", position, 7, "[rad]")
+        dq = _ZERO7_LIST if velocity is ZERO7 else _fast("velocity", velocity, 7, "[rad/s]")
+        self._send(0, q + dq)
 
     def set_stiffness(self, stiffness: Any) -> None:
         self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
@@ -125,7 +127,7 @@ class IntegratedVelocity(TorqueController):
 
     def set_control(self, velocity: Any) -> None:
         """Desired joint velocity [rad/s]."""
-        self._write(velocity=_args.vector("velocity", velocity, 7, "[rad/s]"))
+        self._send(0, _fast("velocity", velocity, 7, "[rad/s]"))
 
     def set_stiffness(self, stiffness: Any) -> None:
         self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
@@ -171,7 +173,7 @@ class AppliedTorque(TorqueController):
 
     def set_control(self, torque: Any) -> None:
         """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
-        self._write(torque=_args.vector("torque", torque, 7, "[Nm]"))
+        self._send(0, _fast("torque", torque, 7, "[Nm]"))
 
     def set_damping(self, damping: Any) -> None:
         self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
@@ -210,7 +212,7 @@ class AppliedForce(TorqueController):
 
     def set_control(self, force: Any) -> None:
         """Wrench at the end effector in the base frame [N, Nm]."""
-        self._write(force=_args.vector("force", force, 6, "[N, Nm]"))
+        self._send(0, _fast("force", force, 6, "[N, Nm]"))
 
     def set_damping(self, damping: Any) -> None:
         self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
@@ -271,7 +273,7 @@ class Force(TorqueController):
 
     def set_control(self, force: Any) -> None:
         """Desired force at the end effector in the base frame [N]."""
-        self._write(force=_args.vector("force", force, 3, "[N]"))
+        self._send(0, _fast("force", force, 3, "[N]"))
 
     def set_proportional_gain(self, k_p: float) -> None:
         self._write(k_p=[_args.nonnegative_scalar("k_p", k_p)])
@@ -363,11 +365,16 @@ class CartesianImpedance(TorqueController):
     def set_control(self, position: Any, orientation: Any, q_nullspace: Any = START_POSE) -> None:
         """Desired end-effector position [m] and orientation (quaternion x, y, z, w) in the
         base frame, and the joint positions the nullspace term pulls toward [rad]."""
-        self._write(
-            position=_args.vector("position", position, 3, "[m]"),
-            orientation=_args.quaternion("orientation", orientation),
-            q_nullspace=_args.vector("q_nullspace", q_nullspace, 7, "[rad]"),
-        )
+        p = _fast("position", position, 3, "[m]")
+        o = _fast("orientation", orientation, 4, "(quaternion x, y, z, w)")
+        x, y, z, w = o
+        if not abs(x * x + y * y + z * z + w * w - 1.0) <= 2e-2:  # |o| within 1 % of 1
+            o = _args.quaternion("orientation", orientation)  # raises, naming the norm
+        if q_nullspace is START_POSE:
+            n = _START_LIST
+        else:
+            n = _fast("q_nullspace", q_nullspace, 7, "[rad]")
+        self._send(0, p + o + n)
 
     def set_impedance(self, impedance: Any) -> None:
         self._write(impedance=_args.matrix6("impedance", impedance, "[N/m, Nm/rad]"))

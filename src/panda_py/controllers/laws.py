@@ -74,7 +74,7 @@ def quat_from_matrix(O_T_EE: FloatArray) -> FloatArray:
 def slerp(q0: FloatArray, q1: FloatArray, t: float) -> FloatArray:
     """Spherical interpolation from ``q0`` (t = 0) to ``q1`` (t = 1), shortest arc."""
     if t >= 1.0:
-        return q1.copy()
+        return q1 / math.sqrt(float(q1 @ q1))
     d = float(q0 @ q1)
     target = q1 if d >= 0.0 else -q1
     d = abs(d)

@@ -440,6 +440,8 @@ class ControlServer:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     chan_fd, shm_fd, parent = (int(a) for a in args[:3])
+    if len(args) > 3:
+        sys.path.extend(p for p in args[3].split(os.pathsep) if p and p not in sys.path)
     chan = Channel.from_fd(chan_fd)
     block = SharedBlock(shm_fd)
     os.close(shm_fd)
@@ -452,6 +454,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         info = server.connect(hostname, realtime_config, timeout)
     except BaseException as exc:
+        if not isinstance(exc, FrankaException):  # a bug, not the robot: show where
+            traceback.print_exc()
         server.reply(rid, False, _transferable(exc, "connect"))
         return 1
     server.reply(rid, True, info)

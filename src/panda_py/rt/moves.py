@@ -23,7 +23,8 @@ __all__ = ["JointMove", "MoveResult", "PoseMove"]
 
 FloatArray = NDArray[np.float64]
 
-SETTLE_JOINT = 2e-3  # [rad] at goal: every joint within this
+SETTLE_JOINT = 5e-5  # [rad] at goal: every joint within this
+SETTLE_INTEGRAL = 2.0  # [1/s] integral gain per unit stiffness once the trajectory ended
 SETTLE_POSITION = 2e-3  # [m]
 SETTLE_ORIENTATION = 2e-3  # [rad]
 SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
@@ -52,7 +53,8 @@ def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
 class JointMove:
     """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
     ``dq_d``, ``ddq_d`` (the inertial feed-forward keeps the arm on the planned path
-    instead of lagging behind it)."""
+    instead of lagging behind it). Once the trajectory has ended, an integral of the error
+    to the goal removes what friction and model errors leave (panda-py stops there)."""
 
     def __init__(
         self,
@@ -72,10 +74,14 @@ class JointMove:
         self.goal = q[-1]
         self.t = 0.0
         self.dt = 0.0
+        self.integral = np.zeros(7)
 
     def step(self, state: Any, model: Any) -> FloatArray:
         k = min(round(self.t * 1e3), len(self.q) - 1)
         tau = self.K * (self.q[k] - state.q) + self.D * (self.dq[k] - state.dq)
+        if self.t > self.duration:
+            self.integral += self.dt * (self.goal - state.q)
+            tau += SETTLE_INTEGRAL * self.K * self.integral
         return tau + model.mass_of(state) @ self.ddq[k] + model.coriolis_of(state)
 
     def finished(self, state: Any) -> bool:

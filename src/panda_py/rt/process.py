@@ -82,10 +82,12 @@ class ControlProcess:
         self.chan = Channel(mine)
         env = dict(os.environ)
         src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        # The same panda_py as this process (even from a source tree), and every module this
-        # process can import (a controller class is sent by reference to its module).
-        paths = [src, *(p for p in sys.path if p and os.path.isdir(p))]
-        env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys(paths))
+        # the same panda_py as this process, even from a source tree
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
+        # and, after its own path, every place this process imports from (a controller
+        # class is sent by reference to its module); appended, so a stray file in a
+        # script's directory cannot shadow the standard library there
+        extra = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
         try:
             self.proc = subprocess.Popen(
                 [
@@ -95,6 +97,7 @@ class ControlProcess:
                     str(theirs.fileno()),
                     str(shm_fd),
                     str(os.getpid()),
+                    extra,
                 ],
                 pass_fds=(theirs.fileno(), shm_fd),
                 env=env,

@@ -4,12 +4,11 @@ One anonymous file (``memfd``, already unlinked: nothing can leak when either pr
 dies) holds, at fixed offsets:
 
 * a header of int64 counters (:class:`Slot` numbers below);
-* the newest robot state datagram, under a seqlock (the control process writes it once a
-  tick; readers copy it and retry if the sequence number moved meanwhile);
+* the newest robot state datagram, as a latch (two copies; the control process writes
+  them once a tick, readers copy the one not being written);
 * the running controller's inputs (``signals``), under a seqlock written by the user's
   process and read by the loop, which keeps its last consistent copy instead of waiting;
-* the controller's outputs (its time and declared outputs), under a seqlock written by the
-  loop.
+* the controller's outputs (its time and declared outputs), a latch written by the loop.
 
 A seqlock's writer makes the sequence number odd, writes, and makes it even again;
 aligned 8-byte stores are atomic and x86-64 keeps stores in order, so a reader that sees
@@ -60,22 +59,22 @@ OUTPUTS_MAX = 256  # float64 values of outputs (time first)
 class HEADER:
     """Indices of the int64 header counters."""
 
-    STATE_SEQ = 0  # seqlock of the state slot
-    STATE_LEN = 1  # bytes in the state slot
+    STATE_SEQ = 0  # latch sequence of the state slot's two copies
+    STATE_LEN = 1  # bytes in a state copy
     TICKS = 2  # states published so far
     RUNNING = 3  # 1 while a controller or a move runs
     EVENTS = 4  # asynchronous events (errors, log lines) posted on the channel
     IN_SEQ = 5  # seqlock of the controller inputs (writer: user's process)
-    OUT_SEQ = 6  # seqlock of the controller outputs (writer: control process)
+    OUT_SEQ = 6  # latch sequence of the controller outputs (writer: control process)
     LOG_COUNT = 7  # states appended to the log ring so far
     COUNT = 16
 
 
 _HEADER_BYTES = 8 * HEADER.COUNT
-_STATE_OFF = _HEADER_BYTES
-_IN_OFF = _STATE_OFF + STATE_MAX
-_OUT_OFF = _IN_OFF + 8 * SIGNALS_MAX
-_SIZE = _OUT_OFF + 8 * OUTPUTS_MAX
+_STATE_OFF = (_HEADER_BYTES, _HEADER_BYTES + STATE_MAX)  # two copies
+_IN_OFF = _HEADER_BYTES + 2 * STATE_MAX
+_OUT_OFF = (_IN_OFF + 8 * SIGNALS_MAX, _IN_OFF + 8 * (SIGNALS_MAX + OUTPUTS_MAX))
+_SIZE = _OUT_OFF[1] + 8 * OUTPUTS_MAX
 
 
 def anonymous_file(size: int, name: str = "panda_py") -> int:
@@ -95,7 +94,14 @@ def anonymous_file(size: int, name: str = "panda_py") -> int:
 
 
 class SharedBlock:
-    """The header, state and controller slots over one shared file ``fd``."""
+    """The header, state and controller slots over one shared file ``fd``.
+
+    The state and the outputs, written by the control process, are latches: two copies,
+    the writer bumps the sequence number before each copy it writes, and readers read
+    the copy the sequence's parity names (the one not being written). A reader retries
+    only if the writer moved on during its read, so it never waits on a writer that the
+    scheduler stopped mid-write.
+    """
 
     SIZE = _SIZE
 
@@ -103,10 +109,10 @@ class SharedBlock:
         self._mm = mmap.mmap(fd, _SIZE)
         self._mv = memoryview(self._mm)
         self.header = self._mv[:_HEADER_BYTES].cast("q")
-        self._state = self._mv[_STATE_OFF:_IN_OFF]
+        self._states = tuple(self._mv[o : o + STATE_MAX] for o in _STATE_OFF)
         self.signals = np.frombuffer(self._mm, np.float64, SIGNALS_MAX, _IN_OFF)
-        self.outputs = np.frombuffer(self._mm, np.float64, OUTPUTS_MAX, _OUT_OFF)
-        self._in = self._mv[_IN_OFF:_OUT_OFF]
+        self._outputs = tuple(np.frombuffer(self._mm, np.float64, OUTPUTS_MAX, o) for o in _OUT_OFF)
+        self._in = self._mv[_IN_OFF : _IN_OFF + 8 * SIGNALS_MAX]
 
     @classmethod
     def create(cls) -> tuple[SharedBlock, int]:
@@ -115,9 +121,10 @@ class SharedBlock:
         return cls(fd), fd
 
     def close(self) -> None:
-        for view in (self.header, self._state, self._in, self._mv):
+        for view in (self.header, *self._states, self._in, self._mv):
             view.release()
-        self.signals = self.outputs = np.zeros(0)
+        self.signals = np.zeros(0)
+        self._outputs = (np.zeros(0), np.zeros(0))
         try:
             self._mm.close()
         except BufferError:  # a caller still holds a view; the mapping goes with it
@@ -128,34 +135,52 @@ class SharedBlock:
     def publish_state(self, data: bytes) -> None:
         h = self.header
         n = len(data)
-        h[HEADER.STATE_SEQ] += 1
-        self._state[:n] = data
+        first, second = self._states
+        h[HEADER.STATE_SEQ] += 1  # odd: readers take copy 1 while copy 0 is written
+        first[:n] = data
         h[HEADER.STATE_LEN] = n
-        h[HEADER.STATE_SEQ] += 1
+        h[HEADER.STATE_SEQ] += 1  # even: readers take copy 0
+        second[:n] = data
         h[HEADER.TICKS] += 1
+
+    def field_views(self, state_dtype: np.dtype, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Live views of one field in both state copies, for :meth:`read_field`."""
+        fields = state_dtype.fields
+        assert fields is not None
+        sub, offset = fields[name][0], fields[name][1]
+        count = int(np.prod(sub.shape)) if sub.shape else 1
+        views = [np.frombuffer(self._mm, sub.base, count, o + offset) for o in _STATE_OFF]
+        return views[0], views[1]
+
+    def read_field(self, views: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """A consistent float64 copy of a state field (``views`` from :meth:`field_views`)."""
+        h = self.header
+        while True:
+            seq = h[0]  # HEADER.STATE_SEQ
+            out = views[seq & 1].astype(np.float64)
+            if seq == h[0]:
+                return out
 
     def read_state(self) -> bytes | None:
         """A consistent copy of the newest state datagram (None before the first)."""
         h = self.header
-        state = self._state
-        for _ in range(10000):
+        states = self._states
+        while True:
             seq = h[HEADER.STATE_SEQ]
-            if seq & 1:
-                continue
             n = h[HEADER.STATE_LEN]
-            data = bytes(state[:n])
+            data = bytes(states[seq & 1][:n])
             if h[HEADER.STATE_SEQ] == seq:
                 return data if n else None
-        raise RuntimeError("the control process holds the state slot (it stopped mid-write)")
 
     # --- controller inputs (writer: user's process) -------------------------------------
 
-    def write_signals(self, packer: struct.Struct, offset: int, values: Any) -> None:
-        """Write ``values`` packed by ``packer`` at float64 index ``offset``."""
+    def write_packed(self, packer: struct.Struct, offset: int, values: Any) -> None:
+        """Write ``values`` (a sequence of floats, packed by ``packer``) at float64 index
+        ``offset`` of the inputs, as one seqlock write."""
         h = self.header
-        h[HEADER.IN_SEQ] += 1
+        h[5] += 1  # HEADER.IN_SEQ: odd while writing
         packer.pack_into(self._in, 8 * offset, *values)
-        h[HEADER.IN_SEQ] += 1
+        h[5] += 1
 
     def write_signal_array(self, values: np.ndarray, offset: int = 0) -> None:
         h = self.header
@@ -166,7 +191,7 @@ class SharedBlock:
     def read_signals(self, out: np.ndarray, last_seq: int) -> int:
         """Copy the inputs into ``out`` if they changed since ``last_seq`` and are
         consistent; returns the sequence number ``out`` now holds (``last_seq`` if the
-        copy was skipped or torn: the caller keeps its previous values)."""
+        copy was skipped or torn: the caller keeps its previous values, never waits)."""
         h = self.header
         seq = h[HEADER.IN_SEQ]
         if seq == last_seq or seq & 1:
@@ -182,20 +207,21 @@ class SharedBlock:
 
     def write_outputs(self, values: np.ndarray) -> None:
         h = self.header
+        n = len(values)
+        first, second = self._outputs
         h[HEADER.OUT_SEQ] += 1
-        self.outputs[: len(values)] = values
+        first[:n] = values
         h[HEADER.OUT_SEQ] += 1
+        second[:n] = values
 
     def read_outputs(self, n: int) -> np.ndarray:
         h = self.header
-        for _ in range(10000):
+        outputs = self._outputs
+        while True:
             seq = h[HEADER.OUT_SEQ]
-            if seq & 1:
-                continue
-            out = self.outputs[:n].copy()
+            out = outputs[seq & 1][:n].copy()
             if h[HEADER.OUT_SEQ] == seq:
                 return out
-        raise RuntimeError("the control process holds the output slot (it stopped mid-write)")
 
 
 class LogRing:

@@ -1,0 +1,270 @@
+"""``panda_py.Panda`` against panda-python 1.1.1's ``Panda`` (protocol 5, in its own venv)
+on the same simulator, in the same run. Run by hand:
+
+    python benchmarks/bench_panda.py calls   [--n 20000]        # per call: q, get_pose, set_control
+    python benchmarks/bench_panda.py latency [--seconds 10]     # set_control -> command
+    python benchmarks/bench_panda.py lost    [--seconds 60]     # lost commands under load
+    python benchmarks/bench_panda.py moves                      # move accuracy
+    python benchmarks/bench_panda.py all
+
+``lost``: a controller runs on a simulator on the wall clock (SCHED_FIFO when permitted),
+while the user's main thread runs a busy pure-Python loop and a CPU burner runs beside;
+the simulator counts the commands that did not arrive. For ours also with a user-written
+Python ``step()``. Each figure prints median, p99 and worst case and ours/theirs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+import panda_py
+from panda_py import constants, controllers
+from panda_py.sim import Simulator, free_loopback_host
+
+sys.path.append(str(Path(__file__).resolve().parents[1] / "tests"))
+from peer_envs import peer_python
+
+PEER_SCRIPT = Path(__file__).resolve().parent / "peer_panda.py"
+
+
+def _stats(values: Any) -> tuple[float, float, float]:
+    a = np.asarray(values, dtype=float)
+    return float(np.median(a)), float(np.percentile(a, 99)), float(a.max())
+
+
+def _row(label: str, ours: Any, theirs: Any | None, unit: str = "us") -> None:
+    m, p, w = _stats(ours)
+    line = f"  {label:<22} ours  median {m:9.2f} p99 {p:9.2f} worst {w:10.2f} {unit}"
+    if theirs is not None:
+        tm, tp, tw = _stats(theirs)
+        line += (f"\n  {'':<22} peer  median {tm:9.2f} p99 {tp:9.2f} worst {tw:10.2f} {unit}"
+                 f"   ratio (median) {m / tm:5.2f}x, (p99) {p / tp:5.2f}x")  # fmt: skip
+    print(line)
+
+
+def _fifo(pid: int) -> bool:
+    try:
+        os.sched_setscheduler(pid, os.SCHED_FIFO, os.sched_param(50))
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
+def _peer(mode: str, host: str, *args: str, on_start: Any = None) -> dict:
+    python = peer_python("panda-python")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    proc = subprocess.Popen([str(python), str(PEER_SCRIPT), mode, host, *args],
+                            stdout=subprocess.PIPE, text=True, env=env)  # fmt: skip
+    assert proc.stdout is not None
+    result: dict = {}
+    for line in proc.stdout:
+        if line.startswith("STARTED") and on_start is not None:
+            on_start()
+        if line.startswith("RESULT "):
+            result = json.loads(line[7:])
+    proc.wait()
+    return result
+
+
+def _per_call(fn: Any, n: int) -> list[float]:
+    out = []
+    clock = time.perf_counter_ns
+    for _ in range(n):
+        t0 = clock()
+        fn()
+        out.append((clock() - t0) * 1e-3)
+    return out
+
+
+def calls(n: int) -> None:
+    print(f"per call [us], {n} calls, realtime simulator (FER, protocol 5)")
+    with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+        _fifo(sim._process.pid)
+        with panda_py.Panda(sim.host) as panda:
+            panda.move_to_start()
+            ours = {"q (idle)": _per_call(lambda: panda.q, min(n, 2000))}
+            ctrl = controllers.CartesianImpedance()
+            panda.start_controller(ctrl)
+            time.sleep(0.2)
+            x, o = panda.get_position(), panda.get_orientation()
+            ours["q"] = _per_call(lambda: panda.q, n)
+            ours["get_pose"] = _per_call(panda.get_pose, n)
+            ours["set_control"] = _per_call(lambda: ctrl.set_control(x, o), n)
+            panda.stop_controller()
+        theirs = _peer("calls", sim.host, str(n))
+    for key, values in ours.items():
+        _row(key, values, theirs.get(key))
+
+
+class Stamp(controllers.TorqueController):
+    """Holds the arm; histograms the time from a ``set_signals(stamp=...)`` in the user's
+    process to the step that computes the command carrying it (bins of 25 us)."""
+
+    signals: ClassVar[dict[str, int]] = {"stamp": 1}
+    outputs: ClassVar[dict[str, int]] = {"hist": 200}
+
+    def start(self, state: Any, model: Any) -> None:
+        self.q0 = state.q.copy()
+        self.last = 0.0
+        self.hist = np.zeros(200)
+
+    def step(self, state: Any, model: Any) -> Any:
+        stamp = self.signal("stamp")[0]
+        if stamp != self.last:
+            self.last = stamp
+            k = min(int((time.perf_counter() - stamp) / 25e-6), 199)
+            self.hist[k] += 1
+            self.set_output("hist", self.hist)
+        return 400.0 * (self.q0 - state.q) - 20.0 * state.dq
+
+
+def latency(seconds: float) -> None:
+    print(f"input-to-command latency, {seconds:.0f} s, realtime simulator, stamps at ~2 kHz")
+    with Simulator(free_loopback_host(), robot="fer") as sim:
+        _fifo(sim._process.pid)
+        with panda_py.Panda(sim.host) as panda:
+            ctrl = Stamp()
+            panda.start_controller(ctrl)
+            end = time.monotonic() + seconds
+            while time.monotonic() < end:
+                ctrl.set_signals(stamp=time.perf_counter())
+                time.sleep(0.0005)
+            hist = ctrl.get_output("hist")
+            panda.stop_controller()
+    edges = (np.arange(200) + 1) * 25.0
+    c = np.cumsum(hist) / max(1.0, hist.sum())
+    p50, p99 = edges[np.searchsorted(c, 0.5)], edges[np.searchsorted(c, 0.99)]
+    worst = edges[np.flatnonzero(hist)[-1]] if hist.any() else float("nan")
+    print(f"  samples {int(hist.sum())}: median <= {p50:.0f} us, p99 <= {p99:.0f} us, "
+          f"worst <= {worst:.0f} us (target p99 <= 2000 us)")  # fmt: skip
+
+
+class Hold(controllers.TorqueController):
+    """A user-written joint spring, run by the control process at 1 kHz."""
+
+    def start(self, state: Any, model: Any) -> None:
+        self.q0 = state.q.copy()
+
+    def step(self, state: Any, model: Any) -> Any:
+        return 300.0 * (self.q0 - state.q) - 15.0 * state.dq
+
+
+def _lost_run(sim: Simulator, seconds: float, controller: Any) -> dict:
+    with panda_py.Panda(sim.host) as panda:
+        panda.move_to_start()
+        ctrl = controller()
+        panda.start_controller(ctrl)
+        set_control = getattr(ctrl, "set_control", None)
+        x, o = panda.get_position(), panda.get_orientation()
+        sim.reset_stats()
+        end = time.monotonic() + seconds
+        busy = 0
+        while time.monotonic() < end:  # the user's busy pure-Python main thread
+            for _ in range(1000):
+                busy += 1
+            if set_control is not None:
+                set_control(x, o)
+        stats = sim.stats()
+        error = None
+        try:
+            panda.raise_error()
+        except Exception as exc:
+            error = str(exc)
+        panda.stop_controller()
+    return {**stats, "error": error}
+
+
+def lost(seconds: float) -> None:
+    print(f"lost commands over {seconds:.0f} s: controller running, busy user main thread, "
+          "CPU burner beside, realtime simulator")  # fmt: skip
+    burn = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        rows = []
+        for label, ctrl in (("CartesianImpedance", controllers.CartesianImpedance),
+                            ("user step() (Python)", Hold)):  # fmt: skip
+            with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+                _fifo(sim._process.pid)
+                rows.append((f"ours, {label}", _lost_run(sim, seconds, ctrl)))
+        with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+            _fifo(sim._process.pid)
+            box: dict = {}
+            theirs = _peer("lost", sim.host, str(seconds),
+                           on_start=lambda: (sim.reset_stats(), box.update(t=1)))  # fmt: skip
+            stats = sim.stats()
+            rows.append(("panda-python, CartesianImpedance", {**stats, **theirs}))
+    finally:
+        burn.kill()
+        burn.wait()
+    for label, st in rows:
+        total = st["commands_lost"] + st["commands_received"]
+        print(f"  {label:<36} lost {st['commands_lost']:6d} of {total:7d}; late ticks "
+              f"{st['late_ticks']}; error: {st.get('error')}")  # fmt: skip
+
+
+def _deviation(path: np.ndarray, goal: np.ndarray) -> float:
+    a, b = path[0], goal
+    d = np.linalg.norm(np.cross(path - a, b - a), axis=1) / np.linalg.norm(b - a)
+    return float(d.max())
+
+
+def moves() -> None:
+    print("move accuracy on the same targets (lockstep simulator, FER, protocol 5)")
+    with Simulator(free_loopback_host(), robot="fer", versions=(5,), lockstep=True) as sim:
+        with panda_py.Panda(sim.host) as panda:
+            ours: dict[str, Any] = {}
+            panda.move_to_start()
+            q_goal = constants.JOINT_POSITION_START + np.array(
+                [0.3, 0.2, -0.2, 0.3, 0.2, -0.2, 0.3]
+            )
+            panda.move_to_joint_position(q_goal)
+            ours["joint_final"] = float(np.abs(panda.q - q_goal).max())
+            for label, offset in (("pose_y", [0, -0.1, 0]), ("pose_xyz", [0.1, 0.1, -0.15])):
+                panda.move_to_start()
+                pose = panda.get_pose()
+                pose[:3, 3] += offset
+                panda.enable_logging(20000)
+                panda.move_to_pose(pose)
+                panda.disable_logging()
+                p = np.array(panda.get_log()["O_T_EE"])[:, 12:15]
+                ours[label] = {
+                    "final": float(np.linalg.norm(panda.get_pose()[:3, 3] - pose[:3, 3])),
+                    "deviation": _deviation(p, pose[:3, 3]),
+                }
+        theirs = _peer("moves", sim.host)
+    print(f"  move_to_joint_position final error [rad]: ours {ours['joint_final']:.2e}, "
+          f"panda-python {theirs['joint_final']:.2e}")  # fmt: skip
+    for label in ("pose_y", "pose_xyz"):
+        t = theirs[label]
+        dev = _deviation(np.array(t["path"]), np.array(t["goal"]))
+        print(f"  move_to_pose {label:<9} final error [m]: ours {ours[label]['final']:.2e}, "
+              f"panda-python {t['final']:.2e}; largest deviation from the line [m]: "
+              f"ours {ours[label]['deviation']:.2e}, panda-python {dev:.2e}")  # fmt: skip
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "all"))
+    p.add_argument("--n", type=int, default=20000)
+    p.add_argument("--seconds", type=float, default=None)
+    a = p.parse_args()
+    if a.mode in ("calls", "all"):
+        calls(a.n)
+    if a.mode in ("latency", "all"):
+        latency(a.seconds or 10.0)
+    if a.mode in ("moves", "all"):
+        moves()
+    if a.mode in ("lost", "all"):
+        lost(a.seconds or 60.0)
+
+
+if __name__ == "__main__":
+    main()
