@@ -1,6 +1,9 @@
 """Forward kinematics of a modified-DH chain: poses, frames and Jacobians, written once in
 scalar Python that numba compiles as it is (:mod:`._numba`) or Python runs plain.
 
+The loops read array entries through ``float()``: a no-op compiled, and plain it turns
+NumPy scalars into Python floats, whose arithmetic is several times faster.
+
 The helpers take floats and tuples and return tuples; only the ``*_range`` loops read and
 write arrays (under the JIT an array argument costs reference counting per call). A pose
 is the top three rows of a rigid transform as a row-major 12-tuple.
@@ -132,7 +135,9 @@ def fk_range(Q: Any, C: Any, out: Any, k0: int, k1: int) -> None:
     """O_T_EE for rows k0..k1-1 of Q (N, 7) into out (N, 4, 4); C the packed chain."""
     c = unpack_chain(C)
     for k in range(k0, k1):
-        v = ee_pose(c, (Q[k, 0], Q[k, 1], Q[k, 2], Q[k, 3], Q[k, 4], Q[k, 5], Q[k, 6]))
+        q = (float(Q[k, 0]), float(Q[k, 1]), float(Q[k, 2]), float(Q[k, 3]), float(Q[k, 4]),
+             float(Q[k, 5]), float(Q[k, 6]))  # fmt: skip
+        v = ee_pose(c, q)
         for i in range(3):
             for j in range(4):
                 out[k, i, j] = v[4 * i + j]
@@ -150,7 +155,7 @@ def frames_range(Q: Any, C: Any, out: Any, k0: int, k1: int) -> None:
         m = EYE
         for f in range(9):
             if f < 7:
-                m = link(m, c.a[f], c.d[f], c.cos_alpha[f], c.sin_alpha[f], Q[k, f])
+                m = link(m, c.a[f], c.d[f], c.cos_alpha[f], c.sin_alpha[f], float(Q[k, f]))
                 v = m
             else:
                 v = tail(m, c.flange_d, EYE if f == 7 else c.F)
@@ -173,7 +178,7 @@ def jacobian_range(Q: Any, C: Any, body: bool, out: Any, k0: int, k1: int) -> No
     for k in range(k0, k1):
         m = EYE
         for i in range(7):
-            m = link(m, c.a[i], c.d[i], c.cos_alpha[i], c.sin_alpha[i], Q[k, i])
+            m = link(m, c.a[i], c.d[i], c.cos_alpha[i], c.sin_alpha[i], float(Q[k, i]))
             z[i, 0], z[i, 1], z[i, 2] = m[2], m[6], m[10]
             o[i, 0], o[i, 1], o[i, 2] = m[3], m[7], m[11]
         T = tail(m, c.flange_d, c.F)

@@ -313,12 +313,28 @@ def ik_range(
     mq = QI.shape[0]
     for k in range(k0, k1):
         qr = k if mq > 1 else 0
-        q7k = q7[k] if m7 > 1 else q7[0]
+        q7k = float(q7[k] if m7 > 1 else q7[0])
         base = 4 * k if full else k
-        r00, r01, r02, px = T[k, 0, 0], T[k, 0, 1], T[k, 0, 2], T[k, 0, 3]
-        r10, r11, r12, py = T[k, 1, 0], T[k, 1, 1], T[k, 1, 2], T[k, 1, 3]
-        r20, r21, r22, pz = T[k, 2, 0], T[k, 2, 1], T[k, 2, 2], T[k, 2, 3]
-        q1i, q2i, q5i = QI[qr, 0], QI[qr, 1], QI[qr, 4]
+        # (float(): a no-op compiled; plain, Python floats compute faster than NumPy's)
+        r00, r01, r02, px = (
+            float(T[k, 0, 0]),
+            float(T[k, 0, 1]),
+            float(T[k, 0, 2]),
+            float(T[k, 0, 3]),
+        )
+        r10, r11, r12, py = (
+            float(T[k, 1, 0]),
+            float(T[k, 1, 1]),
+            float(T[k, 1, 2]),
+            float(T[k, 1, 3]),
+        )
+        r20, r21, r22, pz = (
+            float(T[k, 2, 0]),
+            float(T[k, 2, 1]),
+            float(T[k, 2, 2]),
+            float(T[k, 2, 3]),
+        )
+        q1i, q2i, q5i = float(QI[qr, 0]), float(QI[qr, 1]), float(QI[qr, 4])
         s = q7k + q1i + q2i + QI[qr, 2] + QI[qr, 3] + q5i + QI[qr, 5] + QI[qr, 6]
         err = rigid_error(
             r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz,
