@@ -376,9 +376,12 @@ def test_bad_input_is_a_clear_value_error(call, match: str) -> None:
         call()
 
 
-@pytest.mark.parametrize("n", [5, 3000])  # 3000: above PARALLEL_MIN_ROWS (numba: prange)
+@pytest.mark.parametrize("n", [5, 3000])  # 3000: the parallel kernels (numba: prange)
 @pytest.mark.parametrize("fn", ["ik", "ik_full"])
-def test_a_bad_pose_in_a_batch_is_named_by_its_index(n: int, fn: str) -> None:
+def test_a_bad_pose_in_a_batch_is_named_by_its_index(
+    n: int, fn: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 2048)
     rng = np.random.default_rng(13)
     Q = random_q(rng, n)
     T = kin_mod.fk(Q)
