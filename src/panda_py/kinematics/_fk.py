@@ -168,33 +168,51 @@ def frames_range(Q: Any, C: Any, out: Any, k0: int, k1: int) -> None:
             out[k, f, 3, 3] = 1.0
 
 
+def _column(m: Any, T: Any, body: bool) -> Any:
+    """Joint i's Jacobian column (linear velocity, angular velocity) from its frame m:
+    (z_i x (p_EE - o_i), z_i), in the base frame or (``body``) the EE frame T."""
+    zx, zy, zz = m[2], m[6], m[10]
+    dx, dy, dz = T[3] - m[3], T[7] - m[7], T[11] - m[11]
+    vx, vy, vz = zy * dz - zz * dy, zz * dx - zx * dz, zx * dy - zy * dx
+    if not body:
+        return vx, vy, vz, zx, zy, zz
+    return (  # R^T v, R^T w, R = T[:3, :3]
+        T[0] * vx + T[4] * vy + T[8] * vz,
+        T[1] * vx + T[5] * vy + T[9] * vz,
+        T[2] * vx + T[6] * vy + T[10] * vz,
+        T[0] * zx + T[4] * zy + T[8] * zz,
+        T[1] * zx + T[5] * zy + T[9] * zz,
+        T[2] * zx + T[6] * zy + T[10] * zz,
+    )
+
+
+def jacobian_columns(c: Chain, q: Any, body: bool) -> Any:
+    """The seven columns (6-tuples) of the geometric EE Jacobian at q [rad] (rows: linear
+    velocity, angular velocity), in the base frame or (``body``) the EE frame."""
+    a, d, ca, sa = c.a, c.d, c.cos_alpha, c.sin_alpha
+    m1 = link(EYE, a[0], d[0], ca[0], sa[0], q[0])
+    m2 = link(m1, a[1], d[1], ca[1], sa[1], q[1])
+    m3 = link(m2, a[2], d[2], ca[2], sa[2], q[2])
+    m4 = link(m3, a[3], d[3], ca[3], sa[3], q[3])
+    m5 = link(m4, a[4], d[4], ca[4], sa[4], q[4])
+    m6 = link(m5, a[5], d[5], ca[5], sa[5], q[5])
+    m7 = link(m6, a[6], d[6], ca[6], sa[6], q[6])
+    T = tail(m7, c.flange_d, c.F)
+    return (
+        _column(m1, T, body), _column(m2, T, body), _column(m3, T, body),
+        _column(m4, T, body), _column(m5, T, body), _column(m6, T, body),
+        _column(m7, T, body),
+    )  # fmt: skip
+
+
 def jacobian_range(Q: Any, C: Any, body: bool, out: Any, k0: int, k1: int) -> None:
-    """Geometric EE Jacobian (rows: linear velocity, angular velocity) for rows k0..k1-1
-    of Q into out (N, 6, 7), in the base frame or (``body``) in the EE frame."""
+    """:func:`jacobian_columns` for rows k0..k1-1 of Q into out (N, 6, 7)."""
     c = unpack_chain(C)
-    z = np.empty((7, 3))
-    o = np.empty((7, 3))
-    J = np.empty((6, 7))
     for k in range(k0, k1):
-        m = EYE
+        q = (float(Q[k, 0]), float(Q[k, 1]), float(Q[k, 2]), float(Q[k, 3]), float(Q[k, 4]),
+             float(Q[k, 5]), float(Q[k, 6]))  # fmt: skip
+        cols = jacobian_columns(c, q, body)
         for i in range(7):
-            m = link(m, c.a[i], c.d[i], c.cos_alpha[i], c.sin_alpha[i], float(Q[k, i]))
-            z[i, 0], z[i, 1], z[i, 2] = m[2], m[6], m[10]
-            o[i, 0], o[i, 1], o[i, 2] = m[3], m[7], m[11]
-        T = tail(m, c.flange_d, c.F)
-        px, py, pz = T[3], T[7], T[11]
-        for i in range(7):  # v_i = z_i x (p_EE - o_i), w_i = z_i
-            dx, dy, dz = px - o[i, 0], py - o[i, 1], pz - o[i, 2]
-            J[0, i] = z[i, 1] * dz - z[i, 2] * dy
-            J[1, i] = z[i, 2] * dx - z[i, 0] * dz
-            J[2, i] = z[i, 0] * dy - z[i, 1] * dx
-            J[3, i] = z[i, 0]
-            J[4, i] = z[i, 1]
-            J[5, i] = z[i, 2]
-        for h in range(6):
-            for i in range(7):
-                if body:  # R^T J, R = T[:3, :3], on the linear and the angular rows
-                    r, b = h % 3, h - h % 3
-                    out[k, h, i] = T[r] * J[b, i] + T[4 + r] * J[b + 1, i] + T[8 + r] * J[b + 2, i]
-                else:
-                    out[k, h, i] = J[h, i]
+            col = cols[i]
+            for h in range(6):
+                out[k, h, i] = col[h]

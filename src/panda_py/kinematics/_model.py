@@ -39,6 +39,7 @@ _F64 = np.dtype(np.float64)
 _PACK16: Callable[..., None] = struct.Struct("16d").pack_into
 _PACK7: Callable[..., None] = struct.Struct("7d").pack_into
 _PACK28: Callable[..., None] = struct.Struct("28d").pack_into
+_PACK42: Callable[..., None] = struct.Struct("42d").pack_into
 
 
 class IKStatus(enum.IntEnum):
@@ -203,6 +204,16 @@ class Kinematics:
             out = np.empty((1, 6, 7))
             if jit.jacobian_one(q, self._CF, body, out):
                 return out[0]
+        elif jit is None and type(q) is np.ndarray and q.dtype is _F64 and q.shape == (7,):
+            v = q.tolist()
+            s = v[0] + v[1] + v[2] + v[3] + v[4] + v[5] + v[6]
+            if s - s == 0.0:  # finite
+                # columns packed as the rows of the transpose
+                out = np.empty((7, 6))
+                _PACK42(
+                    out, 0, *(x for col in _fk.jacobian_columns(self._chain, v, body) for x in col)
+                )
+                return out.T.copy()
         qa = _input.joints("q", q)
         qb = np.ascontiguousarray(qa.reshape(-1, 7))
         out = np.empty((qb.shape[0], 6, 7))

@@ -56,7 +56,8 @@ def _sincos(x: float) -> Any:
 
 _fn: Any
 for _fn in (
-    _scalar.flip, _fk.unpack_chain, _fk.link, _fk.tail, _fk.ee_pose, _ik.unpack_ik_params,
+    _scalar.flip, _fk.unpack_chain, _fk.link, _fk.tail, _fk.ee_pose, _fk._column,
+    _fk.jacobian_columns, _ik.unpack_ik_params,
     _ik.rigid_error, _ik.case_row, _ik.pose_part, _ik.arm_part, _ik.branch, _ik.solve,
 ):  # fmt: skip
     register_jitable(**_ARITH)(_fn)
