@@ -609,6 +609,19 @@ def test_jit_is_lazy_optional_and_survives_an_unwritable_cache(backend: str) -> 
     assert _python(no_cache, PANDA_PY_CACHE=__file__) == "True True NullCache"
 
 
+def test_without_numba_the_plain_backend_runs(backend: str) -> None:
+    if backend == "pure":
+        pytest.skip("runs once")
+    probe = (
+        "import sys; sys.modules['numba'] = None  # as if not installed\n"
+        "import numpy as np, panda_py.kinematics as k\n"
+        "from panda_py.kinematics import _backend\n"
+        "q = np.array([0.1, -0.3, 0.2, -2.0, 0.1, 1.6, 0.7])\n"
+        "print(_backend.jit(), k.warmup(), np.allclose(k.ik(k.fk(q), q, q[6]), q))"
+    )
+    assert _python(probe) == "None False True"
+
+
 @pytest.mark.timeout(400)
 def test_the_jit_cache_is_invalidated_by_any_edit_to_what_it_compiles(
     backend: str, tmp_path
