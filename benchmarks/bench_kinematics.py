@@ -1,25 +1,32 @@
-"""Time panda_py.kinematics against panda-python 1.1.1 (its C++ fk/ik) in the same run.
+"""Time panda_py.kinematics as installed (the default: the numba JIT where numba is
+installed) against panda-python 1.1.1 (its C++ fk/ik) in the same run.
 
-Run: ``python benchmarks/bench_kinematics.py [--samples 300] [--batch 10000]``.
+Run: ``python benchmarks/bench_kinematics.py [--repeat 3] [--configs 2000] [--batch 10000]``
+(``--plain`` also times the plain-Python backend; ``PANDA_PY_NO_JIT=1`` makes it the
+default one).
 
-Per call: each sample times a block of calls (the per-call time of the block), over many
-samples: median, p99 and worst in microseconds, for us and for panda-python (run in its
-own virtual environment, created by ``tests/peer_envs.py`` if missing, as a subprocess
-with the same timing code). Batched: one call over N configurations or poses against
-panda-python's per-call loop over the same N, per configuration. Also the import time of
-``panda_py``. Both backends are timed: the pure-NumPy paths and, if numba is installed
-(and PANDA_PY_NO_JIT is not set), the numba kernels; their batches also on one thread
-(the serial kernels, which batches below ``PARALLEL_MIN_ROWS`` and busy machines get).
+Per call: each sample times a block of calls cycling over ``--configs`` random
+configurations (their poses for ik), giving the per-call time; over many samples the
+median, p99 and worst [us], for us and for panda-python (run in its own virtual
+environment, created by ``tests/peer_envs.py`` if missing, as a subprocess with the same
+timing code), and the ratio of the medians. Each figure is measured ``--repeat`` times,
+alternating us and the peer; the ratio is printed per repeat (the spread on a shared
+machine). Batched: one call over N configurations against panda-python's loop over the
+same N, per configuration.
+
+Fresh processes (subprocesses): ``import panda_py``; the first ``fk`` call with the
+kernel cache in place; the one-time compile (first ``fk``, and ``warmup()``, with an
+empty cache directory).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
+import os
 import subprocess
 import sys
-import time
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -27,49 +34,58 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 # The timing code, run both here and in the peer's interpreter (so both pay the same
-# Python-side overheads). It defines measure(fn, samples, block) -> [per-call seconds].
+# Python-side overheads). measure(fn, samples, block) -> [per-call seconds]; fn(i) is
+# called with i cycling over range(n).
 TIMING = """
 import time
-def measure(fn, samples, block):
-    for _ in range(block * 10):
-        fn()
+def measure(fn, samples, block, n):
+    for i in range(min(n, 10 * block)):
+        fn(i % n)
     out = []
     clock = time.perf_counter
+    i = 0
     for _ in range(samples):
         t0 = clock()
         for _ in range(block):
-            fn()
+            fn(i)
+            i = i + 1 if i + 1 < n else 0
         out.append((clock() - t0) / block)
     return out
+
+def per_call(kin, Q, TT, q7, samples, block):
+    n = len(Q)
+    fk, ik, ik_full = kin.fk, kin.ik, kin.ik_full
+    return {
+        "fk": measure(lambda i: fk(Q[i]), samples, block, n),
+        "ik": measure(lambda i: ik(TT[i]), samples, block, n),
+        "ik_q": measure(lambda i: ik(TT[i], Q[i], q7[i]), samples, block, n),
+        "ik_full": measure(lambda i: ik_full(TT[i], Q[i], q7[i]), samples, block, n),
+    }
 """
 
 PEER_SCRIPT = (
     TIMING
     + """
-import json, sys, math, time
+import json, sys
 import numpy as np
 import panda_py
 args = json.load(sys.stdin)
-q = np.array(args["q"]); T = panda_py.fk(q)
-res = {
-    "fk": measure(lambda: panda_py.fk(q), args["samples"], args["block"]),
-    "ik": measure(lambda: panda_py.ik(T), args["samples"], args["block"]),
-    "ik_q": measure(lambda: panda_py.ik(T, q, 0.5), args["samples"], args["block"]),
-    "ik_full": measure(lambda: panda_py.ik_full(T), args["samples"], args["block"]),
-}
-Q = np.array(args["Q"]); TT = np.array(args["TT"]); q7 = args["q7"]
+Q = [np.array(q) for q in args["Q"]]
+TT = [np.array(T) for T in args["TT"]]
+q7 = args["q7"]
+res = per_call(panda_py, Q, TT, q7, args["samples"], args["block"])
+B = np.array(args["QB"]); TB = np.array(args["TB"]); q7b = args["q7b"]
 def loop_fk():
-    for x in Q:
+    for x in B:
         panda_py.fk(x)
 def loop_ik():
-    for i in range(len(Q)):
-        panda_py.ik(TT[i], Q[i], q7[i])
+    for i in range(len(B)):
+        panda_py.ik(TB[i], B[i], q7b[i])
 def loop_ik_full():
-    for i in range(len(Q)):
-        panda_py.ik_full(TT[i], Q[i], q7[i])
-for name, fn in (("fk_loop", loop_fk), ("ik_loop", loop_ik), ("ik_full_loop", loop_ik_full)):
-    t = min(measure(fn, 3, 1))
-    res[name] = [t / len(Q)]
+    for i in range(len(B)):
+        panda_py.ik_full(TB[i], B[i], q7b[i])
+for name, fn in (("fk", loop_fk), ("ik_q", loop_ik), ("ik_full", loop_ik_full)):
+    res["batch_" + name] = [min(measure(lambda i: fn(), 3, 1, 1)) / len(B)]
 print(json.dumps(res))
 """
 )
@@ -80,135 +96,156 @@ def _stats(samples: list[float]) -> tuple[float, float, float]:
     return float(np.median(a)), float(np.percentile(a, 99)), float(a.max())
 
 
-def _import_time() -> float:
-    code = "import time; t = time.perf_counter(); import panda_py; print(time.perf_counter() - t)"
-    best = math.inf
-    for _ in range(5):
-        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-        best = min(best, float(out.stdout))
-    return best
-
-
-def _first_call_time() -> float:
-    code = (
-        "import time, numpy as np, panda_py; q = np.zeros(7); t = time.perf_counter(); "
-        "panda_py.fk(q); print(time.perf_counter() - t)"
+def _subprocess_seconds(code: str, **env: str) -> float:
+    """Run code in a fresh interpreter; it prints a duration [s] on its last line."""
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **env},
+        timeout=600,
+        check=True,
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    return float(out.stdout)
+    return float(out.stdout.split()[-1])
+
+
+IMPORT = "import time; t = time.perf_counter(); import panda_py; print(time.perf_counter() - t)"
+FIRST_FK = (
+    "import time; t = time.perf_counter(); import numpy as np, panda_py; "
+    "panda_py.fk(np.zeros(7)); print(time.perf_counter() - t)"
+)
+WARMUP = (
+    "import time; t = time.perf_counter(); import panda_py.kinematics as k; "
+    "k.warmup(); print(time.perf_counter() - t)"
+)
+
+
+def fresh_process_figures(repeat: int) -> None:
+    imports = [_subprocess_seconds(IMPORT) for _ in range(max(5, repeat))]
+    _subprocess_seconds(FIRST_FK)  # make sure the cache holds fk's kernel
+    first = [_subprocess_seconds(FIRST_FK) for _ in range(max(3, repeat))]
+    print("\nfresh process [ms]                        min   median      max")
+    for name, t in (("import panda_py", imports), ("first fk (kernel cached)", first)):
+        a = np.asarray(t) * 1e3
+        print(f"{name:<38}{a.min():8.1f}{np.median(a):9.1f}{a.max():9.1f}")
+    with tempfile.TemporaryDirectory() as cache:
+        cold_fk = _subprocess_seconds(FIRST_FK, PANDA_PY_CACHE=cache)
+    with tempfile.TemporaryDirectory() as cache:
+        cold_all = _subprocess_seconds(WARMUP, PANDA_PY_CACHE=cache)
+        warm_all = _subprocess_seconds(WARMUP, PANDA_PY_CACHE=cache)
+    print(f"{'first fk, empty cache (one-time compile)':<38}{cold_fk * 1e3:8.0f}")
+    print(f"{'warmup(), empty cache (every kernel)':<38}{cold_all * 1e3:8.0f}")
+    print(f"{'warmup(), cache in place':<38}{warm_all * 1e3:8.0f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--samples", type=int, default=300, help="samples per per-call figure")
+    ap.add_argument("--samples", type=int, default=200, help="samples per per-call figure")
     ap.add_argument("--block", type=int, default=100, help="calls per sample")
+    ap.add_argument("--configs", type=int, default=2000, help="random configurations cycled")
     ap.add_argument("--batch", type=int, default=10_000, help="N for the batched figures")
+    ap.add_argument("--repeat", type=int, default=3, help="repeats of everything (spread)")
+    ap.add_argument("--plain", action="store_true", help="also time the plain backend")
+    ap.add_argument("--no-fresh", action="store_true", help="skip the subprocess figures")
     args = ap.parse_args()
 
     ns: dict[str, object] = {}
     exec(TIMING, ns)
-    measure = ns["measure"]
+    per_call = ns["per_call"]
 
-    t0 = time.perf_counter()
     import panda_py.kinematics as kin
+    from panda_py.kinematics import _backend
+    from panda_py.robots.params import FER
 
-    t_kin_import = time.perf_counter() - t0
-    from panda_py.kinematics import _model
-    from panda_py.robots.params import FER, START_POSE
-
-    q = np.array(START_POSE)
-    s, b = args.samples, args.block
+    kin.warmup()
     rng = np.random.default_rng(0)
-    n = args.batch
-    Q = rng.uniform(FER.joints.q_min, FER.joints.q_max, size=(n, 7))
-    q7 = Q[:, 6].copy()
-    backends: dict[str, object] = {"pure": None}
-    t0 = time.perf_counter()
-    jit = _model.load_jit()
-    t_jit_import = time.perf_counter() - t0
-    if jit is not None:
-        backends["numba"] = jit
-        backends["numba, one thread"] = jit
-    par_min = _model.PARALLEL_MIN_ROWS
-    results: dict[str, dict[str, list[float]]] = {}
-    for bname, mod in backends.items():
-        _model._JIT = mod
-        _model.PARALLEL_MIN_ROWS = 2**62 if bname == "numba, one thread" else par_min
-        T = kin.fk(q)
-        TT = kin.fk(Q)
-        ours: dict[str, list[float]] = {}
-        if bname != "numba, one thread":  # (single calls are the same as "numba")
-            ours = {
-                "fk": measure(lambda: kin.fk(q), s, b),  # type: ignore[operator]
-                "ik": measure(lambda: kin.ik(T), s, b),  # type: ignore[operator]  # noqa: B023
-                "ik_q": measure(lambda: kin.ik(T, q, 0.5), s, b),  # type: ignore[operator]  # noqa: B023
-                "ik_full": measure(lambda: kin.ik_full(T), s, b),  # type: ignore[operator]  # noqa: B023
-                "zero_jacobian": measure(lambda: kin.zero_jacobian(q), s, b),  # type: ignore[operator]
-            }
-        batched = {
-            "fk_loop": lambda: kin.fk(Q),
-            "ik_loop": lambda: kin.ik(TT, Q, q7),  # noqa: B023
-            "ik_full_loop": lambda: kin.ik_full(TT, Q, q7),  # noqa: B023
-            "zero_jacobian_loop": lambda: kin.zero_jacobian(Q),
-        }
-        for name, fn in batched.items():
-            ours[name] = [min(measure(fn, 5, 1)) / n]  # type: ignore[operator]
-        results[bname] = ours
-    _model._JIT = jit
-    _model.PARALLEL_MIN_ROWS = par_min
-    T = kin.fk(q)
-    TT = kin.fk(Q)
+    lo, hi = np.array(FER.joints.q_min), np.array(FER.joints.q_max)
+    Qa = rng.uniform(lo, hi, size=(args.configs, 7))
+    Q = list(Qa)
+    TT = list(kin.fk(Qa))
+    q7 = Qa[:, 6].tolist()
+    QB = rng.uniform(lo, hi, size=(args.batch, 7))
+    TB = kin.fk(QB)
+    q7b = QB[:, 6].copy()
 
-    theirs: dict[str, list[float]] = {}
+    default = _backend.jit()
+    backends: dict[str, object] = {"default (numba JIT)" if default else "default (plain)": default}
+    if args.plain and default is not None:
+        backends["plain (PANDA_PY_NO_JIT=1)"] = None
+
     try:
         from peer_envs import PeerUnavailable, peer_python
 
-        python = peer_python("panda-python")
-        payload = {"q": q.tolist(), "samples": s, "block": b, "Q": Q.tolist(),
-                   "TT": TT.tolist(), "q7": q7.tolist()}  # fmt: skip
-        out = subprocess.run(
-            [str(python), "-c", PEER_SCRIPT],
-            input=json.dumps(payload),
-            capture_output=True,
-            text=True,
-            check=True,
-            timeout=600,
-        )
-        theirs = json.loads(out.stdout)
-    except (PeerUnavailable, subprocess.SubprocessError) as exc:
+        python: Path | None = peer_python("panda-python")
+    except (ImportError, PeerUnavailable) as exc:
         print(f"panda-python unavailable, no ratios: {exc}")
+        python = None
+    payload = json.dumps({
+        "Q": Qa.tolist(), "TT": [T.tolist() for T in TT], "q7": q7, "samples": args.samples,
+        "block": args.block, "QB": QB.tolist(), "TB": TB.tolist(), "q7b": q7b.tolist(),
+    })  # fmt: skip
 
+    # results[backend][name] = list over repeats of sample lists; theirs[name] likewise
+    results: dict[str, dict[str, list[list[float]]]] = {b: {} for b in backends}
+    theirs: dict[str, list[list[float]]] = {}
+    for _ in range(args.repeat):
+        for bname, mod in backends.items():
+            _backend._JIT = mod
+            got = per_call(kin, Q, TT, q7, args.samples, args.block)  # type: ignore[operator]
+            batched = {
+                "batch_fk": lambda: kin.fk(QB),
+                "batch_ik_q": lambda: kin.ik(TB, QB, q7b),
+                "batch_ik_full": lambda: kin.ik_full(TB, QB, q7b),
+            }
+            measure = ns["measure"]
+            for name, fn in batched.items():
+                t = measure(lambda i, fn=fn: fn(), 3, 1, 1)  # type: ignore[operator]
+                got[name] = [min(t) / args.batch]
+            for name, v in got.items():
+                results[bname].setdefault(name, []).append(v)
+        _backend._JIT = default
+        if python is not None:
+            out = subprocess.run(
+                [str(python), "-c", PEER_SCRIPT],
+                input=payload,
+                capture_output=True,
+                text=True,
+                check=True,
+                timeout=1200,
+            )
+            for name, v in json.loads(out.stdout).items():
+                theirs.setdefault(name, []).append(v)
+
+    print(f"\n{args.configs} random configurations, {args.repeat} repeats; per call [us]")
     for bname, ours in results.items():
-        print(f"\n=== backend: {bname} ===")
-        if "fk" in ours:
-            print(f"{'per call [us]':<22}{'median':>9}{'p99':>9}{'worst':>9}   panda-python median"
-                  f"{'p99':>8}{'worst':>9}   ours/theirs")  # fmt: skip
-        for name in ("fk", "ik", "ik_q", "ik_full", "zero_jacobian"):
-            if name not in ours:
-                continue
-            m, p, w = _stats(ours[name])
-            line = f"{name:<22}{m:9.2f}{p:9.2f}{w:9.2f}"
+        print(f"\n=== {bname} ===")
+        print(f"{'':<10}{'median':>8}{'p99':>8}{'worst':>8}   panda-python  median"
+              f"{'p99':>8}{'worst':>8}   ours/theirs per repeat")  # fmt: skip
+        for name in ("fk", "ik", "ik_q", "ik_full"):
+            m, p, w = _stats([x for rep in ours[name] for x in rep])
+            line = f"{name:<10}{m:8.2f}{p:8.2f}{w:8.2f}"
             if name in theirs:
-                tm, tp, tw = _stats(theirs[name])
-                line += f"   {tm:19.2f}{tp:8.2f}{tw:9.2f}   {m / tm:10.2f}x"
+                tm, tp, tw = _stats([x for rep in theirs[name] for x in rep])
+                ratios = [
+                    _stats(a)[0] / _stats(b)[0]
+                    for a, b in zip(ours[name], theirs[name], strict=True)
+                ]
+                spread = " ".join(f"{r:.2f}" for r in ratios)
+                line += f"   {tm:20.2f}{tp:8.2f}{tw:8.2f}   {spread}"
             print(line)
-        print(f"batched over N = {n} [us per configuration]   panda-python loop   speed-up")
-        for name in ("fk_loop", "ik_loop", "ik_full_loop", "zero_jacobian_loop"):
-            m = ours[name][0] * 1e6
-            line = f"{name.replace('_loop', ''):<22}{m:9.3f}"
+        print(f"batched, N = {args.batch} [us per configuration]  panda-python loop  "
+              "speed-up per repeat")  # fmt: skip
+        for name in ("batch_fk", "batch_ik_q", "batch_ik_full"):
+            mine = [rep[0] * 1e6 for rep in ours[name]]
+            line = f"{name.replace('batch_', ''):<10}{np.median(mine):8.3f}"
             if name in theirs:
-                tm = theirs[name][0] * 1e6
-                line += f"   {tm:18.3f}   {tm / m:8.1f}x"
+                peer = [rep[0] * 1e6 for rep in theirs[name]]
+                spread = " ".join(f"{b / a:.1f}x" for a, b in zip(mine, peer, strict=True))
+                line += f"{np.median(peer):26.3f}   {spread}"
             print(line)
-    if jit is None:
-        print("\n(numba not installed or PANDA_PY_NO_JIT set: pure backend only)")
-    else:
-        print(f"\nload numba + cached kernels (this process): {t_jit_import * 1e3:.0f} ms")
-        print(f"first fk call in a fresh process (numba import, kernel load): "
-              f"{_first_call_time() * 1e3:.0f} ms")  # fmt: skip
-    print(f"\nimport panda_py: {_import_time() * 1e3:.1f} ms")
-    print(f"import panda_py.kinematics (first, in this process): {t_kin_import * 1e3:.1f} ms")
-    print("(ik: O_T_EE of the start pose, default q_init and q_7; ik_q: with q_init and q_7=0.5)")
+    print("(ik: default q_init and q_7; ik_q and ik_full: with q_init and q_7)")
+    if not args.no_fresh:
+        fresh_process_figures(args.repeat)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,7 @@ import pytest
 
 import panda_py
 from panda_py import kinematics as kin_mod
-from panda_py.kinematics import IKStatus, Kinematics, _model
+from panda_py.kinematics import IKStatus, Kinematics, _backend
 from panda_py.robots.params import DH_FRANKA, FER, FR3, FRANKA_HAND, START_POSE
 
 FER_LO, FER_HI = np.array(FER.joints.q_min), np.array(FER.joints.q_max)
@@ -30,7 +30,7 @@ def _numba_backend():
     try:
         import numba  # noqa: F401
     except ImportError:
-        return None, "numba is not installed (pip install panda-py[fast])"
+        return None, "numba is not installed (no wheels for this platform)"
     from panda_py.kinematics import _numba
 
     return _numba, ""
@@ -39,12 +39,12 @@ def _numba_backend():
 @pytest.fixture(params=["pure", "numba"], autouse=True)
 def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     if request.param == "pure":
-        monkeypatch.setattr(_model, "_JIT", None)
+        monkeypatch.setattr(_backend, "_JIT", None)
     else:
         mod, reason = _numba_backend()
         if mod is None:
             pytest.skip(reason)
-        monkeypatch.setattr(_model, "_JIT", mod)
+        monkeypatch.setattr(_backend, "_JIT", mod)
     return request.param
 
 
@@ -376,9 +376,12 @@ def test_bad_input_is_a_clear_value_error(call, match: str) -> None:
         call()
 
 
-@pytest.mark.parametrize("n", [5, 3000])  # 3000: above PARALLEL_MIN_ROWS (numba: prange)
+@pytest.mark.parametrize("n", [5, 3000])  # 3000: the parallel kernels (numba: prange)
 @pytest.mark.parametrize("fn", ["ik", "ik_full"])
-def test_a_bad_pose_in_a_batch_is_named_by_its_index(n: int, fn: str) -> None:
+def test_a_bad_pose_in_a_batch_is_named_by_its_index(
+    n: int, fn: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 2048)
     rng = np.random.default_rng(13)
     Q = random_q(rng, n)
     T = kin_mod.fk(Q)
@@ -433,9 +436,9 @@ def _both(monkeypatch: pytest.MonkeyPatch, fn):
     mod, reason = _numba_backend()
     if mod is None:
         pytest.skip(reason)
-    monkeypatch.setattr(_model, "_JIT", None)
+    monkeypatch.setattr(_backend, "_JIT", None)
     pure = fn()
-    monkeypatch.setattr(_model, "_JIT", mod)
+    monkeypatch.setattr(_backend, "_JIT", mod)
     return pure, fn()
 
 
@@ -484,13 +487,13 @@ def test_numba_atan2_and_sincos_are_within_3_ulp_of_libm(backend: str) -> None:
         pytest.skip("numba only")
     import numba
 
-    from panda_py.kinematics import _nbmath
+    from panda_py.kinematics import _scalar
 
     @numba.njit
-    def run(y, x, out):  # atan2(y, x), sin(x), cos(x)
+    def run(y, x, out):  # atan2(y, x), sin(x), cos(x): _nbmath's, as the kernels run them
         for i in range(y.shape[0]):
-            out[i, 0] = _nbmath.atan2(y[i], x[i])
-            out[i, 1], out[i, 2] = _nbmath.sincos(x[i])
+            out[i, 0] = _scalar.atan2(y[i], x[i])
+            out[i, 1], out[i, 2] = _scalar.sincos(x[i])
 
     rng = np.random.default_rng(14)
     n = 200_000
@@ -543,31 +546,31 @@ def test_parallel_kernels_equal_the_serial_ones(
     def all_of_them():
         return (kin_mod.fk(Q), kin_mod.ik(T, Q, q7), kin_mod.ik_full(T, Q, q7), kin_mod.ik(T))
 
-    monkeypatch.setattr(_model, "PARALLEL_MIN_ROWS", 10**9)
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 10**9)
     serial = all_of_them()
-    monkeypatch.setattr(_model, "PARALLEL_MIN_ROWS", 1)
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 1)
     calls = []
-    original = _model._run
+    original = _backend._run
 
     def spy(serial_kernel, parallel_kernel, n, *args):
         calls.append(parallel_kernel.__name__)
         original(serial_kernel, parallel_kernel, n, *args)
 
-    monkeypatch.setattr(_model, "_run", spy)
+    monkeypatch.setattr(_backend, "_run", spy)
     parallel = all_of_them()
     assert calls == ["fk_batch_par", "ik_batch_par", "ik_batch_par", "ik_batch_par"]
     for a, b in zip(serial, parallel, strict=True):
         np.testing.assert_array_equal(a, b)  # bit for bit, NaN where NaN
     # not in a forked child (GNU OpenMP is not fork-safe) and not while another thread
     # runs a parallel kernel: the serial kernel then
-    monkeypatch.setattr(_model, "_run", original)
+    monkeypatch.setattr(_backend, "_run", original)
     ran = []
-    monkeypatch.setattr(_model, "_PAR_PID", -1)
-    _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
-    monkeypatch.setattr(_model, "_PAR_PID", os.getpid())
-    with _model._PAR_LOCK:
-        _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
-    _model._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    monkeypatch.setattr(_backend, "_PAR_PID", -1)
+    _backend._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    monkeypatch.setattr(_backend, "_PAR_PID", os.getpid())
+    with _backend._PAR_LOCK:
+        _backend._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
+    _backend._run(lambda: ran.append("serial"), lambda: ran.append("parallel"), 10**6)
     assert ran == ["serial", "serial", "parallel"]
 
 
@@ -588,22 +591,118 @@ def test_jit_is_lazy_optional_and_survives_an_unwritable_cache(backend: str) -> 
         pytest.skip(_numba_backend()[1])
     probe = (
         "import sys, numpy as np, panda_py, panda_py.kinematics as k\n"
-        "from panda_py.kinematics import _model\n"
+        "from panda_py.kinematics import _backend\n"
         "print('numba' in sys.modules, end=' ')\n"
-        "k.fk(np.zeros(7)); print(_model._JIT is not None)"
+        "k.fk(np.zeros(7)); print(_backend._JIT is not None)"
     )
     assert _python(probe) == "False True"  # not imported with panda_py; used on first call
     assert _python(probe, PANDA_PY_NO_JIT="1") == "False False"
-    # numba finds no place for its cache: the kernels still compile (in memory)
+    # no writable place for the cache (a path below a file): the kernels compile in memory
     no_cache = (
-        "from numba.core import caching\n"
-        "caching.CacheImpl._locator_classes = []\n"
         "import numpy as np\n"
-        "from panda_py.kinematics import _numba, Kinematics\n"
+        "from panda_py.kinematics import _numba, _fk, Kinematics\n"
         "K = Kinematics(); out = np.empty((4, 4))\n"
-        "print(_numba.fk_one(np.zeros(7), K._CF, out), np.allclose(out, K._fk_pure(np.zeros(7))))"
+        "ok = _numba.fk_one(np.zeros(7), K._CF, out)\n"
+        "print(ok, np.allclose(out[:3].ravel(), _fk.ee_pose(K._chain, [0.0] * 7)), "
+        "_numba.fk_one._cache.__class__.__name__)"
     )
-    assert _python(no_cache) == "True True"
+    assert _python(no_cache, PANDA_PY_CACHE=__file__) == "True True NullCache"
+
+
+def test_without_numba_the_plain_backend_runs(backend: str) -> None:
+    if backend == "pure":
+        pytest.skip("runs once")
+    probe = (
+        "import sys; sys.modules['numba'] = None  # as if not installed\n"
+        "import numpy as np, panda_py.kinematics as k\n"
+        "from panda_py.kinematics import _backend\n"
+        "q = np.array([0.1, -0.3, 0.2, -2.0, 0.1, 1.6, 0.7])\n"
+        "print(_backend.jit(), k.warmup(), np.allclose(k.ik(k.fk(q), q, q[6]), q))"
+    )
+    assert _python(probe) == "None False True"
+
+
+@pytest.mark.timeout(400)
+def test_the_jit_cache_is_invalidated_by_any_edit_to_what_it_compiles(
+    backend: str, tmp_path
+) -> None:
+    """A scratch copy of the package: a constant edited in _ik.py (not the file that
+    defines the kernels, which is all numba's own cache would look at) changes the result
+    of the next process, which must not load the kernel compiled before the edit."""
+    if backend == "pure":
+        pytest.skip("runs once")
+    if _numba_backend()[0] is None:
+        pytest.skip(_numba_backend()[1])
+    import shutil
+
+    src = tmp_path / "src"
+    shutil.copytree(
+        os.path.dirname(os.path.dirname(panda_py.__file__)),
+        src,
+        ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"),
+    )
+    env = {"PYTHONPATH": str(src), "PANDA_PY_CACHE": str(tmp_path / "cache")}
+    probe = (
+        "import numpy as np, panda_py.kinematics as k\n"
+        "from panda_py.kinematics import _numba\n"
+        "T = np.eye(4); T[:3, :3] *= 1.01; T[:3, 3] = (0.5, 0.0, 0.4)\n"  # 1 % off rigid
+        "try:\n"
+        "    k.ik(T); print('solved', end=' ')\n"
+        "except ValueError:\n"
+        "    print('refused', end=' ')\n"
+        "print(_numba.ik_one.stats.cache_hits.most_common(1)[0][1] "
+        "if _numba.ik_one.stats.cache_hits else 0)"
+    )
+    assert _python(probe, **env) == "refused 0"  # compiled and cached
+    assert _python(probe, **env) == "refused 1"  # loaded from the cache
+    ik_py = src / "panda_py" / "kinematics" / "_ik.py"
+    text = ik_py.read_text()
+    assert "ROTATION_TOL = 1e-6\n" in text
+    ik_py.write_text(text.replace("ROTATION_TOL = 1e-6\n", "ROTATION_TOL = 0.1\n"))
+    assert _python(probe, **env) == "solved 0"  # the edit took effect: compiled afresh
+    assert len(list((tmp_path / "cache" / "numba").iterdir())) == 2
+
+
+def test_warmup_compiles_every_kernel_and_is_cheap_once_done(backend: str) -> None:
+    import time
+
+    if backend == "pure":
+        assert kin_mod.warmup() is False
+        return
+    assert kin_mod.warmup() is True
+    t0 = time.perf_counter()
+    assert kin_mod.warmup() is True
+    assert time.perf_counter() - t0 < 0.01
+    jit = _backend.jit()
+    for name in ("fk_one", "fk_batch", "fk_batch_par", "ik_batch", "ik_batch_par", "ik_one"):
+        assert getattr(jit, name).signatures, name
+
+
+def test_packed_parameters_unpack_to_the_same_names() -> None:
+    from panda_py.kinematics import _fk, _ik
+
+    for kin in (
+        Kinematics("fer"),
+        Kinematics("fr3", F_T_EE=random_F_T_EE(np.random.default_rng(3))),
+    ):
+        assert _ik.unpack_ik_params(kin._P) == kin._ik_params
+        assert _fk.unpack_chain(kin._CF) == kin._chain
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: kin_mod.fk(np.array(START_POSE) + 1j),
+        lambda: kin_mod.fk([0j] * 7),
+        lambda: kin_mod.ik(kin_mod.fk(np.array(START_POSE)) + 0j),
+        lambda: kin_mod.ik(kin_mod.fk(np.array(START_POSE)), np.array(START_POSE), 0.5 + 1j),
+        lambda: kin_mod.ik_full(kin_mod.fk(np.array(START_POSE)), np.array(START_POSE) + 0j),
+        lambda: kin_mod.zero_jacobian(np.zeros(7, dtype=complex)),
+    ],
+)
+def test_complex_input_is_a_value_error(call) -> None:
+    with pytest.raises(ValueError, match="expected real numbers, got complex"):
+        call()
 
 
 def test_strided_and_integer_inputs_give_the_same_results() -> None:

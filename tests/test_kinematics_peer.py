@@ -10,13 +10,13 @@ import pytest
 from peer_envs import PeerUnavailable, peer_python
 
 from panda_py import kinematics as kin_mod
-from panda_py.robots.params import DH_FRANKA, FER
+from panda_py.robots.params import DH_FRANKA, FER, FRANKA_HAND
 
 pytestmark = [pytest.mark.peer, pytest.mark.timeout(900)]
 
-# panda-py's fk puts the TCP 0.103 m past the flange, its ik 0.1034 m (He and Liu's
-# d7e = 0.2104); we use 0.1034 in both.
-PANDA_PY_FK_TCP = 0.103  # [m]
+# panda-py's fk puts the TCP 0.103 m past the flange in some builds, 0.1034 m (like its ik:
+# He and Liu's d7e = 0.2104) in others; we use 0.1034 in both.
+PANDA_PY_FK_TCPS = (0.103, 0.1034)  # [m]
 
 _SCRIPT = """
 import json, sys
@@ -63,8 +63,12 @@ def test_fk_and_ik_agree_with_panda_py() -> None:
         {"q": Q.tolist(), "T": T.tolist(), "q_init": q_init.tolist(), "q7": q7.tolist()}
     )
     # fk: identical once our end effector has panda-py's fk offset
+    # (the offset the peer uses, from its first pose: ours + (tcp - 0.1034) z_EE)
+    T0, theirs0 = T[0], _nan(res["fk"])[0]
+    tcp = FRANKA_HAND.tcp_offset + float(T0[:3, 2] @ (theirs0[:3, 3] - T0[:3, 3]))
+    assert min(abs(tcp - t) for t in PANDA_PY_FK_TCPS) < 1e-9, tcp
     F_T_EE = kin_mod.hand_F_T_EE()
-    F_T_EE[2, 3] = PANDA_PY_FK_TCP
+    F_T_EE[2, 3] = tcp
     np.testing.assert_allclose(_nan(res["fk"]), kin_mod.fk(Q, F_T_EE=F_T_EE), atol=1e-12)
     # ik_full: the same branches in the same rows. Away from the shoulder singularity
     # (panda-py pins q2 = 0 within acos(0.999) = 0.045 rad of it) both must agree.

@@ -16,11 +16,13 @@ behaviour), in pure Python and NumPy:
   (N, ...) arrays; ``robot="fr3"`` (or a :class:`Kinematics` object) selects the joint
   limits, ``F_T_EE=`` another end effector.
 
-Single calls run generated straight-line float code (see ``_codegen``); batches run the
-same code on NumPy arrays. With numba installed (``pip install panda-py[fast]``) both run
-compiled kernels instead (``_numba``; loaded on the first call, not at import; batches of
-``_model.PARALLEL_MIN_ROWS`` or more on all cores); set ``PANDA_PY_NO_JIT=1`` to keep the
-pure paths.
+The arithmetic is written once, in scalar Python (``_fk``, ``_ik``), and runs compiled by
+numba (a regular dependency where numba ships wheels; ``_numba``, loaded on the first call,
+not at import; batches of ``_backend.PARALLEL_MIN_ROWS`` or more on all cores) or as plain
+Python (no numba, or ``PANDA_PY_NO_JIT=1``). The first call after installing compiles
+the kernels it needs and caches them per user (``~/.cache/panda_py/numba``); later
+processes load them. :func:`warmup` compiles or loads them all ahead of time, for
+processes that must not stall later.
 """
 
 from __future__ import annotations
@@ -29,7 +31,11 @@ from typing import Any
 
 import numpy as np
 
+from panda_py.kinematics import _backend, _fk
+from panda_py.kinematics._backend import warmup
 from panda_py.kinematics._model import (
+    _F64,
+    _PACK16,
     DEFAULT_Q7,
     Q7_SEARCH_STEP,
     FloatArray,
@@ -53,6 +59,7 @@ __all__ = [
     "ik",
     "ik_full",
     "ik_result",
+    "warmup",
     "zero_jacobian",
 ]
 
@@ -84,17 +91,10 @@ def get_kinematics(robot: Any = "fer", F_T_EE: Any = None) -> Kinematics:
 
 def _make_fk(kin: Kinematics) -> Any:
     # A closure over the default model: one Python call frame, no attribute look-ups on
-    # the fast path (7 floats in, one 4x4 array out), on the numba kernel (its signatures
-    # refuse other types with a TypeError) or on the generated code.
-    ee = kin._ee
-    empty = np.empty
-    from panda_py.kinematics import _model
-    from panda_py.kinematics._model import _F64 as F64
-    from panda_py.kinematics._model import _PACK16, _UNSET
-
-    pack = _PACK16
-    CF = kin._CF
-    ndarray = np.ndarray
+    # the fast path (a float64 vector in, one 4x4 array out), on the numba kernel (its
+    # signatures refuse other types with a TypeError) or on the plain scalar code.
+    empty, ndarray, F64, UNSET = np.empty, np.ndarray, _F64, _backend._UNSET
+    CF, chain, pack, ee_pose = kin._CF, kin._chain, _PACK16, _fk.ee_pose
     kernel: Any = None  # the numba kernel, once loaded
 
     def fk(q: Any, *, robot: Any = None, F_T_EE: Any = None) -> FloatArray:
@@ -103,11 +103,11 @@ def _make_fk(kin: Kinematics) -> Any:
         the FER with the Franka Hand)."""
         nonlocal kernel
         if robot is None and F_T_EE is None:
-            jit = _model._JIT
-            if jit is _UNSET:
-                jit = _model.load_jit()
-            if jit is not None:
-                if type(q) is ndarray and q.dtype is F64 and q.ndim == 1:
+            if type(q) is ndarray and q.dtype is F64 and q.ndim == 1:
+                jit = _backend._JIT
+                if jit is UNSET:
+                    jit = _backend.load_jit()
+                if jit is not None:
                     if kernel is None:
                         kernel = jit.single("fk_one")
                     out = empty((4, 4))
@@ -116,18 +116,14 @@ def _make_fk(kin: Kinematics) -> Any:
                             return out
                     except (TypeError, ValueError):  # not float64
                         pass
-                return kin.fk(q)
-            try:
-                if len(q) != 7:
-                    raise ValueError  # a batch: no tolist() of N rows here
-                a, b, c, d, e, f, g = q.tolist()
-                s = a + b + c + d + e + f + g
-                if s - s == 0.0:  # all finite (NaN or infinity make this NaN)
-                    out = empty((4, 4))
-                    pack(out, 0, *ee(a, b, c, d, e, f, g))
-                    return out
-            except (AttributeError, TypeError, ValueError):
-                pass
+                elif q.shape[0] == 7:
+                    v = q.tolist()
+                    s = v[0] + v[1] + v[2] + v[3] + v[4] + v[5] + v[6]
+                    if s - s == 0.0:  # all finite (NaN or infinity make this NaN)
+                        out = empty((4, 4))
+                        pack(out, 0, *ee_pose(chain, v), 0.0, 0.0, 0.0, 1.0)
+                        return out
+            return kin.fk(q)
         return get_kinematics(robot if robot is not None else "fer", F_T_EE).fk(q)
 
     return fk
@@ -163,10 +159,7 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
     # else takes the general path, which also words the error messages.
     if kin._EE_T_F is not None:
         raise ValueError("the fast single-pose ik needs an EE on the flange's z axis")
-    from panda_py.kinematics import _model
-    from panda_py.kinematics._model import _F64 as F64
-    from panda_py.kinematics._model import _UNSET
-
+    F64, UNSET = _F64, _backend._UNSET
     P, start, empty, ndarray = kin._P, kin._start, np.empty, np.ndarray
     shape = (4, 7) if full else 7
     kernel_name = "ik_full_one" if full else "ik_one"
@@ -187,9 +180,9 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
         if fast:
             q7 = DEFAULT_Q7 if q7 is _NOARG else q7
             qi = start if qi is _NOARG or qi is None else qi
-            jit = _model._JIT
-            if jit is _UNSET:
-                jit = _model.load_jit()
+            jit = _backend._JIT
+            if jit is UNSET:
+                jit = _backend.load_jit()
             if jit is not None and (
                 O_T_EE.dtype is F64 and (qi is start or (type(qi) is ndarray and qi.dtype is F64))
             ):

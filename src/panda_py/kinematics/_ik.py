@@ -21,323 +21,219 @@ shoulder singularity is detected on the actual geometry (|P_xy| below a length t
 not on an angle threshold, so ``fk(ik(T)) == T`` holds to about 1e-12 wherever a solution
 is returned.
 
-Two implementations share these equations: :func:`make_scalar_solver` (plain floats, for
-single calls, where interpreter overhead dominates) and :func:`solve_batch` (NumPy over N
-rows). Tests hold them equal.
+The solver is written once, in scalar Python that numba compiles as it is (:mod:`._numba`,
+the default where numba is installed) or Python runs plain (``PANDA_PY_NO_JIT=1``, or no
+numba): :func:`solve` for one pose, :func:`ik_range` the loop over a batch that every
+kernel, single or batched, serial or parallel, runs. Its parameters are an
+:class:`IKParams` read by name; the kernels take them packed in a float64 array
+(:func:`pack_ik_params`), which a numba call passes far faster than a named tuple.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+
+from panda_py.kinematics._scalar import atan2, flip, sincos
 
 # Status codes (mirrored by the public IKStatus enum).
 OK = 0
 UNREACHABLE = 1
 JOINT_LIMIT = 2
 SINGULAR = 3
+# A pose that is not a finite rigid transform, or whose q_init or q_7 is not finite: not
+# solved; the caller raises (see ``_args.raise_invalid``).
+INVALID = -1
 
 # Below this distance [m] of the shoulder point P from the joint-1 axis, q1 is undefined
 # (shoulder singularity) and is taken from q_init, as in the paper.
 SHOULDER_SINGULAR_TOL = 1e-10
 # Below this distance [m] of the shoulder from the joint-6 axis, q6 is undefined.
 WRIST_SINGULAR_TOL = 1e-10
+# A matrix whose rotation part is this far [-] from orthonormal (unit orthogonal x and y
+# columns, z = x cross y) or whose last row is this far from (0, 0, 0, 1) is not a rigid
+# transform.
+ROTATION_TOL = 1e-6
 
 TWO_PI = 2.0 * math.pi
+_PIO2 = math.pi / 2
+NAN7 = (math.nan,) * 7
+_ZERO15 = (0.0,) * 15
+_NO_ARM = (False, False, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@dataclass(frozen=True)
-class IKParams:
-    """Geometry and limits the solver needs (all from :mod:`panda_py.robots.params`).
-
-    ``d_e`` [m] and ``theta_e`` [rad]: the target frame is ``J7 * TransZ(d_e) * RotZ(theta_e)``.
-    """
+class IKParams(NamedTuple):
+    """Geometry and limits the solver needs (all from :mod:`panda_py.robots.params`; build
+    with :func:`ik_params`). The target frame is ``J7 * TransZ(d_e) * RotZ(theta_e)``."""
 
     d1: float
     d3: float
     d5: float
     a4: float
     a7: float
-    d_e: float
-    theta_e: float
-    q_min: tuple[float, ...]
+    d_e: float  # [m]
+    theta_e: float  # [rad]
+    l24: float  # shoulder-elbow distance [m]
+    l46: float  # elbow-wrist distance [m]
+    q4_offset: float  # q4 = theta_246 + q4_offset, theta_246 the elbow triangle's angle
+    cos_q4_offset: float
+    sin_q4_offset: float
+    inv_2l24l46: float  # 1 / (2 l24 l46) [1/m^2]: the elbow triangle's sides to cos, sin
+    q_min: tuple[float, ...]  # [rad]
     q_max: tuple[float, ...]
 
-    @property
-    def l24(self) -> float:
-        return math.hypot(self.a4, self.d3)
 
-    @property
-    def l46(self) -> float:
-        return math.hypot(self.a4, self.d5)
-
-    @property
-    def q4_offset(self) -> float:
-        """q4 = theta_246 + q4_offset, theta_246 the triangle's angle at the elbow."""
-        return math.atan2(self.d3, self.a4) + math.atan2(self.d5, self.a4) - TWO_PI
-
-    @property
-    def cos_q4_offset(self) -> float:
-        return math.cos(self.q4_offset)
-
-    @property
-    def sin_q4_offset(self) -> float:
-        return math.sin(self.q4_offset)
-
-    @property
-    def inv_2l24l46(self) -> float:
-        """1 / (2 l24 l46) [1/m^2]: scales the elbow triangle's sides to cos and sin."""
-        return 1.0 / (2.0 * self.l24 * self.l46)
+def ik_params(
+    d1: float, d3: float, d5: float, a4: float, a7: float, d_e: float, theta_e: float,
+    q_min: tuple[float, ...], q_max: tuple[float, ...],
+) -> IKParams:  # fmt: skip
+    """The solver's parameters, derived ones included."""
+    l24, l46 = math.hypot(a4, d3), math.hypot(a4, d5)
+    off = math.atan2(d3, a4) + math.atan2(d5, a4) - TWO_PI
+    return IKParams(
+        d1, d3, d5, a4, a7, d_e, theta_e, l24, l46, off, math.cos(off), math.sin(off),
+        1.0 / (2.0 * l24 * l46), tuple(q_min), tuple(q_max),
+    )  # fmt: skip
 
 
-# The solver's signature: (R row-major 9, p 3, q7, q1_init, branches) -> rows
-ScalarSolver = Callable[..., list[tuple[int, int, tuple[float, ...]]]]
+def pack_ik_params(P: IKParams) -> NDArray[np.float64]:
+    """The parameters as the kernels' flat float64 array (27,); :func:`unpack_ik_params`
+    reverses it."""
+    return np.array([*P[:13], *P.q_min, *P.q_max], dtype=np.float64)
 
 
-def _flip(angle: float) -> float:
-    """angle + pi, wrapped to (-pi, pi] the way the shoulder flip needs it."""
-    return angle - math.pi if angle > 0.0 else angle + math.pi
+def unpack_ik_params(A: Any) -> IKParams:
+    """:func:`pack_ik_params` reversed (inside the kernels)."""
+    return IKParams(
+        A[0], A[1], A[2], A[3], A[4], A[5], A[6], A[7], A[8], A[9], A[10], A[11], A[12],
+        (A[13], A[14], A[15], A[16], A[17], A[18], A[19]),
+        (A[20], A[21], A[22], A[23], A[24], A[25], A[26]),
+    )  # fmt: skip
 
 
-def make_scalar_solver(P: IKParams) -> ScalarSolver:
-    """A function ``solve(r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7,
-    q1_init, rows)`` returning ``[(row, status, q), ...]`` for the requested rows (each in
-    0..3, rows of one q6 branch next to each other), ``q`` a 7-tuple of floats (meaningful
-    only when status is OK)."""
-    d1, d3, d5, a4, a7, d_e, theta_e = P.d1, P.d3, P.d5, P.a4, P.a7, P.d_e, P.theta_e
-    l24, l46 = P.l24, P.l46
-    l24_sq_l46_sq = l24 * l24 + l46 * l46
-    inv_b = P.inv_2l24l46
-    diff_sq = (l24 - l46) ** 2
-    sum_sq = (l24 + l46) ** 2
-    q4_off, c_off, s_off = P.q4_offset, P.cos_q4_offset, P.sin_q4_offset
-    lo1, lo2, lo3, lo4, lo5, lo6, lo7 = P.q_min
-    hi1, hi2, hi3, hi4, hi5, hi6, hi7 = P.q_max
-    sin, cos, atan2, sqrt = math.sin, math.cos, math.atan2, math.sqrt
-
-    def solve(r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7, q1_init, rows):
-        nan7 = (math.nan,) * 7
-        if not lo7 <= q7 <= hi7:
-            return [(r, JOINT_LIMIT, nan7) for r in rows]
-        # Wrist point p6: joint 7's origin lies d_e behind the target along z7 = z_EE, and
-        # frame 6's x axis is the target's x axis turned back by q7 + theta_e about z7;
-        # p7 = p6 + a7 x6.
-        psi = q7 + theta_e
-        cp, sp = cos(psi), sin(psi)
-        x6x = cp * r00 - sp * r01
-        x6y = cp * r10 - sp * r11
-        x6z = cp * r20 - sp * r21
-        vx = px - d_e * r02 - a7 * x6x  # V26 = p6 - p2, p2 = (0, 0, d1)
-        vy = py - d_e * r12 - a7 * x6y
-        vz = pz - d_e * r22 - a7 * x6z - d1
-        ll = vx * vx + vy * vy + vz * vz
-        # Elbow angle from the triangle (p2, p4, p6): law of cosines, with the sine from
-        # a Heron-type product (h1 h2 = (2 l24 l46)^2 - cos_part^2), so the angle comes
-        # from atan2 and its cosine and sine need no further trigonometry.
-        h1 = ll - diff_sq
-        h2 = sum_sq - ll
-        if h1 < 0.0 or h2 < 0.0:
-            return [(r, UNREACHABLE, nan7) for r in rows]
-        y4 = sqrt(h1 * h2)
-        x4 = l24_sq_l46_sq - ll
-        q4 = atan2(y4, x4) + q4_off
-        if not lo4 <= q4 <= hi4:
-            return [(r, JOINT_LIMIT, nan7) for r in rows]
-        ca, sa = x4 * inv_b, y4 * inv_b
-        c4, s4 = ca * c_off - sa * s_off, sa * c_off + ca * s_off
-        # Joint 6: the shoulder, seen from frame 6 (x6, y6 = -z7, z6 = z7 x x6), has a
-        # fixed component D26 along the joint-5 axis z5 = (sin q6, cos q6, 0) in frame 6.
-        d26 = a4 * s4 - d3 * c4 - d5
-        wx = -(x6x * vx + x6y * vy + x6z * vz)
-        wy = r02 * vx + r12 * vy + r22 * vz
-        rr = wx * wx + wy * wy
-        if rr < WRIST_SINGULAR_TOL * WRIST_SINGULAR_TOL:
-            return [(r, SINGULAR, nan7) for r in rows]
-        h3 = rr - d26 * d26
-        if h3 < 0.0:
-            return [(r, UNREACHABLE, nan7) for r in rows]
-        sh3 = sqrt(h3)
-        irr = 1.0 / rr
-        # z5 = s6 x6 - c6 z7 and x5 = c6 x6 + s6 z7 (y6 = -z7); P = p6 + t z5 lies on the
-        # joint-3 axis, t = a4 tan(q4 / 2) - d5 (the half-angle tangent in its stable form).
-        t = a4 * (s4 / (1.0 + c4) if c4 >= 0.0 else (1.0 - c4) / s4) - d5
-        out = []
-        last6 = -1
-        for row in rows:
-            i6 = row >> 1
-            if i6 != last6:
-                last6 = i6
-                # q6 = theta - phi (i6 = 1) or pi - theta - phi, theta = atan2(d26, sh3),
-                # phi = atan2(wy, wx): its cosine and sine times |w|^2 from the sides.
-                if i6:
-                    cn, sn = sh3 * wx + d26 * wy, d26 * wx - sh3 * wy
-                else:
-                    cn, sn = d26 * wy - sh3 * wx, d26 * wx + sh3 * wy
-                q6 = atan2(sn, cn)
-                if q6 < lo6:
-                    q6 += TWO_PI
-                elif q6 > hi6:
-                    q6 -= TWO_PI
-                ok = lo6 <= q6 <= hi6
-                c6, s6 = cn * irr, sn * irr
-                ux = vx + t * (s6 * x6x - c6 * r02)  # V2P = P - p2
-                uy = vy + t * (s6 * x6y - c6 * r12)
-                uz = vz + t * (s6 * x6z - c6 * r22)
-                x5x = c6 * x6x + s6 * r02
-                x5y = c6 * x6y + s6 * r12
-                x5z = c6 * x6z + s6 * r22
-                # Frame 3: z3 = u / |u|, y3 = m / |m| with m = u x V26 (the arm plane's
-                # normal), x3 = y3 x z3 = X / (|m| |u|) with X = m x u; x4 = c4 x3 + s4 z3.
-                # Each angle below is atan2 of two components scaled by one positive
-                # factor (|m| |u| and the like), so nothing needs normalising.
-                mx = uy * vz - uz * vy
-                my = uz * vx - ux * vz
-                mz = ux * vy - uy * vx
-                bx = my * uz - mz * uy
-                by = mz * ux - mx * uz
-                bz = mx * uy - my * ux
-                huu = ux * ux + uy * uy
-                lu = sqrt(huu + uz * uz)
-                mm = sqrt(mx * mx + my * my + mz * mz)
-                hxy = sqrt(huu)
-                q5 = atan2(
-                    lu * (x5x * mx + x5y * my + x5z * mz),
-                    c4 * (x5x * bx + x5y * by + x5z * bz)
-                    + s4 * mm * (x5x * ux + x5y * uy + x5z * uz),
-                )
-                ok = ok and mm > 0.0 and lo5 <= q5 <= hi5  # mm = 0: no arm plane
-                if ok and hxy >= SHOULDER_SINGULAR_TOL:
-                    # Shoulder: z3 = (c1 s2, s1 s2, c2), so q1 and q2 come from u; x3 =
-                    # c3 x2 + s3 z2 with x2 = (c1 c2, s1 c2, -s2), z2 = (-s1, c1, 0), times
-                    # |u|^2 |m| hypot(ux, uy). The other shoulder branch (q1 + pi, -q2)
-                    # negates c1, s1, s2: q3 + pi.
-                    q1a = atan2(uy, ux)
-                    q2a = atan2(hxy, uz)
-                    q3a = atan2(lu * (ux * by - uy * bx), uz * (ux * bx + uy * by) - huu * bz)
-            if not ok:
-                out.append((row, JOINT_LIMIT, nan7))
-                continue
-            if hxy < SHOULDER_SINGULAR_TOL:  # q1 undefined: take q_init's
-                q1 = q1_init
-                c1, s1 = cos(q1), sin(q1)
-                q2 = atan2(c1 * ux + s1 * uy, uz)
-                c2, s2 = cos(q2), sin(q2)
-                q3 = atan2(c1 * by - s1 * bx, c2 * (c1 * bx + s1 * by) - s2 * bz)
-            elif row & 1:
-                q1, q2, q3 = _flip(q1a), -q2a, _flip(q3a)
-            else:
-                q1, q2, q3 = q1a, q2a, q3a
-            if lo1 <= q1 <= hi1 and lo2 <= q2 <= hi2 and lo3 <= q3 <= hi3:
-                out.append((row, OK, (q1, q2, q3, q4, q5, q6, q7)))
-            else:
-                out.append((row, JOINT_LIMIT, nan7))
-        return out
-
-    return solve
+def rigid_error(
+    r00: float, r01: float, r02: float, px: float, r10: float, r11: float, r12: float,
+    py: float, r20: float, r21: float, r22: float, pz: float, l0: float, l1: float,
+    l2: float, l3: float,
+) -> float:  # fmt: skip
+    """The largest deviation [-] of a 4x4 (row-major) from a rigid transform: unit
+    orthogonal x and y columns, z = x cross y, last row 0 0 0 1; NaN if an entry is not
+    finite. Rigid means ``rigid_error(...) <= ROTATION_TOL``."""
+    e = max(
+        abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0),
+        abs(r01 * r01 + r11 * r11 + r21 * r21 - 1.0),
+        abs(r00 * r01 + r10 * r11 + r20 * r21),
+        abs(r10 * r21 - r20 * r11 - r02),
+        abs(r20 * r01 - r00 * r21 - r12),
+        abs(r00 * r11 - r10 * r01 - r22),
+        abs(l0),
+        abs(l1),
+        abs(l2),
+        abs(l3 - 1.0),
+    )
+    s = r00 + r01 + r02 + r10 + r11 + r12 + r20 + r21 + r22 + px + py + pz + l0 + l1 + l2 + l3
+    return e + (s - s)  # s - s: 0, or NaN if an entry is NaN or infinite
 
 
-# ------------------------------------------------------------------ NumPy, over N poses
+def case_row(q2: float, q5: float) -> int:
+    """The branch of a configuration: the q6 branch follows the sign of cos(q5), the
+    shoulder branch the sign of q2. Within |q5| <= 3 rad, cos(q5) >= 0 exactly when
+    |q5| <= pi/2 rounded down (cos(1.5707963267948966) is +6e-17, cos of the next float up
+    negative): a comparison instead of a cosine."""
+    a = abs(q5)
+    c = a <= _PIO2 if a <= 3.0 else math.cos(q5) >= 0.0
+    return (2 if c else 0) + (1 if q2 < 0.0 else 0)
 
 
-@dataclass
-class _Pose:
-    """Per-pose quantities shared by all four branches (arrays over N poses)."""
-
-    r02: NDArray[np.float64]
-    r12: NDArray[np.float64]
-    r22: NDArray[np.float64]
-    x6: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
-    v: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]
-    q4: NDArray[np.float64]
-    c4: NDArray[np.float64]
-    s4: NDArray[np.float64]
-    t: NDArray[np.float64]
-    d26: NDArray[np.float64]
-    sh3: NDArray[np.float64]
-    wx: NDArray[np.float64]
-    wy: NDArray[np.float64]
-    irr: NDArray[np.float64]
-    status: NDArray[np.int8]  # the pose-level failure (OK if none)
-
-
-def _pose(
-    P: IKParams, R: NDArray[np.float64], p: NDArray[np.float64], q7: NDArray[np.float64]
-) -> _Pose:
-    lo, hi = P.q_min, P.q_max
-    r00, r01, r02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
-    r10, r11, r12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
-    r20, r21, r22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-    psi = q7 + P.theta_e
-    cp, sp = np.cos(psi), np.sin(psi)
+def pose_part(
+    P: IKParams, r00: float, r01: float, r02: float, r10: float, r11: float, r12: float,
+    r20: float, r21: float, r22: float, px: float, py: float, pz: float, q7: float,
+) -> Any:  # fmt: skip
+    """The part shared by all four branches: (status, (x6x, x6y, x6z, vx, vy, vz, q4, c4,
+    s4, d26, sh3, wx, wy, irr, t)); a status other than OK: no branch has a solution (the
+    first failing test names the reason)."""
+    if not (P.q_min[6] <= q7 <= P.q_max[6]):
+        return JOINT_LIMIT, _ZERO15
+    # Wrist point p6: joint 7's origin lies d_e behind the target along z7 = z_EE, and
+    # frame 6's x axis is the target's x axis turned back by q7 + theta_e about z7;
+    # p7 = p6 + a7 x6.
+    sp, cp = sincos(q7 + P.theta_e)
     x6x = cp * r00 - sp * r01
     x6y = cp * r10 - sp * r11
     x6z = cp * r20 - sp * r21
-    vx = p[:, 0] - P.d_e * r02 - P.a7 * x6x
-    vy = p[:, 1] - P.d_e * r12 - P.a7 * x6y
-    vz = p[:, 2] - P.d_e * r22 - P.a7 * x6z - P.d1
+    vx = px - P.d_e * r02 - P.a7 * x6x  # V26 = p6 - p2, p2 = (0, 0, d1)
+    vy = py - P.d_e * r12 - P.a7 * x6y
+    vz = pz - P.d_e * r22 - P.a7 * x6z - P.d1
     ll = vx * vx + vy * vy + vz * vz
+    # Elbow angle from the triangle (p2, p4, p6): law of cosines, with the sine from a
+    # Heron-type product (h1 h2 = (2 l24 l46)^2 - cos_part^2), so the angle comes from
+    # atan2 and its cosine and sine need no further trigonometry.
     l24, l46 = P.l24, P.l46
     h1 = ll - (l24 - l46) ** 2
     h2 = (l24 + l46) ** 2 - ll
-    y4 = np.sqrt(h1 * h2)
+    if h1 < 0.0 or h2 < 0.0:
+        return UNREACHABLE, _ZERO15
+    y4 = math.sqrt(h1 * h2)
     x4 = (l24 * l24 + l46 * l46) - ll
-    q4 = np.arctan2(y4, x4) + P.q4_offset
+    q4 = atan2(y4, x4) + P.q4_offset
+    if not (P.q_min[3] <= q4 <= P.q_max[3]):
+        return JOINT_LIMIT, _ZERO15
     ca, sa = x4 * P.inv_2l24l46, y4 * P.inv_2l24l46
     c_off, s_off = P.cos_q4_offset, P.sin_q4_offset
     c4, s4 = ca * c_off - sa * s_off, sa * c_off + ca * s_off
+    # Joint 6: the shoulder, seen from frame 6 (x6, y6 = -z7, z6 = z7 x x6), has a fixed
+    # component D26 along the joint-5 axis z5 = (sin q6, cos q6, 0) in frame 6.
     d26 = P.a4 * s4 - P.d3 * c4 - P.d5
     wx = -(x6x * vx + x6y * vy + x6z * vz)
     wy = r02 * vx + r12 * vy + r22 * vz
     rr = wx * wx + wy * wy
+    if rr < WRIST_SINGULAR_TOL * WRIST_SINGULAR_TOL:
+        return SINGULAR, _ZERO15
     h3 = rr - d26 * d26
-    half = np.where(c4 >= 0.0, s4 / (1.0 + c4), (1.0 - c4) / s4)
-    status = np.zeros(q7.shape[0], dtype=np.int8)
-    # the scalar solver's order of tests: the first failing one names the reason
-    status[h3 < 0.0] = UNREACHABLE
-    status[rr < WRIST_SINGULAR_TOL * WRIST_SINGULAR_TOL] = SINGULAR
-    status[~((lo[3] <= q4) & (q4 <= hi[3]))] = JOINT_LIMIT
-    status[(h1 < 0.0) | (h2 < 0.0)] = UNREACHABLE
-    status[~((lo[6] <= q7) & (q7 <= hi[6]))] = JOINT_LIMIT
-    return _Pose(
-        r02, r12, r22, (x6x, x6y, x6z), (vx, vy, vz), q4, c4, s4,
-        P.a4 * half - P.d5, d26, np.sqrt(h3), wx, wy, 1.0 / rr, status,
-    )  # fmt: skip
+    if h3 < 0.0:
+        return UNREACHABLE, _ZERO15
+    # P = p6 + t z5 lies on the joint-3 axis, t = a4 tan(q4 / 2) - d5 (the half-angle
+    # tangent in its stable form).
+    t = P.a4 * (s4 / (1.0 + c4) if c4 >= 0.0 else (1.0 - c4) / s4) - P.d5
+    g = (x6x, x6y, x6z, vx, vy, vz, q4, c4, s4, d26, math.sqrt(h3), wx, wy, 1.0 / rr, t)
+    return OK, g
 
 
-def _branch(
-    P: IKParams,
-    g: _Pose,
-    i6: object,
-    i1s: tuple[object, ...],
-    q7: NDArray[np.float64],
-    q1_init: NDArray[np.float64],
-) -> list[tuple[NDArray[np.float64], NDArray[np.int8]]]:
-    """The solutions (N, 7) and statuses (N,) of the branches (i6, i1) for each i1 in
-    i1s (i6 and each i1 a bool or a bool array over the poses)."""
-    lo, hi = np.asarray(P.q_min), np.asarray(P.q_max)
-    (x6x, x6y, x6z), (vx, vy, vz) = g.x6, g.v
-    r02, r12, r22, c4, s4, t = g.r02, g.r12, g.r22, g.c4, g.s4, g.t
-    d26, sh3, wx, wy = g.d26, g.sh3, g.wx, g.wy
-    if isinstance(i6, np.ndarray):
-        cn = np.where(i6, sh3 * wx + d26 * wy, d26 * wy - sh3 * wx)
-        sn = np.where(i6, d26 * wx - sh3 * wy, d26 * wx + sh3 * wy)
-    elif i6:
+def arm_part(
+    P: IKParams, g: Any, r02: float, r12: float, r22: float, q1_init: float, i6: int
+) -> Any:
+    """q6 branch i6: (ok, shoulder singular, q5, q6, q1, q2, q3) with q1..q3 those of the
+    q2 >= 0 row (the other row flips them, unless singular)."""
+    x6x, x6y, x6z, vx, vy, vz, _q4, c4, s4, d26, sh3, wx, wy, irr, t = g
+    # q6 = theta - phi (i6 = 1) or pi - theta - phi, theta = atan2(d26, sh3), phi =
+    # atan2(wy, wx): its cosine and sine times |w|^2 from the sides.
+    if i6:
         cn, sn = sh3 * wx + d26 * wy, d26 * wx - sh3 * wy
     else:
         cn, sn = d26 * wy - sh3 * wx, d26 * wx + sh3 * wy
-    q6 = np.arctan2(sn, cn)
-    q6 = np.where(q6 < lo[5], q6 + TWO_PI, np.where(q6 > hi[5], q6 - TWO_PI, q6))
-    c6, s6 = cn * g.irr, sn * g.irr
-    ux = vx + t * (s6 * x6x - c6 * r02)
+    q6 = atan2(sn, cn)
+    lo6, hi6 = P.q_min[5], P.q_max[5]
+    if q6 < lo6:
+        q6 += TWO_PI
+    elif q6 > hi6:
+        q6 -= TWO_PI
+    if not (lo6 <= q6 <= hi6):
+        return _NO_ARM
+    # z5 = s6 x6 - c6 z7 and x5 = c6 x6 + s6 z7 (y6 = -z7)
+    c6, s6 = cn * irr, sn * irr
+    ux = vx + t * (s6 * x6x - c6 * r02)  # V2P = P - p2
     uy = vy + t * (s6 * x6y - c6 * r12)
     uz = vz + t * (s6 * x6z - c6 * r22)
     x5x = c6 * x6x + s6 * r02
     x5y = c6 * x6y + s6 * r12
     x5z = c6 * x6z + s6 * r22
+    # Frame 3: z3 = u / |u|, y3 = m / |m| with m = u x V26 (the arm plane's normal),
+    # x3 = y3 x z3 = X / (|m| |u|) with X = m x u; x4 = c4 x3 + s4 z3. Each angle below is
+    # atan2 of two components scaled by one positive factor (|m| |u| and the like), so
+    # nothing needs normalising.
     mx = uy * vz - uz * vy
     my = uz * vx - ux * vz
     mz = ux * vy - uy * vx
@@ -345,79 +241,124 @@ def _branch(
     by = mz * ux - mx * uz
     bz = mx * uy - my * ux
     huu = ux * ux + uy * uy
-    lu = np.sqrt(huu + uz * uz)
-    mm = np.sqrt(mx * mx + my * my + mz * mz)
-    hxy = np.sqrt(huu)
-    q5 = np.arctan2(
+    lu = math.sqrt(huu + uz * uz)
+    mm = math.sqrt(mx * mx + my * my + mz * mz)
+    hxy = math.sqrt(huu)
+    q5 = atan2(
         lu * (x5x * mx + x5y * my + x5z * mz),
         c4 * (x5x * bx + x5y * by + x5z * bz) + s4 * mm * (x5x * ux + x5y * uy + x5z * uz),
     )
-    q5[~(mm > 0.0)] = np.nan  # no arm plane
-    q1 = np.arctan2(uy, ux)
-    q2 = np.arctan2(hxy, uz)
-    q3 = np.arctan2(lu * (ux * by - uy * bx), uz * (ux * bx + uy * by) - huu * bz)
-    sing = hxy < SHOULDER_SINGULAR_TOL
-    ks = np.flatnonzero(sing) if np.any(sing) else None
-    q1f = np.where(q1 > 0.0, q1 - math.pi, q1 + math.pi)
-    q3f = np.where(q3 > 0.0, q3 - math.pi, q3 + math.pi)
-    out = []
-    for i1 in i1s:
-        if isinstance(i1, np.ndarray):
-            a1, a2, a3 = np.where(i1, q1f, q1), np.where(i1, -q2, q2), np.where(i1, q3f, q3)
-        elif i1:
-            a1, a2, a3 = q1f, -q2, q3f
-        else:
-            a1, a2, a3 = q1.copy(), q2.copy(), q3.copy()
-        if ks is not None:  # q1 undefined: take q_init's
-            k = ks
-            a1[k] = q1_init[k]
-            c1k, s1k = np.cos(a1[k]), np.sin(a1[k])
-            a2[k] = np.arctan2(c1k * ux[k] + s1k * uy[k], uz[k])
-            c2k, s2k = np.cos(a2[k]), np.sin(a2[k])
-            a3[k] = np.arctan2(
-                c1k * by[k] - s1k * bx[k], c2k * (c1k * bx[k] + s1k * by[k]) - s2k * bz[k]
-            )
-        q = np.stack([a1, a2, a3, g.q4, q5, q6, q7], axis=1)
-        ok = np.all((lo <= q) & (q <= hi), axis=1)
-        status = np.where(g.status != OK, g.status, np.where(ok, OK, JOINT_LIMIT)).astype(np.int8)
-        q[status != OK] = np.nan
-        out.append((q, status))
-    return out
+    if not (mm > 0.0 and P.q_min[4] <= q5 <= P.q_max[4]):  # mm = 0: no arm plane
+        return _NO_ARM
+    if hxy < SHOULDER_SINGULAR_TOL:  # q1 undefined: q_init's, for both shoulder branches
+        s1, c1 = sincos(q1_init)
+        q2 = atan2(c1 * ux + s1 * uy, uz)
+        s2, c2 = sincos(q2)
+        q3 = atan2(c1 * by - s1 * bx, c2 * (c1 * bx + s1 * by) - s2 * bz)
+        return True, True, q5, q6, q1_init, q2, q3
+    # Shoulder: z3 = (c1 s2, s1 s2, c2), so q1 and q2 come from u; x3 = c3 x2 + s3 z2 with
+    # x2 = (c1 c2, s1 c2, -s2), z2 = (-s1, c1, 0), times |u|^2 |m| hypot(ux, uy). The other
+    # shoulder branch (q1 + pi, -q2) negates c1, s1, s2: q3 + pi.
+    q1 = atan2(uy, ux)
+    q2 = atan2(hxy, uz)
+    q3 = atan2(lu * (ux * by - uy * bx), uz * (ux * bx + uy * by) - huu * bz)
+    return True, False, q5, q6, q1, q2, q3
 
 
-def solve_batch(
-    P: IKParams,
-    R: NDArray[np.float64],
-    p: NDArray[np.float64],
-    q7: NDArray[np.float64],
-    q1_init: NDArray[np.float64],
-    row: NDArray[np.int64],
-) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
-    """Vectorised solver: R (N, 3, 3), p (N, 3), q7, q1_init, row (N,) -> q (N, 7) with NaN
-    rows where there is no solution, status (N,) int8."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g = _pose(P, R, p, q7)
-        ((q, status),) = _branch(
-            P, g, (row >> 1).astype(bool), ((row & 1).astype(bool),), q7, q1_init
+def branch(P: IKParams, arm: Any, i1: int, q4: float, q7: float) -> Any:
+    """(status, q (7-tuple, NaN without a solution)) of shoulder branch i1 of an arm."""
+    ok, singular, q5, q6, q1, q2, q3 = arm
+    if not ok:
+        return JOINT_LIMIT, NAN7
+    if i1 and not singular:
+        q1, q2, q3 = flip(q1), -q2, flip(q3)
+    lo, hi = P.q_min, P.q_max
+    if lo[0] <= q1 <= hi[0] and lo[1] <= q2 <= hi[1] and lo[2] <= q3 <= hi[2]:
+        return OK, (q1, q2, q3, q4, q5, q6, q7)
+    return JOINT_LIMIT, NAN7
+
+
+def solve(
+    P: IKParams, r00: float, r01: float, r02: float, r10: float, r11: float, r12: float,
+    r20: float, r21: float, r22: float, px: float, py: float, pz: float, q7: float,
+    q1_init: float, first: int, full: bool,
+) -> Any:  # fmt: skip
+    """One valid pose (rotation r, position p [m]) at q7 [rad]: four (status, q) rows,
+    with ``full`` the branches 0..3, else the branch ``first`` in row 0 (and fillers)."""
+    status, g = pose_part(P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7)
+    if status != OK:
+        none = (status, NAN7)
+        return none, none, none, none
+    q4 = g[6]
+    arm = arm_part(P, g, r02, r12, r22, q1_init, first >> 1)
+    row0 = branch(P, arm, first & 1, q4, q7)
+    if not full:
+        none = (JOINT_LIMIT, NAN7)
+        return row0, none, none, none
+    other = arm_part(P, g, r02, r12, r22, q1_init, 1)
+    return row0, branch(P, arm, 1, q4, q7), branch(P, other, 0, q4, q7), branch(P, other, 1, q4, q7)
+
+
+def ik_range(
+    A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout: Any, k0: int, k1: int
+) -> None:
+    """Poses k0..k1-1 of T (N, 4, 4), with q_init QI[k] (QI (N, 7) or (1, 7)) and q7[k]
+    (q7 (N,) or (1,)); A the packed :class:`IKParams`: all four branches (``full``) into
+    rows 4k..4k+3 of qout (4N, 7) and stout (4N,), or the one in q_init's case into row k
+    of qout (N, 7), stout (N,). A pose that is not a finite rigid transform, or whose
+    q_init or q7 is not finite, gets the status :data:`INVALID` in its first row and is
+    not solved."""
+    P = unpack_ik_params(A)
+    m7 = q7.shape[0]
+    mq = QI.shape[0]
+    for k in range(k0, k1):
+        qr = k if mq > 1 else 0
+        q7k = float(q7[k] if m7 > 1 else q7[0])
+        base = 4 * k if full else k
+        # (float(): a no-op compiled; plain, Python floats compute faster than NumPy's)
+        r00, r01, r02, px = (
+            float(T[k, 0, 0]),
+            float(T[k, 0, 1]),
+            float(T[k, 0, 2]),
+            float(T[k, 0, 3]),
         )
-    return q, status
+        r10, r11, r12, py = (
+            float(T[k, 1, 0]),
+            float(T[k, 1, 1]),
+            float(T[k, 1, 2]),
+            float(T[k, 1, 3]),
+        )
+        r20, r21, r22, pz = (
+            float(T[k, 2, 0]),
+            float(T[k, 2, 1]),
+            float(T[k, 2, 2]),
+            float(T[k, 2, 3]),
+        )
+        q1i, q2i, q5i = float(QI[qr, 0]), float(QI[qr, 1]), float(QI[qr, 4])
+        s = q7k + q1i + q2i + QI[qr, 2] + QI[qr, 3] + q5i + QI[qr, 5] + QI[qr, 6]
+        err = rigid_error(
+            r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz,
+            T[k, 3, 0], T[k, 3, 1], T[k, 3, 2], T[k, 3, 3],
+        )  # fmt: skip
+        if not (err <= ROTATION_TOL and s - s == 0.0):
+            stout[base] = INVALID
+            continue
+        first = 0 if full else case_row(q2i, q5i)
+        rows = solve(
+            P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7k, q1i, first, full
+        )
+        for r in range(4 if full else 1):
+            code, qv = rows[r]
+            stout[base + r] = code
+            for c in range(7):
+                qout[base + r, c] = qv[c]
 
 
-def solve_batch_full(
-    P: IKParams,
-    R: NDArray[np.float64],
-    p: NDArray[np.float64],
-    q7: NDArray[np.float64],
-    q1_init: NDArray[np.float64],
-) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
-    """All four branches: q (N, 4, 7) (NaN rows without a solution), status (N, 4) int8.
-    The per-pose part is computed once."""
-    n = q7.shape[0]
-    q = np.empty((n, 4, 7))
-    status = np.empty((n, 4), dtype=np.int8)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g = _pose(P, R, p, q7)
-        for i6 in (False, True):
-            for i1, (qb, sb) in enumerate(_branch(P, g, i6, (False, True), q7, q1_init)):
-                q[:, 2 * i6 + i1], status[:, 2 * i6 + i1] = qb, sb
-    return q, status
+def rigid_range(T: Any, err: Any, k0: int, k1: int) -> None:
+    """:func:`rigid_error` of poses k0..k1-1 of T (N, 4, 4) into err (N,)."""
+    for k in range(k0, k1):
+        err[k] = rigid_error(
+            T[k, 0, 0], T[k, 0, 1], T[k, 0, 2], T[k, 0, 3], T[k, 1, 0], T[k, 1, 1],
+            T[k, 1, 2], T[k, 1, 3], T[k, 2, 0], T[k, 2, 1], T[k, 2, 2], T[k, 2, 3],
+            T[k, 3, 0], T[k, 3, 1], T[k, 3, 2], T[k, 3, 3],
+        )  # fmt: skip

@@ -8,9 +8,10 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-# A matrix whose rotation part is this far [-] from orthonormal (max abs entry of
-# R^T R - I) or whose last row is this far from (0, 0, 0, 1) is not a rigid transform.
-ROTATION_TOL = 1e-6
+from panda_py.kinematics import _backend, _ik
+from panda_py.kinematics._ik import ROTATION_TOL
+
+__all__ = ["ROTATION_TOL"]
 # A quaternion's norm may differ from 1 by this much [-]; it is normalised.
 QUATERNION_TOL = 1e-6
 
@@ -23,6 +24,10 @@ def _describe(x: object) -> str:
 
 
 def as_float_array(name: str, x: object) -> NDArray[np.float64]:
+    """x as float64; a ValueError for anything else, complex numbers included (NumPy
+    would drop their imaginary part with a warning)."""
+    if np.iscomplexobj(x):  # type: ignore[arg-type]
+        raise ValueError(f"{name}: expected real numbers, got complex values: {_describe(x)}")
     try:
         a = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError) as exc:
@@ -61,7 +66,7 @@ def joints(name: str, x: object, *, check: bool = True) -> NDArray[np.float64]:
 
 def transforms(name: str, x: object, *, check: bool = True) -> NDArray[np.float64]:
     """(4, 4) or (N, 4, 4) homogeneous transforms, checked to be finite and rigid (unless
-    ``check=False``: the numba kernels test each pose themselves, see ``_numba._rigid``)."""
+    ``check=False``: the ik kernels test each pose themselves, see ``_ik.ik_range``)."""
     a = as_float_array(name, x)
     if a.ndim not in (2, 3) or a.shape[-2:] != (4, 4):
         raise ValueError(
@@ -73,35 +78,26 @@ def transforms(name: str, x: object, *, check: bool = True) -> NDArray[np.float6
 
 
 def check_rigid(name: str, a: NDArray[np.float64]) -> None:
-    """ValueError unless every 4x4 in a ((4, 4) or (N, 4, 4)) is finite and rigid: unit
-    orthogonal x and y columns, z = x cross y, last row 0 0 0 1, each within
-    ROTATION_TOL. (The numba kernels test the same expressions in the same order.)"""
+    """ValueError unless every 4x4 in a ((4, 4) or (N, 4, 4)) is finite and rigid (the
+    kernels' own test, ``_ik.rigid_error``); a batch names its first bad item."""
     check_finite(name, a, 2)
-    # entries as 16 contiguous rows (one copy) rather than strided (N,) views: the dozen
-    # elementwise operations below then run at memory speed on a batch
-    r = np.ascontiguousarray(a.reshape(-1, 16).T)
-    r00, r01, r02, _, r10, r11, r12, _, r20, r21, r22, _, l0, l1, l2, l3 = r
-    err = np.abs(r00 * r00 + r10 * r10 + r20 * r20 - 1.0)
-    for e in (
-        r01 * r01 + r11 * r11 + r21 * r21 - 1.0,
-        r00 * r01 + r10 * r11 + r20 * r21,
-        r10 * r21 - r20 * r11 - r02,
-        r20 * r01 - r00 * r21 - r12,
-        r00 * r11 - r10 * r01 - r22,
-        l0,
-        l1,
-        l2,
-        l3 - 1.0,
-    ):
-        np.maximum(err, np.abs(e), out=err)
-    bad = err > ROTATION_TOL
+    if a.ndim == 2:  # one matrix: no need to load the JIT for it
+        err = np.array([_ik.rigid_error(*a.ravel().tolist())])
+    else:
+        err = _backend.rigid_errors(np.ascontiguousarray(a, dtype=np.float64))
+    bad = ~(err <= ROTATION_TOL)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
-        where = f" (batch index {i})" if a.ndim == 3 else ""
-        raise ValueError(
-            f"{name}: expected a rigid transform (orthonormal rotation with det +1, last row "
-            f"0 0 0 1, tolerance {ROTATION_TOL}){where}; largest deviation {err[i]:.3g}"
-        )
+        raise ValueError(rigid_message(name, float(err[i]), i if a.ndim == 3 else None))
+
+
+def rigid_message(name: str, deviation: float, index: int | None) -> str:
+    """The message for a matrix that is finite but not a rigid transform."""
+    where = "" if index is None else f" (batch index {index})"
+    return (
+        f"{name}: expected a rigid transform (orthonormal rotation with det +1, last row "
+        f"0 0 0 1, tolerance {ROTATION_TOL}){where}; largest deviation {deviation:.3g}"
+    )
 
 
 def position_orientation(position: object, orientation: object) -> NDArray[np.float64]:

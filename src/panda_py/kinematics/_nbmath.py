@@ -1,5 +1,9 @@
 """Branch-free ``atan2`` and ``sincos`` for the numba kernels, within 3 ulp of libm's.
 
+Plain (numba-compatible) Python: :mod:`._numba` compiles them in place of
+:mod:`._scalar`'s ``atan2`` and ``sincos`` (which call libm, the faster choice when Python
+runs the kernels' source plain).
+
 The kernels spend most of their time in the C library's ``atan2``, ``sin`` and ``cos``:
 function calls with argument-dependent branches, which random poses mispredict. These
 versions take one predictable branch (to the C library for NaN, infinity, both
@@ -16,8 +20,7 @@ otherwise evaluate a short exact reduction and a series:
   [-pi/4, pi/4] through r^17 and r^18 (truncation below 1e-19), then the quadrant.
 
 Compiled with fused multiply-adds allowed (fastmath "contract" alone). Tests hold both
-within 3 ulp of ``math`` over random and special arguments. Imported only with numba
-(by :mod:`._numba`).
+within 3 ulp of ``math`` over random and special arguments.
 """
 
 from __future__ import annotations
@@ -25,9 +28,7 @@ from __future__ import annotations
 import math
 from decimal import Decimal
 from fractions import Fraction
-from typing import Any
 
-import numba
 import numpy as np
 
 # pi to 50 digits; the splits below are computed exactly from it.
@@ -59,24 +60,7 @@ _C = tuple((-1) ** k / math.factorial(2 * k) for k in range(1, 10))
 SINCOS_MAX = 1e5
 _BIG = 1.7976931348623157e308  # the largest finite float
 
-# fastmath "contract" only: a * b + c may become one fused multiply-add (one rounding
-# instead of two); no reassociation, no assumptions about NaN or infinity.
-_OPTS: dict[str, Any] = {
-    "nogil": True,
-    "error_model": "numpy",
-    "forceinline": True,
-    "fastmath": {"contract"},
-}
 
-
-def _njit(fn: Any) -> Any:
-    try:
-        return numba.njit(cache=True, **_OPTS)(fn)
-    except RuntimeError:  # no writable cache location
-        return numba.njit(**_OPTS)(fn)
-
-
-@_njit
 def atan2(y: float, x: float) -> float:
     """atan2(y, x) [rad] in [-pi, pi], within 3 ulp of ``math.atan2``."""
     ax, ay = abs(x), abs(y)
@@ -99,7 +83,6 @@ def atan2(y: float, x: float) -> float:
     return math.copysign(r, y)
 
 
-@_njit
 def sincos(x: float) -> tuple[float, float]:
     """(sin x, cos x), each within 3 ulp of ``math.sin``/``math.cos``."""
     if not abs(x) < SINCOS_MAX:

@@ -2,9 +2,41 @@
 
 Use :class:`Simulator` from Python, ``panda-sim`` from the shell, or the ``panda_sim``
 pytest fixture (``panda_py.sim.testing``).
+
+Importing this package is cheap: MuJoCo and the simulator's modules load on first use of
+one of the names below (PEP 562), so the pytest plugin, which lives in this package and
+is imported into every pytest session of the environment, costs nothing until a test
+asks for a simulator.
 """
 
-from panda_py.sim.api import Simulator, SimulatorError, free_loopback_host
-from panda_py.sim.server import SimConfig
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from panda_py.sim.api import Simulator, SimulatorError, free_loopback_host
+    from panda_py.sim.server import SimConfig
+
+# public name -> submodule that defines it
+_LAZY: dict[str, str] = {
+    "SimConfig": "panda_py.sim.server",
+    "Simulator": "panda_py.sim.api",
+    "SimulatorError": "panda_py.sim.api",
+    "free_loopback_host": "panda_py.sim.api",
+}
 
 __all__ = ["SimConfig", "Simulator", "SimulatorError", "free_loopback_host"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'panda_py.sim' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

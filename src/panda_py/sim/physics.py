@@ -11,7 +11,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from panda_py.kinematics import get_kinematics, hand_F_T_EE
+from panda_py.kinematics import get_kinematics, hand_F_T_EE, warmup
 from panda_py.robots.mjcf import model_xml
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
 
@@ -88,8 +88,9 @@ class Physics:
         # Scratch of the robot's IK (flange kinematics of the same parameters).
         self._flange_kin = get_kinematics(spec, F_T_EE=np.eye(4))
         self._ik_err, self._ik_y, self._ik_JJt = np.zeros(6), np.zeros(6), np.zeros((6, 6))
-        # Load (or compile, with numba) its kernels now, not at the first Cartesian tick.
-        self._flange_kin.zero_jacobian(np.zeros(7))
+        # Load (or compile, the first time after installing) every kinematics kernel now,
+        # before the 1 kHz loop starts, not at the first Cartesian tick.
+        warmup()
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
         self.F_T_NE = hand_F_T_EE()  # flange -> the hand's TCP

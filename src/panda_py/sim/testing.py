@@ -7,15 +7,20 @@ Enabled automatically (``pytest11`` entry point) when panda_py is installed:
 
 Options per test with the ``panda_sim`` marker, e.g.
 ``@pytest.mark.panda_sim(robot="fr3", versions=(10,), lockstep=False)``.
+
+pytest imports this plugin into every session of every project in the environment, so
+it imports neither MuJoCo nor the simulator: they load when a test uses the fixture.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import pytest
 
-from panda_py.sim.api import Simulator, free_loopback_host
+if TYPE_CHECKING:
+    from panda_py.sim.api import Simulator
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -28,6 +33,8 @@ def pytest_configure(config: pytest.Config) -> None:
 def panda_sim(request: pytest.FixtureRequest) -> Iterator[Simulator]:
     """A simulated robot on a free loopback address, lockstep unless the marker says
     otherwise; stopped after the test."""
+    from panda_py.sim.api import Simulator, free_loopback_host
+
     marker = request.node.get_closest_marker("panda_sim")
     options = dict(marker.kwargs) if marker else {}
     options.setdefault("lockstep", True)

@@ -1,0 +1,99 @@
+"""ik's arguments: panda-py's two overloads sorted into arrays, and the error for the
+first pose a kernel refused.
+
+The values are not tested here: the ik kernels test each pose, q_init and q_7 while
+solving (``_ik.ik_range``) and mark a bad one, and :func:`raise_invalid` then words the
+error for the first of them, naming its batch index.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py.kinematics import _ik, _input
+from panda_py.robots.params import START_POSE
+
+# panda-py's default redundancy parameter q7 [rad] (panda_py.ik's q_7 default).
+DEFAULT_Q7 = math.pi / 4
+
+FloatArray = NDArray[np.float64]
+
+
+def parse_ik(
+    args: tuple[Any, ...],
+    O_T_EE: Any,
+    position: Any,
+    orientation: Any,
+    q_init: Any,
+    q_7: Any,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Sort ``(O_T_EE, q_init, q_7)`` and ``(position, orientation, q_init, q_7)``,
+    positional or keyword, into (T (4, 4) or (N, 4, 4), q_init (7,) or (N, 7), q_7 () or
+    (N,)), checked for shape (a quaternion also for norm)."""
+    rest = list(args)
+    if O_T_EE is None and position is None and rest:
+        first = np.asarray(rest[0]) if not isinstance(rest[0], np.ndarray) else rest[0]
+        second = rest[1] if len(rest) > 1 else orientation
+        is_position = first.shape == (3,) or (
+            first.ndim == 2 and first.shape[1] == 3 and np.shape(second)[-1:] == (4,)
+        )
+        if is_position:
+            position = rest.pop(0)
+        else:
+            O_T_EE = rest.pop(0)
+    if position is not None and orientation is None and rest:
+        orientation = rest.pop(0)
+    given = {"q_init": q_init, "q_7": q_7}
+    if len(rest) > 2:
+        raise ValueError(
+            "ik: expected (O_T_EE, q_init, q_7) or (position, orientation, q_init, q_7), "
+            f"got {len(rest)} extra positional arguments"
+        )
+    for name, value in zip(("q_init", "q_7"), rest, strict=False):
+        if given[name] is not None:
+            raise ValueError(f"{name}: given both positionally and by keyword")
+        given[name] = value
+    if O_T_EE is not None:
+        if position is not None or orientation is not None:
+            raise ValueError("O_T_EE: give either O_T_EE or position and orientation")
+        T = _input.transforms("O_T_EE", O_T_EE, check=False)
+    elif position is not None and orientation is not None:
+        T = _input.position_orientation(position, orientation)
+    else:
+        raise ValueError("ik: expected O_T_EE (4x4) or position (3,) and orientation (4,)")
+    n = T.shape[0] if T.ndim == 3 else None
+    if given["q_init"] is None:
+        qi = np.array(START_POSE)
+    else:
+        qi = _input.joints("q_init", given["q_init"], check=False)
+        if qi.ndim == 2 and (n is None or qi.shape[0] != n):
+            raise ValueError(
+                f"q_init: expected shape (7,) or ({n}, 7) to match the poses, got {qi.shape}"
+            )
+    q7 = _input.scalar_or_batch(
+        "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad", check=False
+    )
+    return T, qi, q7
+
+
+def raise_invalid(T: FloatArray, qi: FloatArray, q7: FloatArray, k: int) -> None:
+    """The ValueError for pose k, which a kernel found not to be a finite rigid transform
+    or to have a non-finite q_init or q_7 (the first of these, in that order)."""
+    batch = T.ndim == 3
+    where = f" (batch index {k})" if batch else ""
+    for name, item, is_batch in (
+        ("O_T_EE", T[k] if batch else T, batch),
+        ("q_init", qi[k] if qi.ndim == 2 else qi, qi.ndim == 2),
+        ("q_7", q7[k] if q7.ndim == 1 else q7, q7.ndim == 1),
+    ):
+        if not np.all(np.isfinite(item)):
+            raise ValueError(
+                f"{name}: expected finite values, got NaN or infinity"
+                f"{where if is_batch else ''} in {item!r:.200}"
+            )
+    M = (T[k] if batch else T).ravel().tolist()
+    raise ValueError(_input.rigid_message("O_T_EE", _ik.rigid_error(*M), k if batch else None))
