@@ -21,7 +21,16 @@ def _modules_after(statement: str) -> set[str]:
 
 
 @pytest.mark.parametrize(
-    "module", ["panda_py", "panda_py.libfranka", "panda_py.kinematics", "panda_py.sim.testing"]
+    "module",
+    [
+        "panda_py",
+        "panda_py.libfranka",
+        "panda_py.kinematics",
+        "panda_py.sim.testing",
+        "panda_py.panda",
+        "panda_py.controllers",
+        "panda_py.constants",
+    ],
 )
 def test_import_pulls_in_no_simulator_mujoco_or_numba(module: str) -> None:
     loaded = _modules_after(f"import {module}")
