@@ -50,6 +50,12 @@ POSE_MOVE_DEFAULTS: dict[str, Any] = {
 }
 
 
+# panda-py before 1.0 tracked move_to_pose's Cartesian path in joint space, with joint
+# ``stiffness`` and ``damping``; the paper's code block 5 passes them. Given, they select
+# that mode (the path is the same straight line, solved by IK at every 1 ms sample).
+POSE_MOVE_JOINT_OPTIONS = ("stiffness", "damping")
+
+
 def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict[str, Any]:
     unknown = sorted(set(given) - set(defaults))
     if unknown:
@@ -164,8 +170,9 @@ def parse_pose_targets(
     else:
         raise TypeError("move_to_pose() missing the target: pose(s) or position(s) and "
                         "orientation(s)")  # fmt: skip
+    joint_opts = {k: kwargs.pop(k) for k in POSE_MOVE_JOINT_OPTIONS if k in kwargs}
     opts = _options(POSE_MOVE_DEFAULTS, kwargs, "move_to_pose")
-    checked = {
+    checked: dict[str, Any] = {
         "speed_factor": _speed(opts["speed_factor"]),
         "impedance": np.array(_args.matrix6("impedance", opts["impedance"])).reshape(6, 6),
         "damping_ratio": _args.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
@@ -178,6 +185,13 @@ def parse_pose_targets(
             "orientation_threshold", opts["orientation_threshold"], "[rad]"
         ),
     }
+    if joint_opts:
+        stiffness = joint_opts.get("stiffness", JOINT_MOVE_DEFAULTS["stiffness"])
+        damping = joint_opts.get("damping", JOINT_MOVE_DEFAULTS["damping"])
+        checked["joint_space"] = {
+            "stiffness": np.array(_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]")),
+            "damping": np.array(_args.nonnegative("damping", damping, 7, "[Nm s/rad]")),
+        }
     return positions, quats, checked
 
 
@@ -230,6 +244,34 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
                 f"{np.round(quat, 4).tolist()} is out of reach of the {spec.name} (no inverse "
                 "kinematics solution within the joint limits)"
             )
+
+
+def pose_move_in_joint_space(
+    plan: dict[str, FloatArray], q_now: FloatArray, spec: RobotSpec, F_T_EE: FloatArray
+) -> dict[str, FloatArray]:
+    """The sampled Cartesian plan as joint positions, velocities and accelerations: the
+    IK of every sample, in the current configuration's case and with the current q7."""
+    from panda_py.kinematics import get_kinematics
+    from panda_py.motion._rotation import to_matrix
+
+    n = len(plan["position"])
+    poses = np.zeros((n, 4, 4))
+    poses[:, 3, 3] = 1.0
+    for i, quat in enumerate(plan["orientation"]):
+        poses[i, :3, :3] = to_matrix(quat)
+    poses[:, :3, 3] = plan["position"]
+    q = get_kinematics(spec, F_T_EE).ik(poses, q_now, float(q_now[6]))
+    bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
+    if bad.size:
+        t = bad[0] * PERIOD
+        raise ValueError(
+            f"pose: the straight path leaves the {spec.name}'s reach (no inverse kinematics "
+            f"solution with q7 = {q_now[6]:.3f} rad) {t:.3f} s into the motion"
+        )
+    dq = np.gradient(q, PERIOD, axis=0)
+    dq[0] = dq[-1] = 0.0
+    ddq = np.gradient(dq, PERIOD, axis=0)
+    return {"q": q, "dq": dq, "ddq": ddq}
 
 
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,

@@ -32,7 +32,7 @@ from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import byvalue
-from panda_py.rt.moves import MoveResult
+from panda_py.rt.moves import MoveResult, rotation_angle
 from panda_py.rt.process import ControlProcess, ControlProcessError
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, anonymous_file
 
@@ -383,8 +383,30 @@ class Panda:
         plan = _moves.pose_move(
             p_now, quat_now, positions, quats, opts.pop("speed_factor"), self._limits
         )
-        opts["q_nullspace"] = state.q
-        return self._move("pose", plan, opts)
+        joint_space = opts.pop("joint_space", None)
+        if joint_space is None or plan is None:
+            opts["q_nullspace"] = state.q
+            return self._move("pose", plan, opts)
+        # panda-py < 1.0's form: the straight path tracked in joint space
+        joint_plan = _moves.pose_move_in_joint_space(plan, state.q, self._limits, F_T_EE)
+        params = {
+            **joint_space,
+            "dq_threshold": opts["dq_threshold"],
+            "success_threshold": np.inf,  # judged on the pose below
+        }
+        if not self._move("joint", joint_plan, params):
+            return False
+        T = self.get_pose()
+        pos_err = float(np.linalg.norm(T[:3, 3] - positions[-1]))
+        rot_err = rotation_angle(self.get_orientation(), quats[-1])
+        ok = pos_err <= opts["success_threshold"] and rot_err <= opts["orientation_threshold"]
+        if not ok:
+            self._logger.warning(
+                "Motion finished %.4f m and %.2f deg from the goal, above the success threshold.",
+                pos_err,
+                math.degrees(rot_err),
+            )
+        return ok
 
     # --- logging -----------------------------------------------------------------------
 

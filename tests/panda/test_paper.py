@@ -1,5 +1,6 @@
-"""The paper's code blocks 2-4 (J. Elsner, "Taming the Panda with Python"), as written,
-against the simulator; each checks its outcome."""
+"""The paper's code blocks 2-6 (J. Elsner, "Taming the Panda with Python", as in panda-py's
+examples/notebooks/paper.ipynb) as written, against the simulator; each checks its
+outcome. Block 1 (the Desk) is the Desk's."""
 
 from __future__ import annotations
 
@@ -22,28 +23,45 @@ def _xy_deviation_from_line(log: dict) -> float:
     return float(d.max())
 
 
-def test_block_connect_move_grasp(sim: Simulator) -> None:
+def test_blocks_2_3_4_and_the_inline_examples(sim: Simulator, capsys) -> None:
     hostname = sim.host
+    # Code block 2
+
     panda = panda_py.Panda(hostname)
     gripper = libfranka.Gripper(hostname)
     try:
+        # Code block 3
         panda.move_to_start()
         pose = panda.get_pose()
         pose[2, 3] -= 0.1
         q = panda_py.ik(pose)
         panda.move_to_joint_position(q)
-        gripper.move(0.08, 0.1)
 
-        reached = panda.get_pose()
-        assert np.allclose(reached[:3, 3], pose[:3, 3], atol=2e-3)
-        assert np.allclose(panda.q, q, atol=1e-2)
+        assert np.linalg.norm(panda.get_pose()[:3, 3] - pose[:3, 3]) < 2e-3
+        assert np.abs(panda.q - q).max() < 1e-3
+
+        # Code block 4
+        panda.move_to_start()
+        pose = panda.get_pose()
+        pose[2, 3] -= 0.1
+        panda.move_to_pose(pose)
+
+        assert np.linalg.norm(panda.get_pose()[:3, 3] - pose[:3, 3]) < 1e-3
+
+        # the inline examples
+        print(panda.get_state())
+        print(panda.get_model())
+        gripper.grasp(0, 0.2, 10, 0.04, 0.04)
+        gripper.move(0.08, 0.2)
+
+        out = capsys.readouterr().out
+        assert "RobotState(" in out and "Model(" in out
         assert gripper.read_once().width == pytest.approx(0.08, abs=2e-3)
     finally:
-        gripper.close() if hasattr(gripper, "close") else None
         panda.close()
 
 
-def test_block_logging_paths(panda: panda_py.Panda) -> None:
+def test_logged_paths_straight_and_curved(panda: panda_py.Panda) -> None:
     panda.move_to_start()
     pose = panda.get_pose()
     pose[1, 3] -= 0.1
@@ -76,9 +94,10 @@ def test_block_logging_paths(panda: panda_py.Panda) -> None:
     }  # fmt: skip
 
 
-def test_block_cartesian_impedance(panda: panda_py.Panda) -> None:
+def test_block6_cartesian_impedance(panda: panda_py.Panda) -> None:
+    """Code block 6 (the paper's examples/cartesian_impedance.py), with a log."""
     panda.move_to_start()
-    ctrl = controllers.CartesianImpedance()
+    ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
     x0 = panda.get_position()
     q0 = panda.get_orientation()
     runtime = np.pi * 4
@@ -103,3 +122,38 @@ def test_block_cartesian_impedance(panda: panda_py.Panda) -> None:
     late = t_ref > 1.0
     follow = np.interp(t_ref[late], t_log - t_log[0] + t_ref[0], y)
     assert np.sqrt(np.mean((follow - y_ref[late]) ** 2)) < 0.03
+
+
+def test_block5_logging_and_the_figure(panda: panda_py.Panda) -> None:
+    """Code block 5 as the paper's notebook has it (``stiffness=`` selects the joint-space
+    tracking of the straight path, as panda-py did then)."""
+    from panda_py import constants
+
+    T_0 = panda_py.fk(constants.JOINT_POSITION_START)
+    T_0[1, 3] = 0.25
+    T_1 = T_0.copy()
+    T_1[1, 3] = -0.25
+
+    panda.move_to_pose(T_0)
+    panda.enable_logging(40000)
+    panda.move_to_pose(T_1,
+                       speed_factor=0.01,
+                       stiffness=2 * np.array([600, 600, 600, 600, 250, 150, 50]))  # fmt: skip
+    panda.disable_logging()
+    log = panda.get_log()
+
+    panda.move_to_pose(T_0)
+    panda.enable_logging(10000)
+    panda.move_to_joint_position(panda_py.ik(T_1))
+    panda.disable_logging()
+    joint_log = panda.get_log()
+
+    # the figure: the Cartesian path is the straight line from T_0 to T_1, the joint one
+    # an arc away from it
+    cart = np.array(log["O_T_EE"])
+    joint = np.array(joint_log["O_T_EE"])
+    for path in (cart, joint):
+        assert path[0, 13] == pytest.approx(0.25, abs=5e-3)
+        assert path[-1, 13] == pytest.approx(-0.25, abs=5e-3)
+    assert _xy_deviation_from_line(log) < 2e-3
+    assert _xy_deviation_from_line(joint_log) > 0.02
