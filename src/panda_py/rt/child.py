@@ -37,6 +37,7 @@ from panda_py.libfranka import (
     ControlException,
     FrankaException,
     InvalidOperationException,
+    RealtimeException,
     Robot,
     RobotMode,
     RobotState,
@@ -132,7 +133,10 @@ class ControlServer:
         self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
         self.tau_max = np.array(limits.joints.tau_max)
         if set_current_thread_to_highest_priority() is None and config == RealtimeConfig.kEnforce:
-            raise FrankaException("realtime scheduling (SCHED_FIFO) is not permitted")
+            raise RealtimeException(
+                "libfranka: realtime scheduling (SCHED_FIFO) is required "
+                "(RealtimeConfig.kEnforce) but not permitted for the control process"
+            )
         data = robot._conn.receive_state()
         self.block.publish_state(data)
         self._warm_up(RobotState(robot._conn.dialect, data))
