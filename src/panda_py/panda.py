@@ -62,6 +62,14 @@ def realtime_priority_available() -> tuple[bool, str]:
     return True, ""
 
 
+def _copy_keep_order(view: np.ndarray) -> FloatArray:
+    return view.copy(order="K")
+
+
+def _cast_keep_order(view: np.ndarray) -> FloatArray:
+    return view.astype(np.float64, order="K")
+
+
 class Panda:
     """The main interface to control one robot (panda-py's ``Panda``).
 
@@ -101,7 +109,14 @@ class Panda:
         self._model = Model(self._spec)
         block = self._proc.block
         self._q_view = block.field_views(self._dialect.state_dtype, "q")
-        self._T_view = block.field_views(self._dialect.state_dtype, "O_T_EE")
+        T = block.field_views(self._dialect.state_dtype, "O_T_EE")
+        # column-major 16 -> the 4x4 pose as a (Fortran-ordered) view, and its position
+        self._T_view = (T[0].reshape(4, 4).T, T[1].reshape(4, 4).T)
+        self._p_view = (T[0][12:15], T[1][12:15])
+        self._header = block.header
+        # float64 fields (protocol <= 9) copy as they are; v10's float32 ones are cast
+        f64 = self._q_view[0].dtype == np.float64
+        self._copy = _copy_keep_order if f64 else _cast_keep_order
         self._logger.info("Connected to robot (%s).", hostname)
         self._logger.info(
             "Using %s joint limits (robot server version %d).",
@@ -178,22 +193,32 @@ class Panda:
         proc = self._proc
         if proc.dead:
             raise proc._gone()
-        return proc.block.read_field(self._q_view)
+        # the state latch, read inline (this is the hot path of a user's loop)
+        h, views, copy = self._header, self._q_view, self._copy
+        while True:
+            seq = h[0]
+            out = copy(views[seq & 1])
+            if seq == h[0]:
+                return out
 
     def get_pose(self) -> FloatArray:
         """Current end-effector pose in the base frame (4x4)."""
         proc = self._proc
         if proc.dead:
             raise proc._gone()
-        T = proc.block.read_field(self._T_view)
-        return T.reshape(4, 4).T.copy()
+        h, views, copy = self._header, self._T_view, self._copy
+        while True:
+            seq = h[0]
+            out = copy(views[seq & 1])
+            if seq == h[0]:
+                return out
 
     def get_position(self) -> FloatArray:
         """Current end-effector position in the base frame [m]."""
         proc = self._proc
         if proc.dead:
             raise proc._gone()
-        return proc.block.read_field(self._T_view)[12:15]
+        return proc.block.read_field(self._p_view)
 
     def get_orientation(self, scalar_first: bool = False) -> FloatArray:
         """Current end-effector orientation as a unit quaternion: (x, y, z, w), or

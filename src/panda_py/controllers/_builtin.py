@@ -35,6 +35,7 @@ ZERO7 = (0.0,) * 7
 _ZERO7_LIST = list(ZERO7)
 _START_LIST = list(START_POSE)
 _fast = _args.fast_vector
+_F64 = np.dtype(np.float64)
 
 
 def _sqrtm_psd(K: FloatArray) -> FloatArray:
@@ -365,10 +366,26 @@ class CartesianImpedance(TorqueController):
     def set_control(self, position: Any, orientation: Any, q_nullspace: Any = START_POSE) -> None:
         """Desired end-effector position [m] and orientation (quaternion x, y, z, w) in the
         base frame, and the joint positions the nullspace term pulls toward [rad]."""
-        p = _fast("position", position, 3, "[m]")
-        o = _fast("orientation", orientation, 4, "(quaternion x, y, z, w)")
+        # the common case inline (float64 arrays, finite, a unit quaternion), else the
+        # checks that name what is wrong
+        if (
+            type(position) is np.ndarray
+            and type(orientation) is np.ndarray
+            and position.dtype is _F64
+            and orientation.dtype is _F64
+            and position.shape == (3,)
+            and orientation.shape == (4,)
+        ):
+            p = position.tolist()
+            o = orientation.tolist()
+        else:
+            p = _fast("position", position, 3, "[m]")
+            o = _fast("orientation", orientation, 4, "(quaternion x, y, z, w)")
         x, y, z, w = o
-        if not abs(x * x + y * y + z * z + w * w - 1.0) <= 2e-2:  # |o| within 1 % of 1
+        nn = x * x + y * y + z * z + w * w
+        s = p[0] + p[1] + p[2] + nn
+        if not (abs(nn - 1.0) <= 2e-2 and s - s == 0.0):  # |o| within 1 % of 1, finite
+            p = _fast("position", position, 3, "[m]")
             o = _args.quaternion("orientation", orientation)  # raises, naming the norm
         if q_nullspace is START_POSE:
             n = _START_LIST
