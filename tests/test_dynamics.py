@@ -173,3 +173,24 @@ def test_robot_names_resolve():
 def test_invalid_input_is_rejected(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_loaded_arm_equals_the_checked_functions() -> None:
+    from panda_py.dynamics import LoadedArm, coriolis, gravity, mass_matrix
+
+    rng = np.random.default_rng(7)
+    load = {"m_load": 0.9, "F_x_Cload": [0.01, -0.02, 0.05], "I_load": np.eye(3) * 2e-3}
+    for robot in ("fer", "fr3"):
+        arm = LoadedArm(robot, **load)
+        for _ in range(5):
+            q, dq = rng.uniform(-1, 1, 7), rng.normal(size=7)
+            np.testing.assert_allclose(
+                arm.coriolis(q.tolist(), dq.tolist()), coriolis(q, dq, robot=robot, **load)
+            )
+            np.testing.assert_allclose(
+                arm.gravity(q.tolist()),
+                gravity(q, m_load=0.9, F_x_Cload=load["F_x_Cload"], robot=robot),
+            )
+            np.testing.assert_allclose(
+                arm.mass_matrix(q.tolist()), mass_matrix(q, robot=robot, **load)
+            )

@@ -32,6 +32,8 @@ class ControlModel(Model):
         self._cor: tuple[Any, FloatArray] | None = None
         self._grav: tuple[Any, FloatArray] | None = None
         self._mass: tuple[Any, FloatArray] | None = None
+        self._arm_key: tuple[Any, ...] | None = None
+        self._arm_cached: dynamics.LoadedArm | None = None
 
     def _kinematics(self, F_T_EE: FloatArray) -> Any:
         key = F_T_EE.tobytes()
@@ -49,19 +51,22 @@ class ControlModel(Model):
         self._jac = (state, J)
         return J
 
+    def _arm(self, state: Any) -> dynamics.LoadedArm:
+        """The arm with the state's total load, prepared once per load."""
+        m, c, inertia = state.m_total, state.F_x_Ctotal, state.I_total
+        key = (m, c.tobytes(), inertia.tobytes())
+        if key != self._arm_key:
+            self._arm_cached = dynamics.LoadedArm(self.spec, m_load=m, F_x_Cload=c, I_load=inertia)
+            self._arm_key = key
+        assert self._arm_cached is not None
+        return self._arm_cached
+
     def coriolis_of(self, state: Any) -> FloatArray:
         """Coriolis and centrifugal torques (7,) [Nm] with the state's total load."""
         cached = self._cor
         if cached is not None and cached[0] is state:
             return cached[1]
-        tau = dynamics.coriolis(
-            state.q,
-            state.dq,
-            m_load=state.m_total,
-            F_x_Cload=state.F_x_Ctotal,
-            I_load=state.I_total,
-            robot=self.spec,
-        )
+        tau = self._arm(state).coriolis(state.q.tolist(), state.dq.tolist())
         self._cor = (state, tau)
         return tau
 
@@ -70,13 +75,7 @@ class ControlModel(Model):
         cached = self._mass
         if cached is not None and cached[0] is state:
             return cached[1]
-        M = dynamics.mass_matrix(
-            state.q,
-            m_load=state.m_total,
-            F_x_Cload=state.F_x_Ctotal,
-            I_load=state.I_total,
-            robot=self.spec,
-        )
+        M = self._arm(state).mass_matrix(state.q.tolist())
         self._mass = (state, M)
         return M
 
@@ -85,8 +84,6 @@ class ControlModel(Model):
         cached = self._grav
         if cached is not None and cached[0] is state:
             return cached[1]
-        tau = dynamics.gravity(
-            state.q, m_load=state.m_total, F_x_Cload=state.F_x_Ctotal, robot=self.spec
-        )
+        tau = self._arm(state).gravity(state.q.tolist())
         self._grav = (state, tau)
         return tau
