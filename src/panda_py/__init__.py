@@ -18,6 +18,7 @@ _LAZY: dict[str, str] = {
     "ik_full": "panda_py.kinematics",
     "JointTrajectory": "panda_py.motion",
     "CartesianTrajectory": "panda_py.motion",
+    "Desk": "panda_py.desk",
 }
 
 __all__ = ["__version__", *sorted(_LAZY)]
