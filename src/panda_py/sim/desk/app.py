@@ -240,8 +240,13 @@ class DeskApp:
         return self.state.request_control(owner, force="force" in r.query)
 
     def _legacy_acknowledge(self, r: HttpRequest) -> Reply:
-        self.state.td2_timeout = False
-        return Reply(200, {"code": "SuccessResponse"})
+        """``?error_id=TD2Timeout`` (self-test due) or the pending safety error's type."""
+        error_id = r.query.get("error_id", [""])[-1]
+        if error_id == "TD2Timeout":
+            self.state.td2_timeout = False
+            return Reply(200, {"code": "SuccessResponse"})
+        reply = self.state.confirm_recovery({"type": error_id})
+        return Reply(200, {"code": "SuccessResponse"}) if reply.status == 200 else reply
 
     async def _v1_take(self, r: HttpRequest) -> Reply:
         body = r.json()

@@ -91,7 +91,8 @@ class DeskState:
             expected is None
             or not isinstance(password, str)
             or not secrets.compare_digest(
-                password.strip().encode(), encode_password(user or "", expected).strip().encode()
+                "".join(password.split()).encode(),
+                "".join(encode_password(user or "", expected).split()).encode(),
             )
         ):
             return error(401, "Unauthorized", "wrong user name or password")
