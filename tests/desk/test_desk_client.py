@@ -268,3 +268,40 @@ def test_all_is_honest() -> None:
     for name in desk_pkg.__all__:
         assert hasattr(desk_pkg, name), name
     assert Token("1", "a", "s")
+
+
+def test_a_lost_answer_to_a_control_request_is_raised_not_retried(tmp_path: Path) -> None:
+    from panda_py.desk import DeskConnectionError
+
+    robot = FakeLegacy()
+    calls: list[str] = []
+
+    def flaky(req: Request) -> Response:
+        calls.append(req.path)
+        if req.path == "/desk/api/robot/open-brakes":
+            raise DeskConnectionError("connection reset")
+        return robot(req)
+
+    desk = make(flaky, tmp_path)
+    with pytest.raises(DeskConnectionError):
+        desk.unlock()
+    assert calls.count("/desk/api/robot/open-brakes") == 1
+
+
+def test_every_request_gets_a_timeout(tmp_path: Path) -> None:
+    seen: list[float] = []
+
+    class Timed(MockTransport):
+        def request(self, request: Request, *, timeout: float) -> Response:
+            seen.append(timeout)
+            return super().request(request, timeout=timeout)
+
+    Desk(
+        HOST,
+        "franka",
+        "secret",
+        transport=Timed(FakeLegacy()),
+        token_dir=str(tmp_path),
+        timeout=2.5,
+    )
+    assert seen and all(t == 2.5 for t in seen)

@@ -121,9 +121,12 @@ class Desk:
     def _auth(self) -> dict[str, str]:
         return self._v1.auth_headers() if self._api == DeskAPI.V1 else self._legacy.auth_headers()
 
-    def _send(self, request: Request, *, check: bool = True) -> Response:
+    def _send(
+        self, request: Request, *, check: bool = True, timeout: float | None = None
+    ) -> Response:
+        """One request, never retried (a control request may have reached the robot)."""
         request.headers = {**self._auth(), **request.headers}
-        response = self._transport.request(request, timeout=self.timeout)
+        response = self._transport.request(request, timeout=timeout or self.timeout)
         if check and not 200 <= response.status < 300:
             raise DeskHTTPError(request.method, request.path, response.status, response.text)
         return response
@@ -215,9 +218,9 @@ class Desk:
         if api == DeskAPI.V1:
             wait = V1_FORCE_TIMEOUT if force else self.timeout
             # The robot holds the request until it is granted: allow for that, plus margin.
-            saved, self.timeout = self.timeout, max(self.timeout, wait + self.timeout)
             try:
-                body = self._json(self._send(self._v1.take(self._username, wait)))
+                request = self._v1.take(self._username, wait)
+                body = self._json(self._send(request, timeout=wait + self.timeout))
             except DeskHTTPError as exc:
                 if exc.status == 424 and exc.code == "Timeout":
                     raise TakeControlTimeoutError(
@@ -225,8 +228,6 @@ class Desk:
                         "press the Pilot's top button, or ask the holder to release it"
                     ) from exc
                 raise
-            finally:
-                self.timeout = saved
             self._set_token(Token(str(body["tokenId"]), self._username, str(body["token"])))
             log.info("taken control of %s", self._hostname)
             return True
