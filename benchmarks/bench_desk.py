@@ -34,6 +34,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from panda_py.libfranka import Robot
 from panda_py.sim import Simulator, free_loopback_host
 from panda_py.sim.desk import DeskConfig
 
@@ -187,6 +188,9 @@ def run_client(host: str, duration: float) -> dict[str, Any]:
 
 
 def measure(sim: Simulator, duration: float) -> dict[str, Any]:
+    # A stall of the machine may have ended the previous run in a reflex: clear it first.
+    with Robot(sim.host) as robot:
+        robot.automatic_error_recovery()
     sim.reset_stats()
     client = run_client(sim.host, duration)
     st = sim.stats()

@@ -13,10 +13,11 @@ from panda_py.desk.errors import (
     NotInControlError,
     TakeControlTimeoutError,
 )
-from panda_py.desk.store import Token, TokenStore
+from panda_py.desk.store import TOKEN_PATH, Token, TokenStore
 from panda_py.desk.transport import MockTransport, Request, Response
 
 __all__ = [
+    "TOKEN_PATH",
     "CertificateChangedError",
     "Desk",
     "DeskAPI",

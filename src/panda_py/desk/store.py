@@ -32,6 +32,11 @@ def default_directory() -> Path:
     return Path(base) / "panda_py" / "desk"
 
 
+#: panda-py's name: the file holding control tokens (and here the pinned certificates),
+#: as resolved at import; ``Desk(token_dir=...)`` or ``$PANDA_PY_DESK_DIR`` choose another.
+TOKEN_PATH = str(default_directory() / FILE_NAME)
+
+
 @dataclass(frozen=True)
 class Token:
     """A control token: ``id`` (as text), the owner's name and the secret itself.
@@ -123,4 +128,4 @@ class TokenStore:
         self._save(data)
 
 
-__all__ = ["Token", "TokenStore", "default_directory"]
+__all__ = ["TOKEN_PATH", "Token", "TokenStore", "default_directory"]
