@@ -11,7 +11,9 @@ streams ``/desk/api/robot/configuration`` at 10 Hz; a plain websocket client ins
 there is no browser). Reported per condition: late ticks (the simulator's count of ticks
 starting > 0.5 ms after their deadline) over ticks, the client's state periods (median /
 p99 / worst, ms, share > 1.5 ms), and under load the Desk's request latency (median / p99
-/ worst, ms). Target: no measurable difference between the conditions.
+/ worst, ms), and the stalls (the simulator fell > 100 ms behind and re-synchronised:
+the machine, not the simulator, stopped it; the runs this hits end in a reflex).
+Target: no measurable difference between the conditions.
 """
 
 from __future__ import annotations
@@ -196,7 +198,9 @@ def measure(sim: Simulator, duration: float) -> dict[str, Any]:
     st = sim.stats()
     if "error" in client:
         print(f"  !! the FCI client failed: {client['error']}", file=sys.stderr)
-    return {"late": st["late_ticks"], "ticks": st["ticks"], "client": client}
+    return {
+        "late": st["late_ticks"], "ticks": st["ticks"], "resyncs": st["resyncs"], "client": client
+    }  # fmt: skip
 
 
 def ms(values: list[float]) -> str:
@@ -235,7 +239,8 @@ def main() -> None:
             print(f"repeat {r + 1}/{args.repeat} done", file=sys.stderr)
     print(f"\n{args.repeat} x {args.duration:.0f} s per condition, realtime FR3, FCI torque "
           f"client v10; load: {args.rate:.0f} Desk requests/s + {how}")  # fmt: skip
-    print(f"{'condition':12s} {'late ticks':>18s} {'periods ms med/p99/max':>24s} {'>1.5ms %':>9s}")
+    print(f"{'condition':12s} {'late ticks':>22s} {'periods ms med/p99/max':>24s} "
+          f"{'>1.5ms %':>9s} {'stalls':>6s}  client runs ended early")  # fmt: skip
     for name, runs in rows.items():
         late = sum(x["late"] for x in runs)
         ticks = sum(x["ticks"] for x in runs)
@@ -244,9 +249,15 @@ def main() -> None:
         p99 = max((p.get("p99", float("nan")) for p in per), default=float("nan"))
         worst = max((p.get("max", float("nan")) for p in per), default=float("nan"))
         share = max((p.get("late_share", float("nan")) for p in per), default=float("nan"))
+        early = [
+            x["client"].get("final_status", x["client"].get("error", "?"))
+            for x in runs
+            if x["client"].get("final_status") != "SUCCESS" or x["client"].get("aborted")
+        ]
         print(
-            f"{name:12s} {late:6d}/{ticks:7d} ({100 * late / max(1, ticks):.3f}%) "
-            f"{med:8.3f} /{p99:6.3f} /{worst:7.3f} {100 * share:9.3f}"
+            f"{name:12s} {late:6d}/{ticks:7d} ({100 * late / max(1, ticks):.3f} %) "
+            f"{med:8.3f} /{p99:6.3f} /{worst:7.3f} {100 * share:9.3f} "
+            f"{sum(x['resyncs'] for x in runs):6d}  {len(early)} {early}"
         )
     print(f"Desk request latency med/p99/max ms: {ms(latencies)} ({len(latencies)} requests, "
           f"{errors} answered >= 400)")  # fmt: skip
