@@ -305,3 +305,23 @@ def test_every_request_gets_a_timeout(tmp_path: Path) -> None:
         timeout=2.5,
     )
     assert seen and all(t == 2.5 for t in seen)
+
+
+def test_a_desk_older_than_control_tokens_needs_none(tmp_path: Path) -> None:
+    robot = FakeLegacy()
+
+    def old(req: Request) -> Response:
+        if req.path.startswith("/admin/api/control-token"):
+            return Response(404, {}, b"File not found")
+        if req.path == "/desk/api/robot/open-brakes":  # no token on such a Desk
+            assert "X-Control-Token" not in req.headers
+            robot.brakes = "Unlocked"
+            return Response(200)
+        return robot(req)
+
+    desk = make(old, tmp_path)
+    assert desk.take_control() and desk.has_control()
+    desk.unlock()
+    desk.activate_fci()  # nothing to do on such a Desk
+    desk.release_control()
+    assert robot.brakes == "Unlocked"

@@ -95,6 +95,9 @@ class Desk:
         self._v1 = V1API(username, password)
         self._api: DeskAPI | None = None
         self._logged_in = False
+        # Desks older than control tokens answer 404 for them: then, as panda-py does,
+        # taking control, releasing it and the FCI calls do nothing.
+        self._tokenless = False
         self._token = self._store.token(hostname, username)
         self._listening = False
         self._listen_thread: threading.Thread | None = None
@@ -146,6 +149,8 @@ class Desk:
         return self._api
 
     def _need_token(self) -> str:
+        if self._tokenless:
+            return ""
         if not self._token:
             raise NotInControlError(
                 f"this session holds no control token for {self._hostname}: take_control() first"
@@ -198,6 +203,8 @@ class Desk:
 
     def has_control(self) -> bool:
         """Whether this session's token is the robot's active one."""
+        if self._tokenless:
+            return True
         active_id, _ = self._active()
         return bool(self._token) and active_id == self._token.id
 
@@ -208,7 +215,16 @@ class Desk:
         button (FR3) within the robot's force timeout; :class:`TakeControlTimeoutError`
         otherwise."""
         api = self._need_login()
-        active_id, owner = self._active()
+        if self._tokenless:
+            return True
+        try:
+            active_id, owner = self._active()
+        except DeskHTTPError as exc:
+            if api != DeskAPI.LEGACY or exc.status != 404:
+                raise
+            log.info("the Desk at %s predates control tokens: none needed", self._hostname)
+            self._tokenless = True
+            return True
         if active_id and self._token and active_id == self._token.id:
             log.info("retaken control of %s", self._hostname)
             return True
@@ -255,6 +271,8 @@ class Desk:
     def release_control(self) -> None:
         """Give control back (the next queued user, if any, gets it)."""
         api = self._need_login()
+        if self._tokenless:
+            return
         token = self._need_token()
         log.info("releasing control of %s", self._hostname)
         request = self._v1.release(token) if api == DeskAPI.V1 else self._legacy.release(token)
@@ -308,6 +326,8 @@ class Desk:
         self._fci(False)
 
     def _fci(self, on: bool) -> None:
+        if self._tokenless:  # these Desks have no FCI switch
+            return
         token = self._need_token()
         if self._need_login() == DeskAPI.V1:
             self._send(self._v1.fci(on, token))
