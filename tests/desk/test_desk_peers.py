@@ -38,7 +38,10 @@ def _handlers(sim: Simulator) -> dict[str, Any]:
     def safety_error(_: Any) -> None:
         desk.inject_safety_error()
 
-    return {"status": lambda _: _robot(sim), "safety_error": safety_error}
+    def press(button: str) -> None:
+        desk.press_pilot_button(button)
+
+    return {"status": lambda _: _robot(sim), "safety_error": safety_error, "press": press}
 
 
 def test_panda_python_desk(fer: Simulator, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -89,6 +92,10 @@ def test_franky_desk(api: str, fr3: Simulator, tmp_path: Path) -> None:
         assert recovery["pending"]["type"] == "SafetyError" and recovery["after"] is None
     else:
         assert modes["programming"] == "Programming"
+    buttons = scenario(result, "buttons")  # poll_buttons over WSS, with this API's auth
+    keys = ["check", "circle", "cross", "down", "left", "right", "up"]
+    assert buttons["first"] == [[k, False] for k in keys]
+    assert buttons["later"] == [["check", True], ["check", False]]
     done = scenario(result, "lock_and_release")
     assert done["brakes"] == "Locked" and not done["has_control"]
     assert done["robot"]["owner"] is None

@@ -1,6 +1,7 @@
 """franky-control 2.0.0's Desk (API v1, on an FR3) or DeskWebSession (legacy web API)
 against the simulated Desk. After each step the test reports the simulated robot's state
-(event ``status``); event ``safety_error`` makes it raise a recoverable safety error.
+(event ``status``); event ``safety_error`` makes it raise a recoverable safety error,
+event ``press`` press a Pilot button.
 
 Usage: franky_desk.py HOST[:PORT] USER PASSWORD v1|legacy
 """
@@ -61,6 +62,20 @@ def recovery() -> dict[str, object]:
     return {"pending": pending, "after": session.get_recovery_status()}
 
 
+def buttons() -> dict[str, object]:
+    first = session.poll_buttons(timeout=5.0)  # the full key map, all released
+    event("press", "check")
+    later: list[object] = []
+    for _ in range(20):
+        later += session.poll_buttons(timeout=0.5)
+        if len(later) >= 2:
+            break
+    return {
+        "first": sorted((e.button.value, e.pressed) for e in first),
+        "later": [(e.button.value, e.pressed) for e in later],  # type: ignore[attr-defined]
+    }
+
+
 def lock_and_release() -> dict[str, object]:
     session.lock_brakes()
     brakes = session.brake_state.value
@@ -72,7 +87,8 @@ def lock_and_release() -> dict[str, object]:
 
 for name, fn in [
     ("take", take), ("modes", modes), ("unlock_and_fci", unlock_and_fci),
-    ("self_test", self_test), ("recovery", recovery), ("lock_and_release", lock_and_release),
+    ("self_test", self_test), ("recovery", recovery), ("buttons", buttons),
+    ("lock_and_release", lock_and_release),
 ]:  # fmt: skip
     s.run(name, fn)
 s.finish()
