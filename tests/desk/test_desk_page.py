@@ -112,7 +112,10 @@ def test_the_page_drives_the_robot(page: Any, fer: Simulator, tmp_path: Path) ->
     worker = threading.Thread(target=lambda: taken.append(client.take_control(force=True)))
     worker.start()
     try:
-        page.wait_for_timeout(300)
+        for _ in range(500):  # until the forced request waits for the Pilot
+            if fer.desk.status()["pendingControlRequests"]:
+                break
+            page.wait_for_timeout(20)
         page.click("#pilot-circle")
     finally:
         worker.join(10)

@@ -13,6 +13,7 @@ import time
 from typing import Any
 
 import pytest
+from desk_support import HEADER_TIMEOUT
 
 from panda_py.desk import Desk, encode_password
 from panda_py.sim import Simulator
@@ -145,6 +146,18 @@ def test_a_slow_client_gets_408_and_does_not_block_others(fr3: Simulator) -> Non
     answer = slow.recv(4096)
     slow.close()
     assert answer.startswith(b"HTTP/1.1 408")
+
+
+def test_a_client_sending_no_request_head_is_closed(fr3: Simulator) -> None:
+    assert fr3.desk is not None
+    raw = socket.create_connection((fr3.host, fr3.desk.port), timeout=30)
+    slow = _context().wrap_socket(raw)
+    slow.sendall(b"GET /api/system HTTP/1.1\r\nHost: robot\r\n")  # and nothing more
+    t0 = time.monotonic()
+    assert call(fr3, "GET", "/api/system", **BASIC)[0] == 200  # served meanwhile
+    assert slow.recv(4096) == b""  # closed by the robot
+    assert time.monotonic() - t0 < 2 * HEADER_TIMEOUT + 1.0
+    slow.close()
 
 
 def test_the_client_never_shows_the_password_or_token(

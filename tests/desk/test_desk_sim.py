@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from desk_support import desk_sim
+from desk_support import desk_sim, press_when_requested
 
 from panda_py import libfranka as lf
 from panda_py.desk import (
@@ -109,8 +109,7 @@ def test_forced_take_completes_on_the_pilot_and_times_out_without(
     other = desk(fer, str(tmp_path / "b"))
     assert holder.has_control() and not other.has_control()
     assert other.take_control() is False  # without force: refused, nothing changed
-    presser = threading.Timer(0.5, fer.press_pilot_button, args=("circle",))
-    presser.start()
+    presser = press_when_requested(fer, "circle")
     assert other.take_control(force=True)
     presser.join()
     assert other.has_control() and not holder.has_control()
@@ -131,8 +130,7 @@ def test_v1_take_is_confirmed_with_the_fr3_top_button_or_times_out(
     fresh(fr3)
     holder = desk(fr3, str(tmp_path / "a"))
     other = desk(fr3, str(tmp_path / "b"))
-    presser = threading.Timer(0.5, fr3.press_pilot_button, args=("top",))
-    presser.start()
+    presser = press_when_requested(fr3, "top")
     assert other.take_control(force=True)
     presser.join()
     assert other.has_control() and not holder.has_control()

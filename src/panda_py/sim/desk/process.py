@@ -43,12 +43,15 @@ class DeskConfig:
     token_force_timeout: float = 10.0  # [s] to press the Pilot after a forced take
     cert_dir: str | None = None  # default: ~/.cache/panda_py/desk/<host>
     page: bool = True
+    header_timeout: float = 10.0  # [s] a request head slower than this (to twice it): closed
 
     def __post_init__(self) -> None:
         if not 0 <= self.port < 65536:
             raise ValueError(f"desk port: expected 0..65535, got {self.port}")
         if not self.user or not self.password:
             raise ValueError("desk user and password: expected non-empty strings")
+        if not self.header_timeout > 0:
+            raise ValueError(f"header_timeout: expected > 0 s, got {self.header_timeout}")
         if not self.token_force_timeout > 0:
             raise ValueError(f"token_force_timeout: expected > 0 s, got {self.token_force_timeout}")
 
@@ -64,6 +67,43 @@ def _bind(host: str, port: int) -> socket.socket:
         sock.close()
         raise
     return sock
+
+
+def _slow_header_protocol(timeout: float) -> Any:
+    """uvicorn's HTTP/1.1 protocol, closing connections that send no complete request
+    head within ``timeout`` to 2 ``timeout`` [s] (uvicorn waits for it forever, so slow
+    clients could use up ``limit_concurrency``). Idle kept-alive connections close sooner,
+    after uvicorn's own ``timeout_keep_alive``."""
+    import h11
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class SlowHeaderProtocol(H11Protocol):
+        def connection_made(self, transport: Any) -> None:
+            super().connection_made(transport)
+            self._heads = 0
+            self._heads_at_check = 0
+            self._check_later()
+
+        def _check_later(self) -> None:
+            self.loop.call_later(timeout, self._check)
+
+        def data_received(self, data: bytes) -> None:
+            idle = self.conn.their_state is h11.IDLE
+            super().data_received(data)
+            if idle and self.conn.their_state is not h11.IDLE:
+                self._heads += 1  # a complete request head arrived
+
+        def _check(self) -> None:
+            if self.transport.is_closing() or self.transport.get_protocol() is not self:
+                return  # closed, or upgraded to a websocket
+            if self.conn.their_state is h11.IDLE and self._heads == self._heads_at_check:
+                log.info("closing a connection that sent no request head in %.1f s", timeout)
+                self.timeout_keep_alive_handler()
+                return
+            self._heads_at_check = self._heads
+            self._check_later()
+
+    return SlowHeaderProtocol
 
 
 def desk_main(
@@ -100,6 +140,7 @@ def desk_main(
             log_level="warning",
             access_log=False,
             lifespan="off",
+            http=_slow_header_protocol(config.header_timeout),
             ws="websockets-sansio",
             ws_max_size=64 * 1024,
             timeout_keep_alive=5,

@@ -302,6 +302,7 @@ class DeskState:
             "fci": {"active": self.fci_active},
             "robot": self.robot,
             "pilotConfirmButton": self.confirm_button(),
+            "pendingControlRequests": len(self.queue),
             "arm": self.link.snapshot(),
         }
 
