@@ -203,6 +203,13 @@ def measure(sim: Simulator, duration: float) -> dict[str, Any]:
     }  # fmt: skip
 
 
+def proc_cpu(pid: int) -> float:
+    """User + system CPU time of process ``pid`` [s]."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def ms(values: list[float]) -> str:
     if not values:
         return "n/a"
@@ -219,6 +226,7 @@ def main() -> None:
     args = ap.parse_args()
     rows: dict[str, list[dict[str, Any]]] = {"no Desk": [], "Desk idle": [], "Desk loaded": []}
     latencies: list[float] = []
+    desk_cpu: list[float] = []
     errors = 0
     how = ""
     with tempfile.TemporaryDirectory() as certs:
@@ -228,12 +236,15 @@ def main() -> None:
                 rows["no Desk"].append(measure(plain, args.duration))
             with Simulator(free_loopback_host(), robot="fr3", desk=desk) as sim:
                 assert sim.desk is not None
+                desk_pid = sim.desk._process.pid
                 rows["Desk idle"].append(measure(sim, args.duration))
                 with (
                     page_open(sim.desk.url) as how,
                     Load(sim.host, sim.desk.port, args.rate) as load,
                 ):
+                    cpu0, t0 = proc_cpu(desk_pid), time.monotonic()
                     rows["Desk loaded"].append(measure(sim, args.duration))
+                    desk_cpu.append((proc_cpu(desk_pid) - cpu0) / (time.monotonic() - t0))
                 latencies += load.latencies
                 errors += load.errors
             print(f"repeat {r + 1}/{args.repeat} done", file=sys.stderr)
@@ -260,7 +271,8 @@ def main() -> None:
             f"{sum(x['resyncs'] for x in runs):6d}  {len(early)} {early}"
         )
     print(f"Desk request latency med/p99/max ms: {ms(latencies)} ({len(latencies)} requests, "
-          f"{errors} answered >= 400)")  # fmt: skip
+          f"{errors} answered >= 400); the Desk process's CPU under load: "
+          f"{100 * statistics.mean(desk_cpu):.1f} % of one core")  # fmt: skip
 
 
 if __name__ == "__main__":
