@@ -1,6 +1,7 @@
 """The simulated Desk's TLS certificate: self-signed like a robot's, generated on first
-start and cached (``~/.cache/panda_py/desk/<host>``), so that clients which pin it on
-first use see the same certificate on every later start."""
+start and cached (``~/.cache/panda_py/desk``, one for every simulator of this user), so
+that clients which pin it on first use see the same certificate on every later start.
+Clients pin it rather than check its names, as with a robot's."""
 
 from __future__ import annotations
 
@@ -10,16 +11,18 @@ import os
 from pathlib import Path
 
 
-def default_cert_dir(host: str) -> Path:
+def default_cert_dir() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
-    return Path(base) / "panda_py" / "desk" / host.replace(":", "_")
+    return Path(base) / "panda_py" / "desk"
 
 
-def ensure_certificate(directory: Path, host: str) -> tuple[Path, Path]:
-    """(certificate, key) PEM files in ``directory``, created if missing."""
-    cert_path, key_path = directory / "desk-cert.pem", directory / "desk-key.pem"
-    if cert_path.exists() and key_path.exists():
-        return cert_path, key_path
+def ensure_certificate(directory: Path) -> Path:
+    """``directory/desk.pem``: the certificate, then its key (one file, mode 0600, so that
+    simulators starting at once on a fresh machine each rename a consistent pair into
+    place), created if missing."""
+    path = directory / "desk.pem"
+    if path.exists():
+        return path
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes, serialization
     from cryptography.hazmat.primitives.asymmetric import ec
@@ -27,11 +30,11 @@ def ensure_certificate(directory: Path, host: str) -> tuple[Path, Path]:
 
     key = ec.generate_private_key(ec.SECP256R1())
     name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "robot.franka.de")])
-    alt: list[x509.GeneralName] = [x509.DNSName("robot.franka.de")]
-    try:
-        alt.append(x509.IPAddress(ipaddress.ip_address(host)))
-    except ValueError:
-        alt.append(x509.DNSName(host))
+    alt: list[x509.GeneralName] = [
+        x509.DNSName("robot.franka.de"),
+        x509.DNSName("localhost"),
+        x509.IPAddress(ipaddress.ip_address("127.0.0.1")),
+    ]
     now = datetime.datetime.now(datetime.timezone.utc)
     cert = (
         x509.CertificateBuilder()
@@ -45,9 +48,10 @@ def ensure_certificate(directory: Path, host: str) -> tuple[Path, Path]:
         .sign(key, hashes.SHA256())
     )
     directory.mkdir(mode=0o700, parents=True, exist_ok=True)
-    tmp_key = key_path.with_suffix(".tmp")
-    fd = os.open(tmp_key, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
     with os.fdopen(fd, "wb") as f:
+        f.write(cert.public_bytes(serialization.Encoding.PEM))
         f.write(
             key.private_bytes(
                 serialization.Encoding.PEM,
@@ -55,11 +59,8 @@ def ensure_certificate(directory: Path, host: str) -> tuple[Path, Path]:
                 serialization.NoEncryption(),
             )
         )
-    tmp_cert = cert_path.with_suffix(".tmp")
-    tmp_cert.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    os.replace(tmp_key, key_path)
-    os.replace(tmp_cert, cert_path)
-    return cert_path, key_path
+    os.replace(tmp, path)
+    return path
 
 
 def fingerprint(cert_path: Path) -> str:
@@ -67,6 +68,8 @@ def fingerprint(cert_path: Path) -> str:
     import hashlib
     import ssl
 
-    der = ssl.PEM_cert_to_DER_cert(cert_path.read_text())
+    text = cert_path.read_text()
+    footer = "-----END CERTIFICATE-----"
+    der = ssl.PEM_cert_to_DER_cert(text[: text.index(footer) + len(footer)])
     digest = hashlib.sha256(der).hexdigest().upper()
     return ":".join(digest[i : i + 2] for i in range(0, len(digest), 2))

@@ -31,7 +31,7 @@ def add_desk_arguments(p: argparse.ArgumentParser) -> None:
         "--desk-cert-dir",
         metavar="DIR",
         help="where the self-signed certificate is generated and kept "
-        "(default ~/.cache/panda_py/desk/HOST)",
+        "(default ~/.cache/panda_py/desk)",
     )
     g.add_argument(
         "--force-timeout",

@@ -41,7 +41,7 @@ class DeskConfig:
     password: str = DEFAULT_PASSWORD
     locked: bool = False
     token_force_timeout: float = 10.0  # [s] to press the Pilot after a forced take
-    cert_dir: str | None = None  # default: ~/.cache/panda_py/desk/<host>
+    cert_dir: str | None = None  # default: ~/.cache/panda_py/desk
     page: bool = True
     header_timeout: float = 10.0  # [s] a request head slower than this (to twice it): closed
 
@@ -126,8 +126,8 @@ def desk_main(
         token_force_timeout=config.token_force_timeout,
     )  # fmt: skip
     try:
-        cert_dir = Path(config.cert_dir) if config.cert_dir else default_cert_dir(host)
-        cert, key = ensure_certificate(cert_dir, host)
+        cert_dir = Path(config.cert_dir) if config.cert_dir else default_cert_dir()
+        cert = ensure_certificate(cert_dir)
         sock = _bind(host, config.port)
     except Exception as exc:  # reported to the parent as the start failure
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
@@ -135,8 +135,7 @@ def desk_main(
     server = uvicorn.Server(
         uvicorn.Config(
             DeskApp(state, page=config.page),
-            ssl_certfile=str(cert),
-            ssl_keyfile=str(key),
+            ssl_certfile=str(cert),  # the key follows the certificate in this file
             log_level="warning",
             access_log=False,
             lifespan="off",
