@@ -169,6 +169,12 @@ class RobotConnection:
         self.last_id = header[0]
         return data
 
+    def receive_fresh_state(self) -> bytes:
+        """The first RobotState sent after this call (libfranka's ``readOnce``: queued
+        states, sent before whatever the caller just did, are discarded first)."""
+        self.net.discard_queued()
+        return self.receive_state()
+
     @property
     def last(self) -> np.void | None:
         """The newest RobotState as a record (None before the first)."""

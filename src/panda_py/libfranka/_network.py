@@ -290,6 +290,29 @@ class Network:
             last = self._recv_udp(block=True)
         return last
 
+    def discard_queued(self) -> None:
+        """Drop every datagram already queued on the UDP socket (libfranka's ``readOnce``
+        does this first, so what follows was sent after everything the caller did)."""
+        udp = self._udp
+        if udp is None:
+            raise NetworkException("libfranka: connection is closed")
+        try:
+            while True:
+                udp.recvfrom(_UDP_BUFFER)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            raise translate(exc, "UDP receive") from exc
+
+    def receive_fresh(self) -> bytes:
+        """The next datagram sent after this call: queued ones are discarded first, then
+        this waits (up to the UDP timeout) for a new one (libfranka's gripper ``readOnce``)."""
+        self.discard_queued()
+        data = None
+        while data is None:
+            data = self._recv_udp(block=True)
+        return data
+
     def send_udp(self, data: Any) -> None:
         """Send a datagram to where the last state came from."""
         udp, peer = self._udp, self._udp_peer

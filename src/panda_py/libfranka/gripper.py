@@ -83,7 +83,8 @@ class Gripper(HandClient):
         return self._execute(GripperCommand.STOP)
 
     def read_once(self) -> GripperState:
-        """The newest gripper state (waits up to 1 s for one)."""
-        return GripperState(fci.decode_gripper_state(self._net.receive_any()))
+        """A fresh gripper state: queued ones are discarded and the next awaited (up to 1 s),
+        as libfranka's ``readOnce``."""
+        return GripperState(fci.decode_gripper_state(self._net.receive_fresh()))
 
     readOnce = read_once

@@ -159,9 +159,10 @@ class Robot(NamedControlMixin):
         return self._limits
 
     def read_once(self) -> RobotState:
-        """The newest robot state (waits up to 1 s for one newer than the last read)."""
+        """A fresh robot state: queued states are discarded and the next one is awaited (up
+        to 1 s), as libfranka's ``readOnce`` does, so a setter's effect is visible in it."""
         self._no_motion("read_once")
-        return RobotState(self._conn.dialect, self._conn.receive_state())
+        return RobotState(self._conn.dialect, self._conn.receive_fresh_state())
 
     def read(self, read_callback: Callable[[RobotState], bool]) -> None:
         """Call ``read_callback(state)`` for every new state until it returns False."""
