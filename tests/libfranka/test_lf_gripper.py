@@ -38,4 +38,16 @@ def test_gripper_rejects_bad_arguments_before_sending(gripper):
         gripper.move(0.02, 0.0)
     with pytest.raises(ValueError, match="force"):
         gripper.grasp(0.02, 0.1, -1.0)
+    # the hand's ranges: stroke 0.08 m, speed 0.1 m/s, peak force 140 N; and a speed too
+    # slow to cross the stroke within the client's timeout would never be seen to finish
+    with pytest.raises(ValueError, match=r"width: expected a finite number in \[0, 0.08\] \[m\]"):
+        gripper.move(0.09, 0.1)
+    with pytest.raises(ValueError, match=r"speed: .* \[m/s\], got 1e-300"):
+        gripper.move(0.04, 1e-300)
+    with pytest.raises(ValueError, match="speed"):
+        gripper.move(0.04, 0.5)
+    with pytest.raises(ValueError, match="force"):
+        gripper.grasp(0.02, 0.1, 1000.0)
+    with pytest.raises(ValueError, match="epsilon_inner"):
+        gripper.grasp(0.02, 0.1, 20.0, epsilon_inner=float("inf"))
     assert gripper.move(0.05, 0.1) is True  # the connection is still in order

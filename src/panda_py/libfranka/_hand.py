@@ -9,6 +9,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from panda_py import fci
+from panda_py._checks import timeout as checked_timeout
 from panda_py.libfranka._network import Network, translate
 from panda_py.libfranka.errors import CommandException, IncompatibleVersionException
 
@@ -27,8 +28,7 @@ class HandClient:
     def __init__(
         self, hostname: str, port: int, udp_size: int, version: int, timeout: float
     ) -> None:
-        if isinstance(timeout, bool) or not (isinstance(timeout, (int, float)) and timeout > 0):
-            raise ValueError(f"timeout: expected a time > 0 [s], got {timeout!r}")
+        timeout = checked_timeout("timeout", timeout)
         self._net = Network(
             hostname,
             port,

@@ -34,6 +34,7 @@ __all__ = ["MotionSession", "motion_running"]
 
 START_TIMEOUT = 2.0  # [s] for the robot to switch into the requested modes
 STOP_TIMEOUT = 1.0  # [s] for the robot to go idle after StopMove
+FINISH_TIMEOUT = 1.0  # [s] for the robot to go idle after the last command
 
 _STATE_MG = {
     MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
@@ -175,7 +176,13 @@ class MotionSession:
         if control and conn.dialect.has_torque_command_finished:
             record["torque_command_finished"] = True
         header = _header(conn)
+        deadline = time.monotonic() + FINISH_TIMEOUT
         while motion_running(header) and header[3] == _MOVE:  # type: ignore[index]
+            if time.monotonic() > deadline:
+                raise ControlException(
+                    f"libfranka: the robot did not end the motion within {FINISH_TIMEOUT:g} s "
+                    "of its last command", log=self.log,
+                )  # fmt: skip
             conn.net.check_closed()
             self.send(command)
             conn.receive_state()
