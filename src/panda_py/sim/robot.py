@@ -26,6 +26,7 @@ from panda_py.fci import (
 )
 from panda_py.kinematics import get_kinematics
 from panda_py.robots.params import FRANKA_HAND, GRAVITY, RobotSpec
+from panda_py.sim import settings
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
     START_CARTESIAN_TOLERANCE,
@@ -335,6 +336,14 @@ class RobotCore:
             return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         return None
 
+    @staticmethod
+    def _refuse(command: str, reason: str | None) -> GetterSetterStatus | None:
+        """INVALID_ARGUMENT_REJECTED (logged with ``reason``) if there is a reason."""
+        if reason is None:
+            return None
+        log.warning("%s rejected: %s", command, reason)
+        return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+
     def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
         names = (
             "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
@@ -343,31 +352,34 @@ class RobotCore:
             "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
         )  # fmt: skip
         arrays = [np.asarray(f[n], dtype=float) for n in names]
-        bad = self._setter_check(*arrays)
+        bad = self._setter_check(*arrays) or self._refuse(
+            "SetCollisionBehavior",
+            settings.check_collision_thresholds([(arrays[i], arrays[i + 1]) for i in (0, 2, 4, 6)]),
+        )
         if bad is not None:
             return bad
-        if any(np.any(a < 0) for a in arrays) or any(
-            np.any(arrays[i] > arrays[i + 1]) for i in range(0, 8, 2)
-        ):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         self.thresholds = CollisionThresholds(*arrays)
         return GetterSetterStatus.SUCCESS
 
-    def _set_stiffness(self, attr: str, values: np.ndarray) -> GetterSetterStatus:
-        K = np.asarray(values, dtype=float)
-        bad = self._setter_check(K)
+    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
+        K = np.array(K_theta, dtype=float)
+        bad = self._setter_check(K) or self._refuse(
+            "SetJointImpedance", settings.check_joint_stiffness(K)
+        )
         if bad is not None:
             return bad
-        if np.any(K < 0):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        setattr(self, attr, K)
+        self.K_theta = K
         return GetterSetterStatus.SUCCESS
 
-    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
-        return self._set_stiffness("K_theta", K_theta)
-
     def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
-        return self._set_stiffness("K_x", K_x)
+        K = np.array(K_x, dtype=float)
+        bad = self._setter_check(K) or self._refuse(
+            "SetCartesianImpedance", settings.check_cartesian_stiffness(K)
+        )
+        if bad is not None:
+            return bad
+        self.K_x = K
+        return GetterSetterStatus.SUCCESS
 
     def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
         bad = self._setter_check()
@@ -383,11 +395,9 @@ class RobotCore:
         """Set the column-major transform ``flat`` as ``attr``; ``relative_to_ne``: it is
         given from the flange and stored from the nominal EE."""
         T = from_col_major(flat)
-        bad = self._setter_check(T)
+        bad = self._setter_check(T) or self._refuse(attr, settings.check_frame(attr, T))
         if bad is not None:
             return bad
-        if not is_valid_transform(T):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         setattr(self, attr, np.linalg.inv(self.F_T_NE) @ T if relative_to_ne else T)
         self._fill_static()
         return GetterSetterStatus.SUCCESS
@@ -405,11 +415,11 @@ class RobotCore:
     def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
         F_x_C = np.asarray(F_x_C, dtype=float)
         I_m = np.asarray(I, dtype=float).reshape(3, 3)
-        bad = self._setter_check(np.array([m]), F_x_C, I_m)
+        bad = self._setter_check(np.array([m]), F_x_C, I_m) or self._refuse(
+            "SetLoad", settings.check_load(float(m), F_x_C, I_m)
+        )
         if bad is not None:
             return bad
-        if m < 0 or not np.allclose(I_m, I_m.T, atol=1e-9):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
         self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
         self._fill_static()
         return GetterSetterStatus.SUCCESS
