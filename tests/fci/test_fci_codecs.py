@@ -313,7 +313,7 @@ def test_connect_messages() -> None:
     with pytest.raises(fci.ProtocolError, match="command 0"):
         fci.decode_connect_request(struct.pack("<IIIHH", 1, 0, 16, 10, 1))
     with pytest.raises(fci.ProtocolError, match="ConnectStatus"):
-        fci.decode_connect_response(struct.pack("<IIIBH", 0, 0, 15, 2, 9))
+        fci.decode_connect_response(struct.pack("<IIIBH", 0, 0, 15, 3, 9))  # 2: busy
     with pytest.raises(ValueError, match="udp_port"):
         fci.encode_connect_request(10, 70000)
     with pytest.raises(ValueError, match="status"):

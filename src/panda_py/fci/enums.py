@@ -64,6 +64,10 @@ class ConnectStatus(enum.IntEnum):
 
     SUCCESS = 0
     INCOMPATIBLE_LIBRARY_VERSION = 1
+    #: panda-sim only: another client holds the robot. A robot admits one client at a
+    #: time but publishes no status for refusing a second one; libfranka reports any
+    #: status but 0 and 1 as a protocol error, this package's client as "robot busy".
+    ROBOT_BUSY = 2
 
 
 class LoadModelLibraryStatus(enum.IntEnum):

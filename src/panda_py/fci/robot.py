@@ -32,6 +32,7 @@ __all__ = [
     "CONNECT_RESPONSE",
     "DEFAULT_DEVIATION",
     "HEADER",
+    "MAX_REQUEST_SIZE",
     "NEWEST_VERSION",
     "SUPPORTED_VERSIONS",
     "Dialect",
@@ -320,6 +321,13 @@ def _build(version: int) -> Dialect:
 
 _DIALECTS: dict[int, Dialect] = {v: _build(v) for v in SUPPORTED_VERSIONS}
 
+#: The longest request of any supported version, header included [bytes]. Every request
+#: is fixed-size, so a robot reads nothing longer: a larger ``size`` field means a broken
+#: or hostile stream (give it to :class:`RobotMessageReader` as ``max_size``).
+MAX_REQUEST_SIZE: int = HEADER.size + max(
+    codec.size for d in _DIALECTS.values() for codec in d._requests.values()
+)
+
 
 def dialect(version: int) -> Dialect:
     """The :class:`Dialect` of robot protocol ``version``.
@@ -434,5 +442,5 @@ def decode_connect_response(
     try:
         connect_status = ConnectStatus(status)
     except ValueError:
-        raise ProtocolError("ConnectStatus value", "0 or 1", status) from None
+        raise ProtocolError("ConnectStatus value", "0..2", status) from None
     return command_id, connect_status, version

@@ -15,6 +15,7 @@ from panda_py.libfranka._wire import layout
 from panda_py.libfranka.errors import (
     CommandException,
     IncompatibleVersionException,
+    NetworkException,
     ProtocolException,
 )
 
@@ -103,6 +104,8 @@ class RobotConnection:
             _, status, server_version = fci.decode_connect_response(msg.raw)
         except fci.ProtocolError as exc:
             raise translate(exc, "Connect") from exc
+        if status == ConnectStatus.ROBOT_BUSY:
+            raise NetworkException("libfranka: robot busy: another client is connected")
         if status == ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION:
             raise IncompatibleVersionException(
                 f"libfranka: Incompatible library version (server version: {server_version}, "

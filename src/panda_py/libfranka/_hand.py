@@ -11,7 +11,11 @@ from typing import Any, TypeVar
 from panda_py import fci
 from panda_py._checks import timeout as checked_timeout
 from panda_py.libfranka._network import Network, translate
-from panda_py.libfranka.errors import CommandException, IncompatibleVersionException
+from panda_py.libfranka.errors import (
+    CommandException,
+    IncompatibleVersionException,
+    NetworkException,
+)
 
 _Hand = TypeVar("_Hand", bound="HandClient")
 
@@ -49,6 +53,10 @@ class HandClient:
                 _, status, server = fci.decode_gripper_connect_response(msg.raw)
             except fci.ProtocolError as exc:
                 raise translate(exc, f"{self._TITLE} Connect") from exc
+            if status == fci.GripperConnectStatus.ROBOT_BUSY:
+                raise NetworkException(
+                    f"libfranka {self._LABEL}: robot busy: another client is connected"
+                )
             if status != fci.GripperConnectStatus.SUCCESS:
                 raise IncompatibleVersionException(
                     f"libfranka {self._LABEL}: Incompatible library version (server version: "

@@ -75,6 +75,8 @@ class Simulator:
     CPU, about 1.4x slower). ``versions`` pins the
     protocol versions it accepts (a real robot speaks exactly one); by default every
     supported version is served, chosen from the client's Connect request.
+    ``connect_timeout`` [s]: a TCP connection that sends no Connect within it is closed
+    (it would hold the robot from every other client).
     """
 
     def __init__(
@@ -91,6 +93,7 @@ class Simulator:
         q_start: Sequence[float] = START_POSE,
         log_level: str = "WARNING",
         start_timeout: float = 60.0,
+        connect_timeout: float = 5.0,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -102,6 +105,7 @@ class Simulator:
             scene=scene,
             extra=str(extra) if extra is not None else None,
             q_start=tuple(float(x) for x in q_start),
+            connect_timeout=connect_timeout,
         )
         self.log_level = log_level
         self.start_timeout = start_timeout

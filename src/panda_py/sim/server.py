@@ -13,8 +13,9 @@ import gc
 import logging
 import selectors
 import socket
-import threading
 import time
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,6 +50,19 @@ LATE_THRESHOLD = 0.0005
 RESYNC = 0.1
 # Lockstep: before a motion's first command arrives, each tick waits this long for it [s].
 ENGAGE_WAIT = 0.02
+# A client may leave this much of its answers unread [bytes] (the largest answer, a model
+# library, is about 21 kB); past it, it is disconnected: the loop never waits on a socket.
+OUTPUT_LIMIT = 1 << 20
+# Bytes read from one TCP socket per loop pass (a few of the longest requests).
+READ_CHUNK = 4096
+# Time a loop pass may spend on requests when a backlog waits and no tick is due [s].
+PASS_BUDGET = 0.0003
+# How often the loop looks for connections idle before Connect [s].
+IDLE_CHECK_PERIOD = 0.1
+# UDP datagrams read from one socket per loop pass (a flood must not starve the tick).
+DATAGRAMS_PER_PASS = 64
+# Second clients waiting for their "robot busy" answer; beyond this, closed at once.
+MAX_REFUSING = 8
 
 
 @dataclass
@@ -68,6 +82,9 @@ class SimConfig:
     scene: bool = True
     extra: str | None = None  # MJCF file with extra bodies
     q_start: tuple[float, ...] = START_POSE
+    # A TCP connection must send Connect within this time [s], else it is closed (it
+    # would hold the robot from every other client).
+    connect_timeout: float = 5.0
 
     def __post_init__(self) -> None:
         get_robot(self.robot)  # validates the name
@@ -82,6 +99,8 @@ class SimConfig:
             raise ValueError(f"lockstep_timeout: expected > 0 s, got {self.lockstep_timeout}")
         if not 0 <= self.lockstep_spin <= 0.01:
             raise ValueError(f"lockstep_spin: expected 0..0.01 s, got {self.lockstep_spin}")
+        if not 0 < self.connect_timeout <= 3600:
+            raise ValueError(f"connect_timeout: expected 0..3600 s, got {self.connect_timeout}")
         if len(self.q_start) != 7:
             raise ValueError(f"q_start: expected 7 joint positions, got {len(self.q_start)}")
 
@@ -94,15 +113,30 @@ class Stats:
     commands_received: int = 0
     commands_lost: int = 0
     bad_datagrams: int = 0
+    clients_dropped: int = 0  # disconnected for not reading, idling or a broken stream
     started: float = field(default_factory=time.monotonic)
     cpu_started: float = field(default_factory=time.process_time)
 
 
-class _RobotConnection:
-    def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
+class _Client:
+    """What every TCP client has: its socket, its unread answers (``out``), its parsed
+    but unhandled requests (``backlog``) and when it connected."""
+
+    def __init__(self, sock: socket.socket, addr: tuple[str, int], reader: Any) -> None:
         self.sock = sock
         self.addr = addr
-        self.reader = fci.RobotMessageReader()
+        self.reader = reader
+        self.out = bytearray()
+        self.writing = False  # registered for EVENT_WRITE (out is not empty)
+        self.backlog: deque[fci.Message] = deque()
+        self.opened = time.monotonic()
+        self.closed = False
+        self.udp: socket.socket | None = None
+
+
+class _RobotConnection(_Client):
+    def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
+        super().__init__(sock, addr, fci.RobotMessageReader(max_size=fci.MAX_REQUEST_SIZE))
         self.dialect: fci.Dialect | None = None
         self.udp: socket.socket | None = None
         self.udp_target: tuple[str, int] | None = None
@@ -114,11 +148,11 @@ class _RobotConnection:
         self.awaiting = False  # lockstep: a command for the last state is expected
 
 
-class _GripperConnection:
+class _GripperConnection(_Client):
     def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
-        self.sock = sock
-        self.addr = addr
-        self.reader = fci.GripperMessageReader()
+        super().__init__(
+            sock, addr, fci.GripperMessageReader(max_size=fci.GRIPPER_MAX_REQUEST_SIZE)
+        )
         self.connected = False
         self.udp: socket.socket | None = None
         self.udp_target: tuple[str, int] | None = None
@@ -146,12 +180,17 @@ class SimServer:
         self._sel.register(self._gripper_listener, selectors.EVENT_READ, ("accept-gripper", None))
         self.robot_conn: _RobotConnection | None = None
         self.gripper_conn: _GripperConnection | None = None
+        self._refusing: list[_Client] = []  # second clients awaiting "robot busy"
         self._control: Any = None
-        self._urdf: bytes | None = None
-        self._libraries: dict[tuple[int, int], bytes | str] = {}
         self._gripper_pending: dict[int, int] = {}  # command_id -> GripperCommand
-        self._model_thread = threading.Thread(target=self._prepare_models, daemon=True)
-        self._model_thread.start()
+        self._pass_deadline = 0.0  # monotonic: handle requests until then in this pass
+        self._next_check = 0.0  # monotonic: next look for idle connections
+        # Model delivery runs in its own thread; the loop answers once a build is done.
+        self._models = ThreadPoolExecutor(max_workers=1, thread_name_prefix="panda-sim-models")
+        self._urdf: Future[bytes | str] = self._models.submit(self._build_urdf)
+        self._libraries: dict[tuple[int, int], Future[bytes | str]] = {}
+        self._model_requests: list[tuple[_RobotConnection, Command, int, Future[bytes | str]]] = []
+        self._models.submit(self._build_host_library)
 
     # -- setup ---------------------------------------------------------------------------
 
@@ -163,30 +202,66 @@ class SimServer:
         s.setblocking(False)
         return s
 
-    def _prepare_models(self) -> None:
-        """Build the URDF and this host's native model library off the tick thread (the
-        compiler may take a second on first use); requests wait for it."""
-        from panda_py.robots.clib import host_platform
+    # -- model delivery (built off the loop, answered by it) ------------------------------
+
+    def _build_urdf(self) -> bytes | str:
+        """The URDF of GetRobotModel, or why there is none (model thread)."""
         from panda_py.robots.urdf import robot_urdf
 
-        self._urdf = robot_urdf(self.spec).encode()
+        try:
+            return robot_urdf(self.spec).encode()
+        except Exception as exc:  # reported to the client as a refusal, and logged
+            return f"{type(exc).__name__}: {exc}"
+
+    def _build_host_library(self) -> None:
+        """Warm the cache with this host's model library (the compiler may take a second
+        on first use)."""
+        from panda_py.robots.clib import host_platform
+
         host = host_platform()
         if host is not None:
-            self._model_library(int(host[0]), int(host[1]))
+            self._library((int(host[0]), int(host[1])))
 
-    def _model_library(self, architecture: int, system: int) -> bytes | str:
-        """The library bytes for a client platform, or why there are none."""
+    def _library(self, key: tuple[int, int]) -> Future[bytes | str]:
+        future = self._libraries.get(key)
+        if future is None:
+            future = self._libraries[key] = self._models.submit(self._build_library, *key)
+        return future
+
+    def _build_library(self, architecture: int, system: int) -> bytes | str:
+        """The library bytes for a client platform, or why there are none (model thread)."""
         from panda_py.robots.clib import ModelLibraryUnavailable, model_library
 
-        key = (architecture, system)
-        if key not in self._libraries:
-            try:
-                self._libraries[key] = model_library(
-                    self.spec, architecture=architecture, system=system
-                )
-            except (ModelLibraryUnavailable, ValueError) as exc:
-                self._libraries[key] = str(exc)
-        return self._libraries[key]
+        try:
+            return model_library(self.spec, architecture=architecture, system=system)
+        except (ModelLibraryUnavailable, ValueError, OSError) as exc:
+            return str(exc)
+
+    def _answer_models(self) -> None:
+        """Answer the model requests whose build is done (kError/refused with the reason
+        logged if it failed); the others keep waiting, the loop never does."""
+        if not self._model_requests:
+            return
+        waiting = []
+        for conn, command, cid, future in self._model_requests:
+            if conn.closed or conn is not self.robot_conn:
+                continue
+            if not future.done():
+                waiting.append((conn, command, cid, future))
+                continue
+            result = future.result()
+            if command is Command.GET_ROBOT_MODEL:
+                if isinstance(result, str):
+                    log.error("no URDF to serve: %s", result)
+                    self._reply(conn, command, cid, CommandBaseStatus.COMMAND_NOT_POSSIBLE_REJECTED)
+                else:
+                    self._reply(conn, command, cid, CommandBaseStatus.SUCCESS, urdf=result)
+            elif isinstance(result, str):
+                log.error("answering LoadModelLibrary with kError: %s", result)
+                self._reply(conn, command, cid, LoadModelLibraryStatus.ERROR)
+            else:
+                self._reply(conn, command, cid, LoadModelLibraryStatus.SUCCESS, library=result)
+        self._model_requests = waiting
 
     def attach_control(self, conn: Any) -> None:
         """A ``multiprocessing`` connection to serve control requests on between ticks."""
@@ -197,9 +272,10 @@ class SimServer:
         self._running = False
 
     def close(self) -> None:
-        for conn in (self.robot_conn, self.gripper_conn):
+        for conn in (self.robot_conn, self.gripper_conn, *self._refusing):
             if conn is not None:
                 self._close_conn(conn)
+        self._models.shutdown(wait=False, cancel_futures=True)
         for s in (self._robot_listener, self._gripper_listener):
             self._sel.unregister(s)
             s.close()
@@ -233,8 +309,17 @@ class SimServer:
                         timeout = max(0.0, lockstep_deadline - now)
                 else:
                     timeout = max(0.0, next_tick - now)
-                for key, _ in self._sel.select(timeout):
-                    self._dispatch(key.data)
+                backlog = self._backlogged()
+                if backlog:
+                    timeout = 0.0
+                self._pass_deadline = (
+                    now + PASS_BUDGET if waiting else min(next_tick, now + PASS_BUDGET)
+                )
+                for key, mask in self._sel.select(timeout):
+                    self._dispatch(key.data, mask)
+                for client in backlog:
+                    self._handle_backlog(client)
+                self._answer_models()
                 now = time.monotonic()
                 if waiting:
                     conn = self.robot_conn
@@ -277,7 +362,26 @@ class SimServer:
             return self.config.lockstep_timeout
         return ENGAGE_WAIT
 
+    def _backlogged(self) -> list[_Client]:
+        return [c for c in (self.robot_conn, self.gripper_conn) if c is not None and c.backlog]
+
+    def _expire_idle(self, now: float) -> None:
+        """Close connections that never sent Connect within ``connect_timeout`` (they
+        would hold the robot) and second clients that never asked."""
+        limit = now - self.config.connect_timeout
+        robot, gripper = self.robot_conn, self.gripper_conn
+        if robot is not None and robot.dialect is None and robot.opened < limit:
+            self._drop(robot, "no Connect request within the connect timeout")
+        if gripper is not None and not gripper.connected and gripper.opened < limit:
+            self._drop(gripper, "no Connect request within the connect timeout")
+        for conn in [c for c in self._refusing if c.opened < limit]:
+            self._close_conn(conn)
+
     def _tick(self) -> None:
+        now = time.monotonic()
+        if now >= self._next_check:
+            self._next_check = now + IDLE_CHECK_PERIOD
+            self._expire_idle(now)
         conn = self.robot_conn
         command = None
         if conn is not None:
@@ -302,14 +406,20 @@ class SimServer:
 
     # -- dispatch ------------------------------------------------------------------------
 
-    def _dispatch(self, data: tuple[str, Any]) -> None:
+    def _dispatch(self, data: tuple[str, Any], mask: int = selectors.EVENT_READ) -> None:
         kind, conn = data
         if kind == "accept-robot":
             self._accept(robot=True)
         elif kind == "accept-gripper":
             self._accept(robot=False)
-        elif kind == "tcp":
-            self._read_tcp(conn)
+        elif kind in ("tcp", "busy"):
+            if mask & selectors.EVENT_WRITE:
+                self._flush(conn)
+            if mask & selectors.EVENT_READ and not conn.closed:
+                if kind == "tcp":
+                    self._read_tcp(conn)
+                else:
+                    self._read_refusing(conn)
         elif kind == "robot-udp":
             self._read_robot_udp(conn)
         elif kind == "gripper-udp":
@@ -329,16 +439,21 @@ class SimServer:
         if current is not None and not self._alive(current):
             self._close_conn(current)
             current = None
-        if current is not None:
-            log.warning(
-                "refusing a second %s client from %s:%d while %s:%d is connected",
-                what, *addr, *current.addr,
-            )  # fmt: skip
-            sock.close()
-            return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         conn: _RobotConnection | _GripperConnection
+        if current is not None:
+            log.warning(
+                "robot busy: refusing a second %s client from %s:%d while %s:%d is connected",
+                what, *addr, *current.addr,
+            )  # fmt: skip
+            if len(self._refusing) >= MAX_REFUSING:
+                sock.close()
+                return
+            conn = _RobotConnection(sock, addr) if robot else _GripperConnection(sock, addr)
+            self._refusing.append(conn)
+            self._sel.register(sock, selectors.EVENT_READ, ("busy", conn))
+            return
         if robot:
             conn = self.robot_conn = _RobotConnection(sock, addr)
         else:
@@ -346,7 +461,44 @@ class SimServer:
         self._sel.register(sock, selectors.EVENT_READ, ("tcp", conn))
         log.info("%s client connected from %s:%d", what, *addr)
 
-    def _close_conn(self, conn: _RobotConnection | _GripperConnection) -> None:
+    def _read_refusing(self, conn: _Client) -> None:
+        """A second client: answer its Connect with "robot busy", then close."""
+        data = self._recv(conn)
+        if not data:
+            return
+        try:
+            messages = conn.reader.feed(data)
+        except ProtocolError:
+            self._close_conn(conn)
+            return
+        if not messages:
+            return
+        cid = messages[0].command_id
+        if isinstance(conn, _RobotConnection):
+            version = self.config.versions[-1] if self.config.versions else fci.NEWEST_VERSION
+            answer = fci.encode_connect_response(cid, ConnectStatus.ROBOT_BUSY, version)
+        else:
+            answer = fci.encode_gripper_connect_response(cid, fci.GripperConnectStatus.ROBOT_BUSY)
+        try:
+            conn.sock.send(answer)  # 14-15 bytes into an empty socket buffer
+        except OSError:
+            pass
+        self._close_conn(conn)
+
+    def _drop(self, conn: _Client, reason: str) -> None:
+        """Disconnect a misbehaving client with one log line."""
+        log.warning("disconnecting client %s:%d: %s", *conn.addr, reason)
+        self.stats.clients_dropped += 1
+        self._close_conn(conn)
+
+    def _close_conn(self, conn: _Client) -> None:
+        if conn.closed:
+            return
+        conn.closed = True
+        conn.out.clear()
+        conn.backlog.clear()
+        if conn in self._refusing:
+            self._refusing.remove(conn)
         for s in (conn.sock, conn.udp):
             if s is None:
                 continue
@@ -376,9 +528,9 @@ class SimServer:
         except OSError:
             return False
 
-    def _recv(self, conn: _RobotConnection | _GripperConnection) -> bytes | None:
+    def _recv(self, conn: _Client) -> bytes | None:
         try:
-            data = conn.sock.recv(65536)
+            data = conn.sock.recv(READ_CHUNK)
         except (BlockingIOError, InterruptedError):
             return b""
         except OSError as exc:
@@ -390,32 +542,75 @@ class SimServer:
             return None
         return data
 
-    def _send_tcp(self, conn: _RobotConnection | _GripperConnection, data: bytes) -> None:
+    def _send_tcp(self, conn: _Client, data: bytes) -> None:
+        """Queue ``data`` for ``conn`` and send what the socket takes now (never waits);
+        a client that lets more than :data:`OUTPUT_LIMIT` pile up is disconnected."""
+        if conn.closed:
+            return
+        if not conn.out:
+            try:
+                sent = conn.sock.send(data)
+            except (BlockingIOError, InterruptedError):
+                sent = 0
+            except OSError as exc:
+                log.info("sending to %s:%d failed: %s", *conn.addr, exc)
+                self._close_conn(conn)
+                return
+            if sent == len(data):
+                return
+            data = data[sent:]
+        conn.out += data
+        if len(conn.out) > OUTPUT_LIMIT:
+            self._drop(conn, f"it leaves its answers unread ({len(conn.out)} bytes queued)")
+            return
+        if not conn.writing:
+            conn.writing = True
+            self._sel.modify(conn.sock, selectors.EVENT_READ | selectors.EVENT_WRITE,
+                             ("tcp", conn))  # fmt: skip
+
+    def _flush(self, conn: _Client) -> None:
+        """Send queued answers as far as the socket takes them."""
+        if conn.closed or not conn.out:
+            return
         try:
-            conn.sock.setblocking(True)
-            conn.sock.settimeout(1.0)
-            conn.sock.sendall(data)
+            sent = conn.sock.send(conn.out)
+        except (BlockingIOError, InterruptedError):
+            return
         except OSError as exc:
             log.info("sending to %s:%d failed: %s", *conn.addr, exc)
             self._close_conn(conn)
-        else:
-            conn.sock.setblocking(False)
+            return
+        del conn.out[:sent]
+        if not conn.out and conn.writing:
+            conn.writing = False
+            self._sel.modify(conn.sock, selectors.EVENT_READ, ("tcp", conn))
 
     # -- robot TCP ---------------------------------------------------------------------
 
-    def _read_tcp(self, conn: _RobotConnection | _GripperConnection) -> None:
-        """Cut what arrived into messages and handle them; a stream that cannot be cut
-        (bad size) is closed, the server keeps serving."""
+    def _read_tcp(self, conn: _Client) -> None:
+        """Cut what arrived into messages and handle them as time allows; a stream that
+        cannot be cut (a size beyond the protocol's longest request) is closed. While
+        requests wait in the backlog the socket is not read."""
+        if conn.backlog:
+            return
         data = self._recv(conn)
         if not data:
             return
         try:
-            messages = conn.reader.feed(data)
+            conn.backlog.extend(conn.reader.feed(data))
         except ProtocolError as exc:
-            log.warning("closing connection from %s:%d: %s", *conn.addr, exc)
-            self._close_conn(conn)
+            self._drop(conn, str(exc))
             return
-        for msg in messages:
+        self._handle_backlog(conn)
+
+    def _handle_backlog(self, conn: _Client) -> None:
+        """Handle queued requests: at least one, then until the pass's deadline."""
+        first = True
+        while conn.backlog and not conn.closed:
+            if not first and time.monotonic() > self._pass_deadline:
+                return
+            first = False
+            msg = conn.backlog.popleft()
             if conn is self.robot_conn and isinstance(conn, _RobotConnection):
                 self._handle_robot_message(conn, msg)
             elif conn is self.gripper_conn and isinstance(conn, _GripperConnection):
@@ -594,29 +789,18 @@ class SimServer:
         self._reply(conn, command, cid, GetterSetterStatus.SUCCESS, object_world_size=np.zeros(3),
                     object_frame=np.eye(4).reshape(16), object_activation=False)  # fmt: skip
 
-    def _wait_models(self) -> None:
-        self._model_thread.join(timeout=60.0)
-
     def _cmd_get_robot_model(
         self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
     ) -> None:
-        self._wait_models()
-        if self._urdf is None:
-            log.error("no URDF to serve (its generator failed)")
-            self._reply(conn, command, cid, CommandBaseStatus.COMMAND_NOT_POSSIBLE_REJECTED)
-            return
-        self._reply(conn, command, cid, CommandBaseStatus.SUCCESS, urdf=self._urdf)
+        self._model_requests.append((conn, command, cid, self._urdf))
+        self._answer_models()
 
     def _cmd_load_model_library(
         self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
     ) -> None:
-        self._wait_models()
-        lib = self._model_library(int(f["architecture"]), int(f["system"]))
-        if isinstance(lib, str):
-            log.error("answering LoadModelLibrary with kError: %s", lib)
-            self._reply(conn, command, cid, LoadModelLibraryStatus.ERROR)
-            return
-        self._reply(conn, command, cid, LoadModelLibraryStatus.SUCCESS, library=lib)
+        key = (int(f["architecture"]), int(f["system"]))
+        self._model_requests.append((conn, command, cid, self._library(key)))
+        self._answer_models()
 
     # -- robot UDP ---------------------------------------------------------------------
 
@@ -624,7 +808,7 @@ class SimServer:
         wire, udp = conn.command_wire, conn.udp
         if udp is None or wire is None:
             return
-        while True:
+        for _ in range(DATAGRAMS_PER_PASS):
             try:
                 size, mid = wire.receive(udp)
             except (BlockingIOError, InterruptedError):
@@ -773,7 +957,7 @@ class SimServer:
     def _drain(sock: socket.socket | None) -> None:
         if sock is None:
             return
-        while True:
+        for _ in range(DATAGRAMS_PER_PASS):
             try:
                 sock.recv(2048)
             except OSError:
