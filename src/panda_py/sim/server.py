@@ -114,6 +114,7 @@ class Stats:
     commands_lost: int = 0
     bad_datagrams: int = 0
     clients_dropped: int = 0  # disconnected for not reading, idling or a broken stream
+    worst_late: float = 0.0  # [s] the latest a realtime tick started after its deadline
     started: float = field(default_factory=time.monotonic)
     cpu_started: float = field(default_factory=time.process_time)
 
@@ -332,8 +333,11 @@ class SimServer:
                     continue
                 if now < next_tick:
                     continue
-                if now - next_tick > LATE_THRESHOLD:
+                late = now - next_tick
+                if late > LATE_THRESHOLD:
                     self.stats.late_ticks += 1
+                    if late > self.stats.worst_late:
+                        self.stats.worst_late = late
                 if now - next_tick > RESYNC:
                     self.stats.resyncs += 1
                     log.warning(
@@ -810,19 +814,22 @@ class SimServer:
             return
         for _ in range(DATAGRAMS_PER_PASS):
             try:
-                size, mid = wire.receive(udp)
+                size, mid = wire.receive(udp, conn.udp_target)
             except (BlockingIOError, InterruptedError):
                 return
             except OSError:
                 return  # e.g. ICMP port unreachable from a vanished client
-            if size != wire.size:
+            if mid < 0 or mid > conn.last_sent_id:
+                # wrong size, not from the client, or answering a state never sent
                 self.stats.bad_datagrams += 1
                 if self.stats.bad_datagrams <= 3 or self.stats.bad_datagrams % 1000 == 0:
                     log.warning(
-                        "dropping a %d-byte command datagram (protocol v%d expects %d)",
+                        "dropping a %d-byte command datagram (protocol v%d expects %d from "
+                        "%s:%d, answering a state sent)",
                         size,
                         conn.dialect.version if conn.dialect else 0,
                         wire.size,
+                        *(conn.udp_target or ("?", 0)),
                     )
                 continue
             if self.drop_commands > 0:
@@ -1030,6 +1037,7 @@ class SimServer:
                 "ticks": st.ticks, "late_ticks": st.late_ticks, "resyncs": st.resyncs,
                 "commands_received": st.commands_received, "commands_lost": st.commands_lost,
                 "bad_datagrams": st.bad_datagrams, "wall_time": wall,
+                "clients_dropped": st.clients_dropped, "worst_late": st.worst_late,
                 "cpu_time": time.process_time() - st.cpu_started,
                 "sim_time": st.ticks * DT,
             }  # fmt: skip
