@@ -495,11 +495,13 @@ class RobotCore:
         self.tau_J_d[:] = 0.0
         self.pending_final = status
 
-    def tick(self, command: Command | None) -> None:
+    def tick(self, command: Command | None, *, excused: bool = False) -> None:
         """Advance one tick. ``command`` is the client's answer to the last state (None
-        when it was lost or outside a motion)."""
+        when it was lost or outside a motion). ``excused``: a missing command is not the
+        client's fault (the robot itself was late), so it is extrapolated like a lost
+        one but not counted against the client."""
         if self.robot_mode == RobotMode.MOVE:
-            torque = self._motion_tick(command)
+            torque = self._motion_tick(command, excused)
             if self.robot_mode != RobotMode.MOVE:
                 torque = self._hold_torque()
         else:
@@ -512,11 +514,13 @@ class RobotCore:
         scale = np.maximum(self.K_theta / self._K_default, 1e-3)
         return self.physics.joint_tracking_torque(self.q_hold, np.zeros(7), np.zeros(7), scale)
 
-    def _motion_tick(self, command: Command | None) -> np.ndarray:
+    def _motion_tick(self, command: Command | None, excused: bool = False) -> np.ndarray:
         ph = self.physics
         if command is None and self.first_command:
             return self._hold_torque()  # the client's loop has not started yet
-        if command is None:
+        if command is None and excused:
+            self._extrapolate()
+        elif command is None:
             self.consecutive_lost += 1
             self.lost_total += 1
             self._record_success(False)

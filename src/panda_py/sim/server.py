@@ -112,6 +112,9 @@ class Stats:
     resyncs: int = 0
     commands_received: int = 0
     commands_lost: int = 0
+    # Missing commands not counted against the client: the simulator (or the machine)
+    # was late, with the state or with the tick that expected the answer.
+    commands_excused: int = 0
     bad_datagrams: int = 0
     clients_dropped: int = 0  # disconnected for not reading, idling or a broken stream
     worst_late: float = 0.0  # [s] the latest a realtime tick started after its deadline
@@ -146,6 +149,7 @@ class _RobotConnection(_Client):
         self.move_id: int | None = None
         self.last_sent_id = -1
         self.command: RobotCommand | None = None  # newest fresh command since last tick
+        self.state_late = False  # the last state went out late (realtime fairness)
         self.awaiting = False  # lockstep: a command for the last state is expected
 
 
@@ -185,6 +189,7 @@ class SimServer:
         self._control: Any = None
         self._gripper_pending: dict[int, int] = {}  # command_id -> GripperCommand
         self._pass_deadline = 0.0  # monotonic: handle requests until then in this pass
+        self._tick_deadline = 0.0  # monotonic: when the current tick was due
         self._next_check = 0.0  # monotonic: next look for idle connections
         # Model delivery runs in its own thread; the loop answers once a build is done.
         self._models = ThreadPoolExecutor(max_workers=1, thread_name_prefix="panda-sim-models")
@@ -327,7 +332,7 @@ class SimServer:
                     have = conn is not None and conn.command is not None
                     if not have and now < lockstep_deadline:
                         continue
-                    self._tick()
+                    self._tick(now, late=False)
                     next_tick = time.monotonic() + DT
                     lockstep_deadline = time.monotonic() + self._lockstep_wait()
                     continue
@@ -344,7 +349,7 @@ class SimServer:
                         "simulator fell %.0f ms behind; re-synchronising", 1e3 * (now - next_tick)
                     )
                     next_tick = now
-                self._tick()
+                self._tick(next_tick, late=late > LATE_THRESHOLD)
                 next_tick += DT
                 lockstep_deadline = time.monotonic() + self._lockstep_wait()
         finally:
@@ -381,23 +386,32 @@ class SimServer:
         for conn in [c for c in self._refusing if c.opened < limit]:
             self._close_conn(conn)
 
-    def _tick(self) -> None:
+    def _tick(self, deadline: float, *, late: bool) -> None:
+        """One 1 ms step due at ``deadline`` (monotonic); ``late``: it started late."""
         now = time.monotonic()
+        self._tick_deadline = deadline
         if now >= self._next_check:
             self._next_check = now + IDLE_CHECK_PERIOD
             self._expire_idle(now)
         conn = self.robot_conn
         command = None
+        excused = False
         if conn is not None:
             command, conn.command = conn.command, None
             if self.core.robot_mode == RobotMode.MOVE and conn.awaiting:
-                if command is None:
-                    self.stats.commands_lost += 1
-                else:
+                if command is not None:
                     self.stats.commands_received += 1
+                elif not self.config.lockstep and (late or conn.state_late):
+                    # Fair realtime: the client cannot answer a state sent late, nor be
+                    # blamed for a tick the simulator (or the machine) started late.
+                    excused = True
+                    self.stats.commands_excused += 1
+                else:
+                    self.stats.commands_lost += 1
         self.gripper.tick()
         self.core.finger_force = self.gripper.force
-        self.core.tick(command if self.core.robot_mode == RobotMode.MOVE else None)
+        moving = self.core.robot_mode == RobotMode.MOVE
+        self.core.tick(command if moving else None, excused=excused)
         self.tick_count += 1
         self.stats.ticks += 1
         if conn is not None:
@@ -851,6 +865,7 @@ class SimServer:
             conn.udp.sendto(data, conn.udp_target)
         except OSError:
             pass  # the client's socket is gone; the TCP side will tell
+        conn.state_late = time.monotonic() - self._tick_deadline > LATE_THRESHOLD
         conn.last_sent_id = mid
         # libfranka answers states only once its control loop runs: it skips the state that
         # first shows the motion's modes. Await commands (lockstep) once one has arrived.
@@ -1036,6 +1051,7 @@ class SimServer:
             return {
                 "ticks": st.ticks, "late_ticks": st.late_ticks, "resyncs": st.resyncs,
                 "commands_received": st.commands_received, "commands_lost": st.commands_lost,
+                "commands_excused": st.commands_excused,
                 "bad_datagrams": st.bad_datagrams, "wall_time": wall,
                 "clients_dropped": st.clients_dropped, "worst_late": st.worst_late,
                 "cpu_time": time.process_time() - st.cpu_started,
