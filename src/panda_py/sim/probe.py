@@ -209,17 +209,27 @@ def follow_joint_positions(client: RawClient, q_of_t: Any, duration: float) -> t
 # -- hostile clients (the simulator's robustness tests and benchmarks) --------------------
 
 
-def slow_reader(host: str, requests: int = 2000, *, version: int = 10) -> socket.socket:
-    """Connect, then send ``requests`` GetRobotModel requests (each answered with the
-    URDF, about 5 kB) and never read an answer. Returns the socket (the caller closes
-    it); the robot should disconnect it once its answers pile up."""
+def slow_reader(
+    host: str, requests: int = 2000, *, version: int = 10, port: int = fci.COMMAND_PORT
+) -> socket.socket:
+    """Connect, then send ``requests`` requests and never read an answer: GetRobotModel
+    on the FCI port (each answered with the URDF, about 5 kB), Stop on the gripper port.
+    Returns the socket (the caller closes it); the robot should disconnect it once its
+    answers pile up, and never wait for it."""
+    from panda_py.fci import gripper as g
+
     tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     tcp.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # fills at once
     tcp.settimeout(5.0)
-    tcp.connect((host, fci.COMMAND_PORT))
-    tcp.sendall(fci.encode_connect_request(version, 9))
-    d = fci.dialect(version)
-    batch = b"".join(d.encode_request(Command.GET_ROBOT_MODEL, i + 1) for i in range(100))
+    tcp.connect((host, port))
+    if port == fci.COMMAND_PORT:
+        tcp.sendall(fci.encode_connect_request(version, 9))
+        d = fci.dialect(version)
+        batch = b"".join(d.encode_request(Command.GET_ROBOT_MODEL, i + 1) for i in range(100))
+    else:
+        tcp.sendall(g.encode_gripper_connect_request(9))
+        stop = g.GripperCommand.STOP
+        batch = b"".join(g.encode_gripper_message(stop, i + 1, b"") for i in range(100))
     try:
         for _ in range(max(1, requests // 100)):
             tcp.sendall(batch)

@@ -55,8 +55,10 @@ ENGAGE_WAIT = 0.02
 OUTPUT_LIMIT = 1 << 20
 # Bytes read from one TCP socket per loop pass (a few of the longest requests).
 READ_CHUNK = 4096
-# Time a loop pass may spend on requests when a backlog waits and no tick is due [s].
-PASS_BUDGET = 0.0003
+# Time the loop may spend on TCP requests per 1 ms tick [s]: a flood gets this share and
+# no more, so the loop keeps time and, running SCHED_FIFO, never runs into the kernel's
+# realtime throttling (which would stop it for up to 100 ms).
+REQUEST_BUDGET = 0.00025
 # How often the loop looks for connections idle before Connect [s].
 IDLE_CHECK_PERIOD = 0.1
 # UDP datagrams read from one socket per loop pass (a flood must not starve the tick).
@@ -131,7 +133,7 @@ class _Client:
         self.addr = addr
         self.reader = reader
         self.out = bytearray()
-        self.writing = False  # registered for EVENT_WRITE (out is not empty)
+        self.events = selectors.EVENT_READ  # what the selector watches for (0: nothing)
         self.backlog: deque[fci.Message] = deque()
         self.opened = time.monotonic()
         self.closed = False
@@ -188,7 +190,7 @@ class SimServer:
         self._refusing: list[_Client] = []  # second clients awaiting "robot busy"
         self._control: Any = None
         self._gripper_pending: dict[int, int] = {}  # command_id -> GripperCommand
-        self._pass_deadline = 0.0  # monotonic: handle requests until then in this pass
+        self._budget = REQUEST_BUDGET  # [s] left for requests until the next tick
         self._tick_deadline = 0.0  # monotonic: when the current tick was due
         self._next_check = 0.0  # monotonic: next look for idle connections
         # Model delivery runs in its own thread; the loop answers once a build is done.
@@ -315,12 +317,13 @@ class SimServer:
                         timeout = max(0.0, lockstep_deadline - now)
                 else:
                     timeout = max(0.0, next_tick - now)
-                backlog = self._backlogged()
+                if waiting:
+                    # Lockstep time stands still while it waits for the client, who may be
+                    # waiting for an answer: requests get a fresh budget every pass.
+                    self._refill_budget()
+                backlog = self._backlogged() if self._budget > 0.0 else []
                 if backlog:
                     timeout = 0.0
-                self._pass_deadline = (
-                    now + PASS_BUDGET if waiting else min(next_tick, now + PASS_BUDGET)
-                )
                 for key, mask in self._sel.select(timeout):
                     self._dispatch(key.data, mask)
                 for client in backlog:
@@ -371,6 +374,16 @@ class SimServer:
             return self.config.lockstep_timeout
         return ENGAGE_WAIT
 
+    def _refill_budget(self) -> None:
+        """A new tick's time for requests; sockets left unwatched for lack of it are
+        watched again."""
+        spent = self._budget <= 0.0
+        self._budget = REQUEST_BUDGET
+        if spent:
+            for client in (self.robot_conn, self.gripper_conn):
+                if client is not None:
+                    self._watch(client)
+
     def _backlogged(self) -> list[_Client]:
         return [c for c in (self.robot_conn, self.gripper_conn) if c is not None and c.backlog]
 
@@ -390,6 +403,7 @@ class SimServer:
         """One 1 ms step due at ``deadline`` (monotonic); ``late``: it started late."""
         now = time.monotonic()
         self._tick_deadline = deadline
+        self._refill_budget()
         if now >= self._next_check:
             self._next_check = now + IDLE_CHECK_PERIOD
             self._expire_idle(now)
@@ -581,10 +595,28 @@ class SimServer:
         if len(conn.out) > OUTPUT_LIMIT:
             self._drop(conn, f"it leaves its answers unread ({len(conn.out)} bytes queued)")
             return
-        if not conn.writing:
-            conn.writing = True
-            self._sel.modify(conn.sock, selectors.EVENT_READ | selectors.EVENT_WRITE,
-                             ("tcp", conn))  # fmt: skip
+        self._watch(conn)
+
+    def _watch(self, conn: _Client) -> None:
+        """Watch ``conn`` for what it needs: writability while answers are queued,
+        readability unless requests wait in its backlog or the tick's budget is spent
+        (so a flooding client neither gets read nor makes the loop spin)."""
+        if conn.closed:
+            return
+        events = 0
+        if conn.out:
+            events |= selectors.EVENT_WRITE
+        if not conn.backlog and self._budget > 0.0:
+            events |= selectors.EVENT_READ
+        if events == conn.events:
+            return
+        if conn.events == 0:
+            self._sel.register(conn.sock, events, ("tcp", conn))
+        elif events == 0:
+            self._sel.unregister(conn.sock)
+        else:
+            self._sel.modify(conn.sock, events, ("tcp", conn))
+        conn.events = events
 
     def _flush(self, conn: _Client) -> None:
         """Send queued answers as far as the socket takes them."""
@@ -599,9 +631,8 @@ class SimServer:
             self._close_conn(conn)
             return
         del conn.out[:sent]
-        if not conn.out and conn.writing:
-            conn.writing = False
-            self._sel.modify(conn.sock, selectors.EVENT_READ, ("tcp", conn))
+        if not conn.out:
+            self._watch(conn)
 
     # -- robot TCP ---------------------------------------------------------------------
 
@@ -622,12 +653,9 @@ class SimServer:
         self._handle_backlog(conn)
 
     def _handle_backlog(self, conn: _Client) -> None:
-        """Handle queued requests: at least one, then until the pass's deadline."""
-        first = True
-        while conn.backlog and not conn.closed:
-            if not first and time.monotonic() > self._pass_deadline:
-                return
-            first = False
+        """Handle queued requests while the tick's request budget lasts."""
+        start = time.monotonic()
+        while conn.backlog and not conn.closed and self._budget > 0.0:
             msg = conn.backlog.popleft()
             if conn is self.robot_conn and isinstance(conn, _RobotConnection):
                 self._handle_robot_message(conn, msg)
@@ -635,6 +663,10 @@ class SimServer:
                 self._handle_gripper_message(conn, msg)
             else:
                 return  # closed while handling an earlier message
+            now = time.monotonic()
+            self._budget -= now - start
+            start = now
+        self._watch(conn)
 
     def _handle_robot_message(self, conn: _RobotConnection, msg: fci.Message) -> None:
         if conn.dialect is None:
