@@ -291,7 +291,8 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     import numpy as np
 
     from panda_py import fci
-    from panda_py.sim.server import SimConfig, SimServer, _RobotConnection
+    from panda_py.sim.connections import RobotConnection
+    from panda_py.sim.server import SimConfig, SimServer
     from panda_py.sim.wire import CommandWire, StateWire
 
     host = free_loopback_host()
@@ -304,7 +305,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     tx.bind((host, 0))
-    conn = _RobotConnection(socket.socket(), (host, 0))
+    conn = RobotConnection(socket.socket(), (host, 0))
     conn.dialect = d
     conn.state_wire, conn.command_wire = StateWire(d, core), CommandWire(d)
     conn.udp, conn.udp_target = tx, sink.getsockname()

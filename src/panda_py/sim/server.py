@@ -1,10 +1,18 @@
-"""The simulated robot's network side: FCI on TCP 1337, the gripper on TCP 1338, UDP
-states and commands, and the 1 kHz tick loop.
+"""The simulated robot's server: the 1 kHz tick loop and the parts it runs.
 
-One thread runs everything (``select`` with microsecond timeouts, absolute deadlines):
-accepting clients, cutting TCP streams into messages, draining UDP commands, stepping the
-robot and sending states. The wire dialect of each robot connection is chosen from the
-version in its Connect request.
+One thread runs everything (``select`` with microsecond timeouts, absolute deadlines).
+:class:`SimServer` owns the loop, its pacing (realtime on the wall clock, or lockstep
+with the client's commands) and the tick; each concern is a part in its own module:
+
+* :mod:`.sockets`: accepting clients, non-blocking TCP with bounded output queues and a
+  per-tick request budget, idle and misbehaving connections;
+* :mod:`.fci_session`: Connect (accepting a client: ``FciSession._handle_connect``), the
+  TCP commands, the UDP states and commands;
+* :mod:`.gripper_session`: the Franka Hand's protocol;
+* :mod:`.models`: URDF and model-library delivery off the loop;
+* :mod:`.control`: the Python API's requests;
+* the robot itself is :class:`~panda_py.sim.robot.RobotCore` (a Move starts in
+  ``RobotCore.request_move``).
 """
 
 from __future__ import annotations
@@ -12,160 +20,40 @@ from __future__ import annotations
 import gc
 import logging
 import selectors
-import socket
 import time
-from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from panda_py import fci
 from panda_py.fci import (
     Command,
-    CommandBaseStatus,
-    ConnectStatus,
-    GetterSetterStatus,
-    GripperCommand,
-    GripperStatus,
-    LoadModelLibraryStatus,
-    MoveStatus,
-    ProtocolError,
     RobotMode,
 )
-from panda_py.robots.params import START_POSE, get_robot
+from panda_py.robots.params import get_robot
+from panda_py.sim.config import LATE_THRESHOLD, SimConfig, Stats
+from panda_py.sim.connections import Client, GripperConnection, RobotConnection
+from panda_py.sim.control import ControlRpc
+from panda_py.sim.fci_session import FciSession
 from panda_py.sim.gripper import GripperCore
+from panda_py.sim.gripper_session import GripperSession
+from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
-from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.robot import RobotCore
-from panda_py.sim.wire import CommandWire, StateWire
+from panda_py.sim.sockets import REQUEST_BUDGET, Sockets
 
 log = logging.getLogger("panda_py.sim")
 
-GRIPPER_STATE_PERIOD = 10  # [ticks] gripper state datagrams at 100 Hz
-# Realtime: a tick that starts this late counts as late [s]; past RESYNC the loop gives up
-# catching up and re-anchors (logged), keeping simulated and wall time together.
-LATE_THRESHOLD = 0.0005
+# Realtime: past RESYNC [s] behind, the loop gives up catching up and re-anchors (logged),
+# keeping simulated and wall time together.
 RESYNC = 0.1
 # Lockstep: before a motion's first command arrives, each tick waits this long for it [s].
 ENGAGE_WAIT = 0.02
-# A client may leave this much of its answers unread [bytes] (the largest answer, a model
-# library, is about 21 kB); past it, it is disconnected: the loop never waits on a socket.
-OUTPUT_LIMIT = 1 << 20
-# Bytes read from one TCP socket per loop pass (a few of the longest requests).
-READ_CHUNK = 4096
-# Time the loop may spend on TCP requests per 1 ms tick [s]: a flood gets this share and
-# no more, so the loop keeps time and, running SCHED_FIFO, never runs into the kernel's
-# realtime throttling (which would stop it for up to 100 ms).
-REQUEST_BUDGET = 0.00025
 # How often the loop looks for connections idle before Connect [s].
 IDLE_CHECK_PERIOD = 0.1
-# UDP datagrams read from one socket per loop pass (a flood must not starve the tick).
-DATAGRAMS_PER_PASS = 64
-# Second clients waiting for their "robot busy" answer; beyond this, closed at once.
-MAX_REFUSING = 8
 
 
-@dataclass
-class SimConfig:
-    """How to run a simulated robot."""
-
-    host: str = "127.0.0.1"
-    robot: str = "fer"
-    lockstep: bool = False
-    lockstep_timeout: float = 2.0  # [s] wait for a command this long before counting it lost
-    # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never).
-    # A sleeping simulator wakes on cold caches: its next tick takes about twice as long.
-    lockstep_spin: float = 300e-6
-    versions: tuple[int, ...] | None = None  # accept only these protocol versions
-    robot_port: int = fci.COMMAND_PORT
-    gripper_port: int = fci.GRIPPER_COMMAND_PORT
-    scene: bool = True
-    extra: str | None = None  # MJCF file with extra bodies
-    q_start: tuple[float, ...] = START_POSE
-    # A TCP connection must send Connect within this time [s], else it is closed (it
-    # would hold the robot from every other client).
-    connect_timeout: float = 5.0
-
-    def __post_init__(self) -> None:
-        get_robot(self.robot)  # validates the name
-        if self.versions is not None:
-            bad = [v for v in self.versions if v not in fci.SUPPORTED_VERSIONS]
-            if bad or not self.versions:
-                raise ValueError(
-                    f"versions: expected a non-empty subset of {fci.SUPPORTED_VERSIONS}, "
-                    f"got {self.versions}"
-                )
-        if not self.lockstep_timeout > 0:
-            raise ValueError(f"lockstep_timeout: expected > 0 s, got {self.lockstep_timeout}")
-        if not 0 <= self.lockstep_spin <= 0.01:
-            raise ValueError(f"lockstep_spin: expected 0..0.01 s, got {self.lockstep_spin}")
-        if not 0 < self.connect_timeout <= 3600:
-            raise ValueError(f"connect_timeout: expected 0..3600 s, got {self.connect_timeout}")
-        if len(self.q_start) != 7:
-            raise ValueError(f"q_start: expected 7 joint positions, got {len(self.q_start)}")
-
-
-@dataclass
-class Stats:
-    ticks: int = 0
-    late_ticks: int = 0
-    resyncs: int = 0
-    commands_received: int = 0
-    commands_lost: int = 0
-    # Missing commands not counted against the client: the simulator (or the machine)
-    # was late, with the state or with the tick that expected the answer.
-    commands_excused: int = 0
-    bad_datagrams: int = 0
-    clients_dropped: int = 0  # disconnected for not reading, idling or a broken stream
-    worst_late: float = 0.0  # [s] the latest a realtime tick started after its deadline
-    started: float = field(default_factory=time.monotonic)
-    cpu_started: float = field(default_factory=time.process_time)
-
-
-class _Client:
-    """What every TCP client has: its socket, its unread answers (``out``), its parsed
-    but unhandled requests (``backlog``) and when it connected."""
-
-    def __init__(self, sock: socket.socket, addr: tuple[str, int], reader: Any) -> None:
-        self.sock = sock
-        self.addr = addr
-        self.reader = reader
-        self.out = bytearray()
-        self.events = selectors.EVENT_READ  # what the selector watches for (0: nothing)
-        self.backlog: deque[fci.Message] = deque()
-        self.opened = time.monotonic()
-        self.closed = False
-        self.udp: socket.socket | None = None
-
-
-class _RobotConnection(_Client):
-    def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
-        super().__init__(sock, addr, fci.RobotMessageReader(max_size=fci.MAX_REQUEST_SIZE))
-        self.dialect: fci.Dialect | None = None
-        self.udp: socket.socket | None = None
-        self.udp_target: tuple[str, int] | None = None
-        self.state_wire: StateWire | None = None
-        self.command_wire: CommandWire | None = None
-        self.move_id: int | None = None
-        self.last_sent_id = -1
-        self.command: RobotCommand | None = None  # newest fresh command since last tick
-        self.state_late = False  # the last state went out late (realtime fairness)
-        self.awaiting = False  # lockstep: a command for the last state is expected
-
-
-class _GripperConnection(_Client):
-    def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
-        super().__init__(
-            sock, addr, fci.GripperMessageReader(max_size=fci.GRIPPER_MAX_REQUEST_SIZE)
-        )
-        self.connected = False
-        self.udp: socket.socket | None = None
-        self.udp_target: tuple[str, int] | None = None
-
-
-class SimServer:
+class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
     """A simulated Franka. ``serve_forever`` runs until :meth:`shutdown` (or a control
     message ``("stop",)`` on the optional control connection)."""
 
@@ -185,9 +73,9 @@ class SimServer:
         self._gripper_listener = self._listen(config.gripper_port)
         self._sel.register(self._robot_listener, selectors.EVENT_READ, ("accept-robot", None))
         self._sel.register(self._gripper_listener, selectors.EVENT_READ, ("accept-gripper", None))
-        self.robot_conn: _RobotConnection | None = None
-        self.gripper_conn: _GripperConnection | None = None
-        self._refusing: list[_Client] = []  # second clients awaiting "robot busy"
+        self.robot_conn: RobotConnection | None = None
+        self.gripper_conn: GripperConnection | None = None
+        self._refusing: list[Client] = []  # second clients awaiting "robot busy"
         self._control: Any = None
         self._gripper_pending: dict[int, int] = {}  # command_id -> GripperCommand
         self._budget = REQUEST_BUDGET  # [s] left for requests until the next tick
@@ -197,84 +85,8 @@ class SimServer:
         self._models = ThreadPoolExecutor(max_workers=1, thread_name_prefix="panda-sim-models")
         self._urdf: Future[bytes | str] = self._models.submit(self._build_urdf)
         self._libraries: dict[tuple[int, int], Future[bytes | str]] = {}
-        self._model_requests: list[tuple[_RobotConnection, Command, int, Future[bytes | str]]] = []
+        self._model_requests: list[tuple[RobotConnection, Command, int, Future[bytes | str]]] = []
         self._models.submit(self._build_host_library)
-
-    # -- setup ---------------------------------------------------------------------------
-
-    def _listen(self, port: int) -> socket.socket:
-        s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.bind((self.config.host, port))
-        s.listen(4)
-        s.setblocking(False)
-        return s
-
-    # -- model delivery (built off the loop, answered by it) ------------------------------
-
-    def _build_urdf(self) -> bytes | str:
-        """The URDF of GetRobotModel, or why there is none (model thread)."""
-        from panda_py.robots.urdf import robot_urdf
-
-        try:
-            return robot_urdf(self.spec).encode()
-        except Exception as exc:  # reported to the client as a refusal, and logged
-            return f"{type(exc).__name__}: {exc}"
-
-    def _build_host_library(self) -> None:
-        """Warm the cache with this host's model library (the compiler may take a second
-        on first use)."""
-        from panda_py.robots.clib import host_platform
-
-        host = host_platform()
-        if host is not None:
-            self._library((int(host[0]), int(host[1])))
-
-    def _library(self, key: tuple[int, int]) -> Future[bytes | str]:
-        future = self._libraries.get(key)
-        if future is None:
-            future = self._libraries[key] = self._models.submit(self._build_library, *key)
-        return future
-
-    def _build_library(self, architecture: int, system: int) -> bytes | str:
-        """The library bytes for a client platform, or why there are none (model thread)."""
-        from panda_py.robots.clib import ModelLibraryUnavailable, model_library
-
-        try:
-            return model_library(self.spec, architecture=architecture, system=system)
-        except (ModelLibraryUnavailable, ValueError, OSError) as exc:
-            return str(exc)
-
-    def _answer_models(self) -> None:
-        """Answer the model requests whose build is done (kError/refused with the reason
-        logged if it failed); the others keep waiting, the loop never does."""
-        if not self._model_requests:
-            return
-        waiting = []
-        for conn, command, cid, future in self._model_requests:
-            if conn.closed or conn is not self.robot_conn:
-                continue
-            if not future.done():
-                waiting.append((conn, command, cid, future))
-                continue
-            result = future.result()
-            if command is Command.GET_ROBOT_MODEL:
-                if isinstance(result, str):
-                    log.error("no URDF to serve: %s", result)
-                    self._reply(conn, command, cid, CommandBaseStatus.COMMAND_NOT_POSSIBLE_REJECTED)
-                else:
-                    self._reply(conn, command, cid, CommandBaseStatus.SUCCESS, urdf=result)
-            elif isinstance(result, str):
-                log.error("answering LoadModelLibrary with kError: %s", result)
-                self._reply(conn, command, cid, LoadModelLibraryStatus.ERROR)
-            else:
-                self._reply(conn, command, cid, LoadModelLibraryStatus.SUCCESS, library=result)
-        self._model_requests = waiting
-
-    def attach_control(self, conn: Any) -> None:
-        """A ``multiprocessing`` connection to serve control requests on between ticks."""
-        self._control = conn
-        self._sel.register(conn.fileno(), selectors.EVENT_READ, ("control", None))
 
     def shutdown(self) -> None:
         self._running = False
@@ -288,8 +100,6 @@ class SimServer:
             self._sel.unregister(s)
             s.close()
         self._sel.close()
-
-    # -- the loop ------------------------------------------------------------------------
 
     def serve_forever(self) -> None:
         # Everything built so far (MuJoCo, numpy, the model) lives as long as the server:
@@ -358,14 +168,6 @@ class SimServer:
         finally:
             self.close()
 
-    def _spin_for_command(self, conn: _RobotConnection) -> None:
-        """Lockstep: poll the command socket for up to ``lockstep_spin`` (the client's
-        answer usually comes within it), keeping this core's caches warm."""
-        end = time.monotonic() + self.config.lockstep_spin
-        read = self._read_robot_udp
-        while conn.command is None and conn.udp is not None and time.monotonic() < end:
-            read(conn)
-
     def _lockstep_wait(self) -> float:
         """How long lockstep waits for the next command [s]: the full timeout once the
         client's loop answers states, briefly before (libfranka skips the first state)."""
@@ -373,31 +175,6 @@ class SimServer:
         if conn is not None and conn.awaiting:
             return self.config.lockstep_timeout
         return ENGAGE_WAIT
-
-    def _refill_budget(self) -> None:
-        """A new tick's time for requests; sockets left unwatched for lack of it are
-        watched again."""
-        spent = self._budget <= 0.0
-        self._budget = REQUEST_BUDGET
-        if spent:
-            for client in (self.robot_conn, self.gripper_conn):
-                if client is not None:
-                    self._watch(client)
-
-    def _backlogged(self) -> list[_Client]:
-        return [c for c in (self.robot_conn, self.gripper_conn) if c is not None and c.backlog]
-
-    def _expire_idle(self, now: float) -> None:
-        """Close connections that never sent Connect within ``connect_timeout`` (they
-        would hold the robot) and second clients that never asked."""
-        limit = now - self.config.connect_timeout
-        robot, gripper = self.robot_conn, self.gripper_conn
-        if robot is not None and robot.dialect is None and robot.opened < limit:
-            self._drop(robot, "no Connect request within the connect timeout")
-        if gripper is not None and not gripper.connected and gripper.opened < limit:
-            self._drop(gripper, "no Connect request within the connect timeout")
-        for conn in [c for c in self._refusing if c.opened < limit]:
-            self._close_conn(conn)
 
     def _tick(self, deadline: float, *, late: bool) -> None:
         """One 1 ms step due at ``deadline`` (monotonic); ``late``: it started late."""
@@ -436,8 +213,6 @@ class SimServer:
             self.core.pending_final = None
         self._flush_gripper()
 
-    # -- dispatch ------------------------------------------------------------------------
-
     def _dispatch(self, data: tuple[str, Any], mask: int = selectors.EVENT_READ) -> None:
         kind, conn = data
         if kind == "accept-robot":
@@ -458,649 +233,6 @@ class SimServer:
             self._drain(conn.udp)
         elif kind == "control":
             self._serve_control()
-
-    def _accept(self, robot: bool) -> None:
-        """Accept an FCI (``robot``) or gripper client; one of each at a time."""
-        listener = self._robot_listener if robot else self._gripper_listener
-        what = "FCI" if robot else "gripper"
-        try:
-            sock, addr = listener.accept()
-        except OSError:
-            return
-        current = self.robot_conn if robot else self.gripper_conn
-        if current is not None and not self._alive(current):
-            self._close_conn(current)
-            current = None
-        sock.setblocking(False)
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        conn: _RobotConnection | _GripperConnection
-        if current is not None:
-            log.warning(
-                "robot busy: refusing a second %s client from %s:%d while %s:%d is connected",
-                what, *addr, *current.addr,
-            )  # fmt: skip
-            if len(self._refusing) >= MAX_REFUSING:
-                sock.close()
-                return
-            conn = _RobotConnection(sock, addr) if robot else _GripperConnection(sock, addr)
-            self._refusing.append(conn)
-            self._sel.register(sock, selectors.EVENT_READ, ("busy", conn))
-            return
-        if robot:
-            conn = self.robot_conn = _RobotConnection(sock, addr)
-        else:
-            conn = self.gripper_conn = _GripperConnection(sock, addr)
-        self._sel.register(sock, selectors.EVENT_READ, ("tcp", conn))
-        log.info("%s client connected from %s:%d", what, *addr)
-
-    def _read_refusing(self, conn: _Client) -> None:
-        """A second client: answer its Connect with "robot busy", then close."""
-        data = self._recv(conn)
-        if not data:
-            return
-        try:
-            messages = conn.reader.feed(data)
-        except ProtocolError:
-            self._close_conn(conn)
-            return
-        if not messages:
-            return
-        cid = messages[0].command_id
-        if isinstance(conn, _RobotConnection):
-            version = self.config.versions[-1] if self.config.versions else fci.NEWEST_VERSION
-            answer = fci.encode_connect_response(cid, ConnectStatus.ROBOT_BUSY, version)
-        else:
-            answer = fci.encode_gripper_connect_response(cid, fci.GripperConnectStatus.ROBOT_BUSY)
-        try:
-            conn.sock.send(answer)  # 14-15 bytes into an empty socket buffer
-        except OSError:
-            pass
-        self._close_conn(conn)
-
-    def _drop(self, conn: _Client, reason: str) -> None:
-        """Disconnect a misbehaving client with one log line."""
-        log.warning("disconnecting client %s:%d: %s", *conn.addr, reason)
-        self.stats.clients_dropped += 1
-        self._close_conn(conn)
-
-    def _close_conn(self, conn: _Client) -> None:
-        if conn.closed:
-            return
-        conn.closed = True
-        conn.out.clear()
-        conn.backlog.clear()
-        if conn in self._refusing:
-            self._refusing.remove(conn)
-        for s in (conn.sock, conn.udp):
-            if s is None:
-                continue
-            try:
-                self._sel.unregister(s)
-            except (KeyError, ValueError):
-                pass
-            s.close()
-        conn.udp = None
-        if conn is self.robot_conn:
-            self.robot_conn = None
-            self.drop_commands = 0  # injected losses belong to the session that saw them
-            self.core.client_lost()
-            log.info("FCI client %s:%d disconnected", *conn.addr)
-        elif conn is self.gripper_conn:
-            self.gripper_conn = None
-            self.gripper.client_lost()
-            log.info("gripper client %s:%d disconnected", *conn.addr)
-
-    @staticmethod
-    def _alive(conn: _RobotConnection | _GripperConnection) -> bool:
-        """Whether a connection is still open (its peer may have closed it unseen yet)."""
-        try:
-            return conn.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) != b""
-        except (BlockingIOError, InterruptedError):
-            return True
-        except OSError:
-            return False
-
-    def _recv(self, conn: _Client) -> bytes | None:
-        try:
-            data = conn.sock.recv(READ_CHUNK)
-        except (BlockingIOError, InterruptedError):
-            return b""
-        except OSError as exc:
-            log.info("connection from %s:%d failed: %s", *conn.addr, exc)
-            self._close_conn(conn)
-            return None
-        if not data:
-            self._close_conn(conn)
-            return None
-        return data
-
-    def _send_tcp(self, conn: _Client, data: bytes) -> None:
-        """Queue ``data`` for ``conn`` and send what the socket takes now (never waits);
-        a client that lets more than :data:`OUTPUT_LIMIT` pile up is disconnected."""
-        if conn.closed:
-            return
-        if not conn.out:
-            try:
-                sent = conn.sock.send(data)
-            except (BlockingIOError, InterruptedError):
-                sent = 0
-            except OSError as exc:
-                log.info("sending to %s:%d failed: %s", *conn.addr, exc)
-                self._close_conn(conn)
-                return
-            if sent == len(data):
-                return
-            data = data[sent:]
-        conn.out += data
-        if len(conn.out) > OUTPUT_LIMIT:
-            self._drop(conn, f"it leaves its answers unread ({len(conn.out)} bytes queued)")
-            return
-        self._watch(conn)
-
-    def _watch(self, conn: _Client) -> None:
-        """Watch ``conn`` for what it needs: writability while answers are queued,
-        readability unless requests wait in its backlog or the tick's budget is spent
-        (so a flooding client neither gets read nor makes the loop spin)."""
-        if conn.closed:
-            return
-        events = 0
-        if conn.out:
-            events |= selectors.EVENT_WRITE
-        if not conn.backlog and self._budget > 0.0:
-            events |= selectors.EVENT_READ
-        if events == conn.events:
-            return
-        if conn.events == 0:
-            self._sel.register(conn.sock, events, ("tcp", conn))
-        elif events == 0:
-            self._sel.unregister(conn.sock)
-        else:
-            self._sel.modify(conn.sock, events, ("tcp", conn))
-        conn.events = events
-
-    def _flush(self, conn: _Client) -> None:
-        """Send queued answers as far as the socket takes them."""
-        if conn.closed or not conn.out:
-            return
-        try:
-            sent = conn.sock.send(conn.out)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError as exc:
-            log.info("sending to %s:%d failed: %s", *conn.addr, exc)
-            self._close_conn(conn)
-            return
-        del conn.out[:sent]
-        if not conn.out:
-            self._watch(conn)
-
-    # -- robot TCP ---------------------------------------------------------------------
-
-    def _read_tcp(self, conn: _Client) -> None:
-        """Cut what arrived into messages and handle them as time allows; a stream that
-        cannot be cut (a size beyond the protocol's longest request) is closed. While
-        requests wait in the backlog the socket is not read."""
-        if conn.backlog:
-            return
-        data = self._recv(conn)
-        if not data:
-            return
-        try:
-            conn.backlog.extend(conn.reader.feed(data))
-        except ProtocolError as exc:
-            self._drop(conn, str(exc))
-            return
-        self._handle_backlog(conn)
-
-    def _handle_backlog(self, conn: _Client) -> None:
-        """Handle queued requests while the tick's request budget lasts."""
-        start = time.monotonic()
-        while conn.backlog and not conn.closed and self._budget > 0.0:
-            msg = conn.backlog.popleft()
-            if conn is self.robot_conn and isinstance(conn, _RobotConnection):
-                self._handle_robot_message(conn, msg)
-            elif conn is self.gripper_conn and isinstance(conn, _GripperConnection):
-                self._handle_gripper_message(conn, msg)
-            else:
-                return  # closed while handling an earlier message
-            now = time.monotonic()
-            self._budget -= now - start
-            start = now
-        self._watch(conn)
-
-    def _handle_robot_message(self, conn: _RobotConnection, msg: fci.Message) -> None:
-        if conn.dialect is None:
-            self._handle_connect(conn, msg)
-            return
-        d = conn.dialect
-        command = d.command_for_id(msg.command)
-        if command is None or command is Command.CONNECT:
-            log.warning(
-                "unknown command id %d (protocol v%d) from %s:%d",
-                msg.command,
-                d.version,
-                *conn.addr,
-            )
-            # Answer with the generic "command not possible" so a waiting client fails fast.
-            self._send_tcp(conn, fci.HEADER.pack(msg.command, msg.command_id, 13) + b"\x01")
-            return
-        try:
-            fields = d.decode_request(command, msg.payload)
-        except ProtocolError as exc:
-            log.warning("malformed %s request: %s", command.value, exc)
-            self._reply_invalid(conn, command, msg.command_id)
-            return
-        handler = getattr(self, f"_cmd_{command.name.lower()}")
-        handler(conn, command, msg.command_id, fields)
-
-    def _reply(
-        self, conn: _RobotConnection, command: Command, cid: int, status: Any, **extra: Any
-    ) -> None:
-        assert conn.dialect is not None
-        self._send_tcp(conn, conn.dialect.encode_response(command, cid, status, **extra))
-
-    def _reply_invalid(self, conn: _RobotConnection, command: Command, cid: int) -> None:
-        assert conn.dialect is not None
-        status_type = conn.dialect.status_type(command)
-        for name in ("INVALID_ARGUMENT_REJECTED", "COMMAND_NOT_POSSIBLE_REJECTED", "ERROR"):
-            if hasattr(status_type, name):
-                self._reply(conn, command, cid, getattr(status_type, name))
-                return
-
-    def _handle_connect(self, conn: _RobotConnection, msg: fci.Message) -> None:
-        try:
-            _, version, udp_port = fci.decode_connect_request(msg.raw)
-        except ProtocolError as exc:
-            log.warning("closing connection from %s:%d: expected Connect: %s", *conn.addr, exc)
-            self._close_conn(conn)
-            return
-        accepted = self.config.versions or fci.SUPPORTED_VERSIONS
-        if version not in accepted:
-            answer = self.config.versions[-1] if self.config.versions else fci.NEWEST_VERSION
-            log.warning("client speaks protocol v%d; this robot speaks %s", version, list(accepted))
-            self._send_tcp(
-                conn,
-                fci.encode_connect_response(
-                    msg.command_id, ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION, answer
-                ),
-            )
-            return
-        d = fci.dialect(version)
-        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.bind((self.config.host, 0))
-        udp.setblocking(False)
-        conn.udp = udp
-        conn.udp_target = (conn.addr[0], udp_port)
-        conn.dialect = d
-        conn.state_wire = StateWire(d, self.core)
-        conn.command_wire = CommandWire(d)
-        self._sel.register(udp, selectors.EVENT_READ, ("robot-udp", conn))
-        self._send_tcp(
-            conn, fci.encode_connect_response(msg.command_id, ConnectStatus.SUCCESS, version)
-        )
-        log.info(
-            "FCI client speaks protocol v%d; streaming states to %s:%d", version, *conn.udp_target
-        )
-        self._send_state(conn)  # clients block for a first state right after Connect
-
-    def _cmd_move(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        assert conn.dialect is not None
-        deviations = np.concatenate((f["maximum_path_deviation"], f["maximum_goal_pose_deviation"]))
-        status = self.core.request_move(
-            f["controller_mode"],
-            f["motion_generator_mode"],
-            deviations,
-            has_none=conn.dialect.has_motion_generator_none,
-            use_async=bool(f.get("use_async_motion_generator", False)),
-        )
-        self._reply(conn, command, cid, status)
-        if status == MoveStatus.MOTION_STARTED:
-            conn.move_id = cid
-            conn.awaiting = False
-            conn.command = None
-
-    def _send_move_final(self, conn: _RobotConnection, status: MoveStatus) -> None:
-        self.core.pending_final = None
-        if conn.move_id is not None:
-            self._reply(conn, Command.MOVE, conn.move_id, status)
-        conn.move_id = None
-        conn.awaiting = False
-
-    def _cmd_stop_move(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        status = self.core.request_stop_move()
-        if self.core.pending_final is not None and self.robot_conn is conn:
-            self._send_move_final(conn, self.core.pending_final)
-        self._reply(conn, command, cid, status)
-
-    def _cmd_automatic_error_recovery(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.request_recovery())
-
-    def _cmd_set_collision_behavior(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_collision_behavior(f))
-
-    def _cmd_set_joint_impedance(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_joint_impedance(f["K_theta"]))
-
-    def _cmd_set_cartesian_impedance(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_cartesian_impedance(f["K_x"]))
-
-    def _cmd_set_guiding_mode(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(
-            conn, command, cid, self.core.set_guiding_mode(f["guiding_mode"], f["nullspace"])
-        )
-
-    def _cmd_set_ee_to_k(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_ee_to_k(f["EE_T_K"]))
-
-    def _cmd_set_ne_to_ee(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_ne_to_ee(f["NE_T_EE"]))
-
-    def _cmd_set_f_to_ee(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(conn, command, cid, self.core.set_f_to_ee(f["F_T_EE"]))
-
-    def _cmd_set_load(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(
-            conn, command, cid, self.core.set_load(f["m_load"], f["F_x_Cload"], f["I_load"])
-        )
-
-    def _cmd_set_filters(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._reply(
-            conn, command, cid, self.core.set_filters(np.array(list(f.values()), dtype=float))
-        )
-
-    def _cmd_get_cartesian_limit(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        # No virtual walls are configured on the simulated robot.
-        self._reply(conn, command, cid, GetterSetterStatus.SUCCESS, object_world_size=np.zeros(3),
-                    object_frame=np.eye(4).reshape(16), object_activation=False)  # fmt: skip
-
-    def _cmd_get_robot_model(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        self._model_requests.append((conn, command, cid, self._urdf))
-        self._answer_models()
-
-    def _cmd_load_model_library(
-        self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
-    ) -> None:
-        key = (int(f["architecture"]), int(f["system"]))
-        self._model_requests.append((conn, command, cid, self._library(key)))
-        self._answer_models()
-
-    # -- robot UDP ---------------------------------------------------------------------
-
-    def _read_robot_udp(self, conn: _RobotConnection) -> None:
-        wire, udp = conn.command_wire, conn.udp
-        if udp is None or wire is None:
-            return
-        for _ in range(DATAGRAMS_PER_PASS):
-            try:
-                size, mid = wire.receive(udp, conn.udp_target)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError:
-                return  # e.g. ICMP port unreachable from a vanished client
-            if mid < 0 or mid > conn.last_sent_id:
-                # wrong size, not from the client, or answering a state never sent
-                self.stats.bad_datagrams += 1
-                if self.stats.bad_datagrams <= 3 or self.stats.bad_datagrams % 1000 == 0:
-                    log.warning(
-                        "dropping a %d-byte command datagram (protocol v%d expects %d from "
-                        "%s:%d, answering a state sent)",
-                        size,
-                        conn.dialect.version if conn.dialect else 0,
-                        wire.size,
-                        *(conn.udp_target or ("?", 0)),
-                    )
-                continue
-            if self.drop_commands > 0:
-                self.drop_commands -= 1
-                continue
-            if mid < conn.last_sent_id:
-                continue  # late: answers a state older than the newest one sent
-            conn.command = wire.accept(mid)
-
-    def _send_state(self, conn: _RobotConnection) -> None:
-        wire = conn.state_wire
-        if wire is None or conn.udp is None or conn.udp_target is None:
-            return
-        core = self.core
-        moving = core.robot_mode == RobotMode.MOVE
-        mid = self.tick_count + 1  # ms since power-up; never 0, strictly increasing
-        data = wire.fill(mid, core.success_rate if moving else 0.0)
-        try:
-            conn.udp.sendto(data, conn.udp_target)
-        except OSError:
-            pass  # the client's socket is gone; the TCP side will tell
-        conn.state_late = time.monotonic() - self._tick_deadline > LATE_THRESHOLD
-        conn.last_sent_id = mid
-        # libfranka answers states only once its control loop runs: it skips the state that
-        # first shows the motion's modes. Await commands (lockstep) once one has arrived.
-        conn.awaiting = moving and not core.first_command
-
-    # -- gripper -------------------------------------------------------------------------
-
-    def _gripper_reply(
-        self, conn: _GripperConnection, command: int, cid: int, status: GripperStatus
-    ) -> None:
-        payload = fci.GRIPPER_RESPONSE.encode(status=int(status))
-        self._send_tcp(conn, fci.encode_gripper_message(GripperCommand(command), cid, payload))
-
-    def _handle_gripper_message(self, conn: _GripperConnection, msg: fci.Message) -> None:
-        if not conn.connected:
-            try:
-                _, version, udp_port = fci.decode_gripper_connect_request(msg.raw)
-            except ProtocolError as exc:
-                log.warning("closing gripper connection: expected Connect: %s", exc)
-                self._close_conn(conn)
-                return
-            if version != fci.GRIPPER_VERSION:
-                log.warning(
-                    "gripper client speaks v%d; the hand speaks v%d", version, fci.GRIPPER_VERSION
-                )
-                self._send_tcp(
-                    conn,
-                    fci.encode_gripper_connect_response(
-                        msg.command_id,
-                        fci.GripperConnectStatus.INCOMPATIBLE_LIBRARY_VERSION,
-                    ),
-                )
-                return
-            udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            udp.bind((self.config.host, 0))
-            udp.setblocking(False)
-            conn.udp, conn.udp_target, conn.connected = udp, (conn.addr[0], udp_port), True
-            self._sel.register(udp, selectors.EVENT_READ, ("gripper-udp", conn))
-            self._send_tcp(
-                conn,
-                fci.encode_gripper_connect_response(
-                    msg.command_id, fci.GripperConnectStatus.SUCCESS
-                ),
-            )
-            self._send_gripper_state(conn)
-            return
-        try:
-            command = GripperCommand(msg.command)
-            codec = fci.GRIPPER_REQUESTS[command]
-            f = codec.decode(msg.payload)
-        except (ValueError, KeyError, ProtocolError) as exc:
-            log.warning("bad gripper request %d: %s", msg.command, exc)
-            self._send_tcp(
-                conn,
-                fci.gripper.GRIPPER_HEADER.pack(msg.command, msg.command_id, 12)
-                + int(GripperStatus.FAIL).to_bytes(2, "little"),
-            )
-            return
-        g = self.gripper
-        self._gripper_pending[msg.command_id] = int(command)
-        status: GripperStatus | None
-        if command is GripperCommand.HOMING:
-            g.homing(msg.command_id)
-            status = None
-        elif command is GripperCommand.MOVE:
-            status = g.move(msg.command_id, f["width"], f["speed"])
-        elif command is GripperCommand.GRASP:
-            status = g.grasp_object(
-                msg.command_id,
-                f["width"],
-                f["epsilon_inner"],
-                f["epsilon_outer"],
-                f["speed"],
-                f["force"],
-            )
-        elif command is GripperCommand.STOP:
-            status = g.stop()
-        else:
-            status = GripperStatus.FAIL
-        self._flush_gripper()
-        if status is not None:
-            self._gripper_pending.pop(msg.command_id, None)
-            self._gripper_reply(conn, int(command), msg.command_id, status)
-
-    def _flush_gripper(self) -> None:
-        conn = self.gripper_conn
-        done, self.gripper.completed = self.gripper.completed, []
-        if conn is None:
-            return
-        for cid, status in done:
-            command = self._gripper_pending.pop(cid, int(GripperCommand.MOVE))
-            self._gripper_reply(conn, command, cid, status)
-        if self.tick_count % GRIPPER_STATE_PERIOD == 0:
-            self._send_gripper_state(conn)
-
-    def _send_gripper_state(self, conn: _GripperConnection) -> None:
-        if conn.udp is None or conn.udp_target is None:
-            return
-        rec = np.zeros((), fci.GRIPPER_STATE_DTYPE)
-        rec["message_id"] = self.tick_count & 0xFFFFFFFF
-        rec["width"] = self.gripper.width
-        rec["max_width"] = self.gripper.max_width
-        rec["is_grasped"] = self.gripper.is_grasped
-        rec["temperature"] = self.gripper.temperature
-        try:
-            conn.udp.sendto(rec.tobytes(), conn.udp_target)
-        except OSError:
-            pass
-
-    @staticmethod
-    def _drain(sock: socket.socket | None) -> None:
-        if sock is None:
-            return
-        for _ in range(DATAGRAMS_PER_PASS):
-            try:
-                sock.recv(2048)
-            except OSError:
-                return
-
-    # -- control -----------------------------------------------------------------------
-
-    def _serve_control(self) -> None:
-        conn = self._control
-        try:
-            request = conn.recv()
-        except (EOFError, OSError):
-            self._sel.unregister(conn.fileno())
-            self._control = None
-            self._running = False
-            return
-        try:
-            reply: Any = ("ok", self.control(*request))
-        except Exception as exc:  # reported to the caller; the server keeps serving
-            reply = ("error", f"{type(exc).__name__}: {exc}")
-        try:
-            conn.send(reply)
-        except (OSError, EOFError):
-            self._running = False
-
-    def control(self, op: str, *args: Any) -> Any:
-        """Requests of the Python API (between ticks)."""
-        core = self.core
-        if op == "stop":
-            self._running = False
-            return None
-        if op == "state":
-            out: dict[str, Any] = {k: v.copy() for k, v in core.state.items()}
-            mg, ctrl, mode = core.state_modes()
-            out.update(
-                motion_generator_mode=mg, controller_mode=ctrl, robot_mode=mode,
-                errors=core.errors.copy(), reflex_reason=core.reflex_reason.copy(),
-                time=self.tick_count * DT, gripper_width=self.gripper.width,
-                gripper_is_grasped=self.gripper.is_grasped,
-                cube_position=self._body_position("cube"),
-            )  # fmt: skip
-            return out
-        if op == "inject_reflex":
-            core.inject_reflex(list(args[0]))
-            return None
-        if op == "drop_commands":
-            n = int(args[0])
-            if n < 0:
-                raise ValueError(f"drop_commands: expected n >= 0, got {n}")
-            self.drop_commands = n
-            return None
-        if op == "user_stop":
-            core.set_user_stop(bool(args[0]))
-            return None
-        if op == "guiding":
-            core.set_guiding(bool(args[0]))
-            return None
-        if op == "set_joint_positions":
-            if core.robot_mode == RobotMode.MOVE:
-                raise ValueError("set_joint_positions: not while a motion runs")
-            q = np.asarray(args[0], dtype=float)
-            if q.shape != (7,) or not np.all(np.isfinite(q)):
-                raise ValueError(f"q: expected 7 finite joint positions, got {q.tolist()}")
-            core.reset(q)
-            return None
-        if op == "stats":
-            st = self.stats
-            wall = time.monotonic() - st.started
-            return {
-                "ticks": st.ticks, "late_ticks": st.late_ticks, "resyncs": st.resyncs,
-                "commands_received": st.commands_received, "commands_lost": st.commands_lost,
-                "commands_excused": st.commands_excused,
-                "bad_datagrams": st.bad_datagrams, "wall_time": wall,
-                "clients_dropped": st.clients_dropped, "worst_late": st.worst_late,
-                "cpu_time": time.process_time() - st.cpu_started,
-                "sim_time": st.ticks * DT,
-            }  # fmt: skip
-        if op == "reset_stats":
-            self.stats = Stats()
-            return None
-        raise ValueError(f"unknown control request {op!r}")
-
-    def _body_position(self, name: str) -> list[float] | None:
-        import mujoco
-
-        bid = mujoco.mj_name2id(self.physics.model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if bid < 0:
-            return None
-        return [float(x) for x in self.physics.data.xpos[bid]]
 
 
 # SCHED_FIFO priority of a realtime simulator: above ordinary processes, below the
@@ -1131,4 +263,4 @@ def run(config: SimConfig, control: Any = None, ready: Any = None) -> None:
     server.serve_forever()
 
 
-__all__ = ["SimConfig", "SimServer", "Stats", "run"]
+__all__ = ["SimConfig", "SimServer", "Stats", "raise_priority", "run"]
