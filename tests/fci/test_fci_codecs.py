@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pickle
 import struct
 from typing import Any
 
@@ -322,6 +323,14 @@ def test_connect_messages() -> None:
 
 def test_protocol_error_is_structured() -> None:
     err = fci.ProtocolError("thing", "1 byte", "2 bytes")
-    assert isinstance(err, ValueError)
+    # corrupt wire data is not a caller's ValueError; it is this package's error
+    assert isinstance(err, fci.FciError) and not isinstance(err, ValueError)
     assert str(err) == "thing: expected 1 byte, got 2 bytes"
     assert (err.what, err.expected, err.got) == ("thing", "1 byte", "2 bytes")
+    back = pickle.loads(pickle.dumps(err))
+    assert (type(back), str(back), back.what, back.got) == (
+        fci.ProtocolError,
+        str(err),
+        "thing",
+        "2 bytes",
+    )

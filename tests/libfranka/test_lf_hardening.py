@@ -117,3 +117,22 @@ def test_elbow_is_checked_where_it_is_assigned(cls, value):
         assert cmd.elbow.tolist() == [0.3, 1.0]  # unchanged
     cmd.elbow = None
     assert not cmd.has_elbow()
+
+
+def test_errors_pickle_with_their_fields():
+    """Errors cross the control process's boundary: every one survives pickling."""
+    import pickle
+
+    from panda_py import fci
+
+    errors = [
+        lf.IncompatibleVersionException("v", server_version=5, library_version=10),
+        lf.CommandException("c", command="Move", status=fci.MoveStatus.ABORTED),
+        lf.ControlException("x", reflex_reason=("joint_reflex",), success_rate=0.5),
+        lf.NetworkException("libfranka: robot busy: another client is connected"),
+        fci.ProtocolError("TCP message size", "12..428 bytes", "16777216 bytes"),
+    ]
+    for err in errors:
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err)
+        assert vars(back) == vars(err)

@@ -11,7 +11,15 @@ Shared by the simulator (robot side) and the pure-Python client; see
 
 from __future__ import annotations
 
-from .codec import MAX_MESSAGE_SIZE, FieldSpec, Message, MessageReader, PayloadCodec, ProtocolError
+from .codec import (
+    MAX_MESSAGE_SIZE,
+    FciError,
+    FieldSpec,
+    Message,
+    MessageReader,
+    PayloadCodec,
+    ProtocolError,
+)
 from .enums import (
     ERROR_NAMES,
     ERROR_STRINGS,
@@ -101,6 +109,7 @@ __all__ = [
     "ControllerMode",
     "Dialect",
     "ErrorRecoveryStatus",
+    "FciError",
     "FieldSpec",
     "GetterSetterStatus",
     "GripperCommand",
