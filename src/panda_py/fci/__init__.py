@@ -23,6 +23,7 @@ from .codec import (
 from .enums import (
     ERROR_NAMES,
     ERROR_STRINGS,
+    STATE_GENERATOR_OF_MOVE,
     Command,
     CommandBaseStatus,
     ConnectStatus,
@@ -32,6 +33,8 @@ from .enums import (
     LoadModelLibraryArchitecture,
     LoadModelLibraryStatus,
     LoadModelLibrarySystem,
+    ModelLibraryArchitecture,
+    ModelLibrarySystem,
     MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -63,13 +66,16 @@ from .gripper import (
     encode_gripper_state,
 )
 from .robot import (
+    COLLISION_THRESHOLD_FIELDS,
     COMMAND_PORT,
     CONNECT_REQUEST,
     CONNECT_RESPONSE,
     DEFAULT_DEVIATION,
     HEADER,
     MAX_REQUEST_SIZE,
+    MESSAGE_ID,
     NEWEST_VERSION,
+    PERIOD,
     SUPPORTED_VERSIONS,
     Dialect,
     RobotMessageReader,
@@ -80,9 +86,11 @@ from .robot import (
     encode_connect_request,
     encode_connect_response,
     encode_message,
+    state_float_fields,
 )
 
 __all__ = [
+    "COLLISION_THRESHOLD_FIELDS",
     "COMMAND_PORT",
     "CONNECT_REQUEST",
     "CONNECT_RESPONSE",
@@ -101,7 +109,10 @@ __all__ = [
     "HEADER",
     "MAX_MESSAGE_SIZE",
     "MAX_REQUEST_SIZE",
+    "MESSAGE_ID",
     "NEWEST_VERSION",
+    "PERIOD",
+    "STATE_GENERATOR_OF_MOVE",
     "SUPPORTED_VERSIONS",
     "Command",
     "CommandBaseStatus",
@@ -121,6 +132,8 @@ __all__ = [
     "LoadModelLibrarySystem",
     "Message",
     "MessageReader",
+    "ModelLibraryArchitecture",
+    "ModelLibrarySystem",
     "MotionGeneratorMode",
     "MoveControllerMode",
     "MoveMotionGeneratorMode",
@@ -145,4 +158,5 @@ __all__ = [
     "encode_gripper_message",
     "encode_gripper_state",
     "encode_message",
+    "state_float_fields",
 ]

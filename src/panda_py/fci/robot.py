@@ -24,16 +24,24 @@ import numpy as np
 from . import layouts
 from .codec import MAX_MESSAGE_SIZE, MessageReader, PayloadCodec, ProtocolError
 from .enums import ERROR_NAMES, Command, ConnectStatus
-from .layouts import NEWEST_VERSION, SUPPORTED_VERSIONS
+from .layouts import (
+    COLLISION_THRESHOLD_FIELDS,
+    NEWEST_VERSION,
+    SUPPORTED_VERSIONS,
+    state_float_fields,
+)
 
 __all__ = [
+    "COLLISION_THRESHOLD_FIELDS",
     "COMMAND_PORT",
     "CONNECT_REQUEST",
     "CONNECT_RESPONSE",
     "DEFAULT_DEVIATION",
     "HEADER",
     "MAX_REQUEST_SIZE",
+    "MESSAGE_ID",
     "NEWEST_VERSION",
+    "PERIOD",
     "SUPPORTED_VERSIONS",
     "Dialect",
     "RobotMessageReader",
@@ -44,10 +52,16 @@ __all__ = [
     "encode_connect_request",
     "encode_connect_response",
     "encode_message",
+    "state_float_fields",
 ]
 
 #: Robot TCP command port (``research_interface::robot::kCommandPort``).
 COMMAND_PORT = 1337
+#: The robot's control period: one state and one command per millisecond [s] (libfranka
+#: ``kDeltaT``; FCI docs: the robot streams states and expects commands at 1 kHz).
+PERIOD = 0.001
+#: The ``message_id`` every state and command starts with (u64 at offset 0).
+MESSAGE_ID = struct.Struct("<Q")
 
 #: Robot TCP header: command u32, command_id u32, size u32 (total incl. header) [12 B].
 HEADER = struct.Struct("<III")

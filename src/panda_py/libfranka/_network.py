@@ -20,7 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from panda_py._checks import timeout as _timeout
-from panda_py.fci import Message, MessageReader, ProtocolError
+from panda_py.fci import MESSAGE_ID, PERIOD, Message, MessageReader, ProtocolError
 from panda_py.libfranka.errors import FrankaException, NetworkException, ProtocolException
 
 __all__ = ["CONNECT_TIMEOUT", "TCP_TIMEOUT", "UDP_TIMEOUT", "Network", "translate"]
@@ -37,13 +37,13 @@ UDP_TIMEOUT = 1.0  # [s] wait for a UDP datagram (libfranka: 1 s)
 # but still inside the spin moves it by PHASE_SLEW only (else one late state would end
 # the wait for the next, which comes on time, too late: woken on cold caches, or in the
 # middle of the loop's cache warm-up); a state later than the spin covers resets it.
-STATE_PERIOD = 1e-3  # [s]
+STATE_PERIOD = PERIOD  # [s]
 SPIN_LEAD = 150e-6  # [s]
 SPIN_BUDGET = 300e-6  # [s]
 PHASE_SLEW = 10e-6  # [s] per state
 _clock = time.perf_counter
 _UDP_BUFFER = 4096  # [bytes] larger than any state datagram
-_MESSAGE_ID = struct.Struct("<Q")
+_MESSAGE_ID = MESSAGE_ID
 
 
 def translate(exc: BaseException, what: str) -> FrankaException:

@@ -194,12 +194,7 @@ class Robot(NamedControlMixin):
         ``(lower_torque_thresholds, upper_torque_thresholds, lower_force_thresholds,
         upper_force_thresholds)`` used for both phases. Torques (7,) [Nm], forces (6,)
         [N, N, N, Nm, Nm, Nm]."""
-        eight = (
-            "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
-            "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
-            "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
-            "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
-        )  # fmt: skip
+        eight = fci.COLLISION_THRESHOLD_FIELDS
         four = ("lower_torque_thresholds", "upper_torque_thresholds", "lower_force_thresholds",
                 "upper_force_thresholds")  # fmt: skip
         n = len(args) + len(kwargs)

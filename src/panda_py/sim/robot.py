@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from panda_py import fci
 from panda_py.fci import (
     ERROR_NAMES,
     ControllerMode,
@@ -60,27 +61,10 @@ _CARTESIAN_GENERATORS = (
     MotionGeneratorMode.CARTESIAN_VELOCITY,
 )
 
-_MG_FROM_MOVE = {
-    MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
-    MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
-    MoveMotionGeneratorMode.CARTESIAN_POSITION: MotionGeneratorMode.CARTESIAN_POSITION,
-    MoveMotionGeneratorMode.CARTESIAN_VELOCITY: MotionGeneratorMode.CARTESIAN_VELOCITY,
-    MoveMotionGeneratorMode.NONE: MotionGeneratorMode.NONE,
-}
-
 
 # The state's float fields in the order every wire layout has them (v5+; older layouts
 # lack some): name -> number of float64 values.
-_STATE_SIZES = {
-    "O_T_EE": 16, "O_T_EE_d": 16, "F_T_EE": 16, "EE_T_K": 16, "F_T_NE": 16, "NE_T_EE": 16,
-    "m_ee": 1, "I_ee": 9, "F_x_Cee": 3, "m_load": 1, "I_load": 9, "F_x_Cload": 3,
-    "elbow": 2, "elbow_d": 2, "tau_J": 7, "tau_J_d": 7, "dtau_J": 7, "q": 7, "q_d": 7,
-    "dq": 7, "dq_d": 7, "ddq_d": 7, "joint_contact": 7, "cartesian_contact": 6,
-    "joint_collision": 7, "cartesian_collision": 6, "tau_ext_hat_filtered": 7,
-    "O_F_ext_hat_K": 6, "K_F_ext_hat_K": 6, "O_dP_EE_d": 6, "O_ddP_O": 3, "elbow_c": 2,
-    "delbow_c": 2, "ddelbow_c": 2, "O_T_EE_c": 16, "O_dP_EE_c": 6, "O_ddP_EE_c": 6,
-    "theta": 7, "dtheta": 7, "accelerometer_top": 18, "accelerometer_bottom": 18,
-}  # fmt: skip
+_STATE_SIZES = fci.state_float_fields()
 # Fields that hold contact estimates (zero without contact).
 _CONTACT_FIELDS = (
     "joint_contact", "joint_collision", "tau_ext_hat_filtered", "cartesian_contact",
@@ -292,7 +276,7 @@ class RobotCore:
             return MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
         q = self.physics.q.copy()
         self.robot_mode = RobotMode.MOVE
-        self.mg_mode = _MG_FROM_MOVE[mg]
+        self.mg_mode = fci.STATE_GENERATOR_OF_MOVE[mg]
         self.ctrl_mode = ControllerMode(int(ctrl))
         self.first_command = True
         self.consecutive_lost = 0
@@ -345,13 +329,7 @@ class RobotCore:
         return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
 
     def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
-        names = (
-            "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
-            "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
-            "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
-            "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
-        )  # fmt: skip
-        arrays = [np.asarray(f[n], dtype=float) for n in names]
+        arrays = [np.asarray(f[n], dtype=float) for n in fci.COLLISION_THRESHOLD_FIELDS]
         bad = self._setter_check(*arrays) or self._refuse(
             "SetCollisionBehavior",
             settings.check_collision_thresholds([(arrays[i], arrays[i + 1]) for i in (0, 2, 4, 6)]),

@@ -12,9 +12,10 @@ import math
 
 import numpy as np
 
+from panda_py.fci import PERIOD
 from panda_py.robots.params import RobotSpec
 
-DT = 0.001  # [s]
+DT = PERIOD  # [s]
 # Numerical slack on every limit: commands computed exactly at a limit must pass.
 _REL = 1e-6
 _ABS = 1e-9

@@ -19,7 +19,7 @@ import numpy as np
 from panda_py import fci
 from panda_py.sim.robot import Command, RobotCore
 
-_U64 = struct.Struct("<Q")
+_U64 = fci.MESSAGE_ID
 
 
 class StateWire:
