@@ -256,8 +256,9 @@ def gripper_flood(host: str, requests: int = 20000) -> int:
             tcp.sendall(batch)
             tcp.setblocking(False)
             try:
-                while True:
-                    got += len(reader.feed(tcp.recv(65536)))
+                while data := tcp.recv(65536):
+                    got += len(reader.feed(data))
+                return got  # the robot hung up (e.g. "robot busy")
             except BlockingIOError:
                 pass
             finally:
