@@ -1,4 +1,6 @@
-"""The simulated robot's core: mode machine, Move lifecycle, setters, safety, state.
+"""The simulated robot's core: mode machine, Move lifecycle (a Move starts or is refused
+in :meth:`RobotCore.request_move`), command checks, state. Its setters are in
+:mod:`.settings`, the checks' arithmetic in :mod:`.safety`.
 
 Version-independent: it speaks in :mod:`panda_py.fci` enums and fills a float64 "master"
 state keyed by libfranka's field names; the server copies that into each connection's
@@ -8,7 +10,7 @@ wire dialect.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,7 +19,6 @@ from panda_py.fci import (
     ERROR_NAMES,
     ControllerMode,
     ErrorRecoveryStatus,
-    GetterSetterStatus,
     MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -27,16 +28,18 @@ from panda_py.fci import (
 )
 from panda_py.kinematics import get_kinematics
 from panda_py.robots.params import FRANKA_HAND, GRAVITY, RobotSpec
-from panda_py.sim import settings
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
     START_CARTESIAN_TOLERANCE,
     START_POSE_TOLERANCE,
     CartesianSignal,
     JointSignal,
+    all_finite,
+    from_col_major,
     is_valid_transform,
     pose_error,
 )
+from panda_py.sim.settings import CollisionThresholds, RobotSettings
 
 log = logging.getLogger("panda_py.sim")
 
@@ -49,11 +52,6 @@ MAX_CONSECUTIVE_LOST = 20
 SUCCESS_WINDOW = 100
 # First-order filter constant of tau_ext_hat_filtered (about 16 Hz at 1 kHz).
 _EXT_FILTER = 0.1
-
-# Power-up collision thresholds. Source: libfranka examples_common.cpp
-# setDefaultBehavior (the values Franka's examples and franka_ros start with).
-_DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)  # [Nm]
-_DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)  # [N, Nm]
 
 _JOINT_GENERATORS = (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY)
 _CARTESIAN_GENERATORS = (
@@ -72,34 +70,6 @@ _CONTACT_FIELDS = (
 )  # fmt: skip
 
 
-def from_col_major(v: np.ndarray) -> np.ndarray:
-    return np.asarray(v, dtype=float).reshape(4, 4).T.copy()
-
-
-def _finite(*arrays: np.ndarray) -> bool:
-    return all(np.isfinite(a).all() for a in arrays)
-
-
-@dataclass
-class CollisionThresholds:
-    lower_torque_acc: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    upper_torque_acc: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    lower_torque_nom: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    upper_torque_nom: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    lower_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    upper_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    lower_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    upper_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-
-
 @dataclass
 class Command:
     """One decoded RobotCommand (version-independent view)."""
@@ -116,7 +86,7 @@ class Command:
     torque_command_finished: bool
 
 
-class RobotCore:
+class RobotCore(RobotSettings):
     """The robot's behaviour, advanced one 1 ms tick at a time by the server."""
 
     def __init__(self, spec: RobotSpec, physics: Physics, q_start: np.ndarray) -> None:
@@ -268,7 +238,7 @@ class RobotCore:
             log.warning("Move rejected: no motion generator needs an external controller (v7+)")
             return MoveStatus.INVALID_ARGUMENT_REJECTED
         dev = np.asarray(deviations, dtype=float)
-        if not _finite(dev) or np.any(dev <= 0.0):
+        if not all_finite(dev) or np.any(dev <= 0.0):
             log.warning("Move rejected: maximum deviations %s out of range", dev.tolist())
             return MoveStatus.INVALID_ARGUMENT_REJECTED
         if use_async:
@@ -312,105 +282,6 @@ class RobotCore:
             self.q_hold = self.physics.q.copy()
             self.joint.reset(self.q_hold)
         return ErrorRecoveryStatus.SUCCESS
-
-    def _setter_check(self, *arrays: np.ndarray) -> GetterSetterStatus | None:
-        if self.robot_mode not in (RobotMode.IDLE, RobotMode.REFLEX):
-            return GetterSetterStatus.COMMAND_NOT_POSSIBLE_REJECTED
-        if not _finite(*arrays):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        return None
-
-    @staticmethod
-    def _refuse(command: str, reason: str | None) -> GetterSetterStatus | None:
-        """INVALID_ARGUMENT_REJECTED (logged with ``reason``) if there is a reason."""
-        if reason is None:
-            return None
-        log.warning("%s rejected: %s", command, reason)
-        return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-
-    def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
-        arrays = [np.asarray(f[n], dtype=float) for n in fci.COLLISION_THRESHOLD_FIELDS]
-        bad = self._setter_check(*arrays) or self._refuse(
-            "SetCollisionBehavior",
-            settings.check_collision_thresholds([(arrays[i], arrays[i + 1]) for i in (0, 2, 4, 6)]),
-        )
-        if bad is not None:
-            return bad
-        self.thresholds = CollisionThresholds(*arrays)
-        return GetterSetterStatus.SUCCESS
-
-    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
-        K = np.array(K_theta, dtype=float)
-        bad = self._setter_check(K) or self._refuse(
-            "SetJointImpedance", settings.check_joint_stiffness(K)
-        )
-        if bad is not None:
-            return bad
-        self.K_theta = K
-        return GetterSetterStatus.SUCCESS
-
-    def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
-        K = np.array(K_x, dtype=float)
-        bad = self._setter_check(K) or self._refuse(
-            "SetCartesianImpedance", settings.check_cartesian_stiffness(K)
-        )
-        if bad is not None:
-            return bad
-        self.K_x = K
-        return GetterSetterStatus.SUCCESS
-
-    def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
-        bad = self._setter_check()
-        if bad is not None:
-            return bad
-        self.guiding_axes = np.asarray(axes, dtype=bool)
-        self.guiding_elbow = bool(elbow)
-        return GetterSetterStatus.SUCCESS
-
-    def _set_transform(
-        self, flat: np.ndarray, attr: str, *, relative_to_ne: bool = False
-    ) -> GetterSetterStatus:
-        """Set the column-major transform ``flat`` as ``attr``; ``relative_to_ne``: it is
-        given from the flange and stored from the nominal EE."""
-        T = from_col_major(flat)
-        bad = self._setter_check(T) or self._refuse(attr, settings.check_frame(attr, T))
-        if bad is not None:
-            return bad
-        setattr(self, attr, np.linalg.inv(self.F_T_NE) @ T if relative_to_ne else T)
-        self._fill_static()
-        return GetterSetterStatus.SUCCESS
-
-    def set_ee_to_k(self, EE_T_K: np.ndarray) -> GetterSetterStatus:
-        return self._set_transform(EE_T_K, "EE_T_K")
-
-    def set_ne_to_ee(self, NE_T_EE: np.ndarray) -> GetterSetterStatus:
-        return self._set_transform(NE_T_EE, "NE_T_EE")
-
-    def set_f_to_ee(self, F_T_EE: np.ndarray) -> GetterSetterStatus:
-        """Protocol v3's SetFToEE: the whole flange-to-EE transform (NE_T_EE follows)."""
-        return self._set_transform(F_T_EE, "NE_T_EE", relative_to_ne=True)
-
-    def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
-        F_x_C = np.asarray(F_x_C, dtype=float)
-        I_m = np.asarray(I, dtype=float).reshape(3, 3)
-        bad = self._setter_check(np.array([m]), F_x_C, I_m) or self._refuse(
-            "SetLoad", settings.check_load(float(m), F_x_C, I_m)
-        )
-        if bad is not None:
-            return bad
-        self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
-        self._fill_static()
-        return GetterSetterStatus.SUCCESS
-
-    def set_filters(self, frequencies: np.ndarray) -> GetterSetterStatus:
-        f = np.asarray(frequencies, dtype=float)
-        bad = self._setter_check(f)
-        if bad is not None:
-            return bad
-        if np.any(f <= 0) or np.any(f > 1000):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.filters = f
-        return GetterSetterStatus.SUCCESS
 
     # -- faults and buttons (simulator API) ----------------------------------------------
 
@@ -570,13 +441,13 @@ class RobotCore:
         mg = self.mg_mode
         external = self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
         if mg == MotionGeneratorMode.JOINT_POSITION:
-            finite = _finite(c.q_c)
+            finite = all_finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
-            finite = _finite(c.dq_c)
+            finite = all_finite(c.dq_c)
         elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
-            finite = _finite(c.O_T_EE_c, c.elbow_c)
+            finite = all_finite(c.O_T_EE_c, c.elbow_c)
         elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
-            finite = _finite(c.O_dP_EE_c, c.elbow_c)
+            finite = all_finite(c.O_dP_EE_c, c.elbow_c)
         else:
             finite = True
         # NaN fails every <= test: a torque command that is within its range and its
@@ -586,7 +457,7 @@ class RobotCore:
             (np.abs(tau) <= self._tau_max).all()
             and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
         )
-        if not finite or (not tau_ok and not _finite(tau)):
+        if not finite or (not tau_ok and not all_finite(tau)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
             return MoveStatus.INPUT_ERROR_ABORTED

@@ -209,6 +209,15 @@ def integrate_twist(T: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
     return out
 
 
+def all_finite(*arrays: np.ndarray) -> bool:
+    """True if no array holds a NaN or an infinity."""
+    return all(np.isfinite(a).all() for a in arrays)
+
+
+def from_col_major(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(4, 4).T.copy()
+
+
 def is_valid_transform(T: np.ndarray) -> bool:
     """libfranka's test: last row exactly (0,0,0,1), rotation rows/columns of unit norm
     (within 1e-5), every entry finite."""

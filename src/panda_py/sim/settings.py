@@ -1,4 +1,6 @@
-"""The robot's own limits on its settings (stiffness, collision thresholds, load, frames).
+"""The robot's settings: its setters (:class:`RobotSettings`, a part of ``RobotCore``),
+the collision thresholds and the robot's own limits on every setting (stiffness,
+collision thresholds, load, frames).
 
 A robot answers a setter with values outside these ranges "rejected: invalid argument"
 and changes nothing. Each check returns None for acceptable values, else the reason (the
@@ -9,9 +11,16 @@ and marked "unpublished" here.
 
 from __future__ import annotations
 
+import logging
+from dataclasses import dataclass, field
+
 import numpy as np
 
-from panda_py.sim.safety import is_valid_transform
+from panda_py import fci
+from panda_py.fci import GetterSetterStatus, RobotMode
+from panda_py.sim.safety import all_finite, from_col_major, is_valid_transform
+
+log = logging.getLogger("panda_py.sim")
 
 __all__ = [
     "JOINT_STIFFNESS",
@@ -20,6 +29,8 @@ __all__ = [
     "MAX_LOAD_INERTIA",
     "ROTATIONAL_STIFFNESS",
     "TRANSLATIONAL_STIFFNESS",
+    "CollisionThresholds",
+    "RobotSettings",
     "check_cartesian_stiffness",
     "check_collision_thresholds",
     "check_frame",
@@ -112,3 +123,149 @@ def check_frame(name: str, T: np.ndarray) -> str | None:
     if not np.linalg.norm(T[:3, 3]) <= MAX_FRAME_OFFSET:
         return f"{name}'s translation must be within {MAX_FRAME_OFFSET:g} m, got {T[:3, 3]}"
     return None
+
+
+# Power-up collision thresholds. Source: libfranka examples_common.cpp
+# setDefaultBehavior (the values Franka's examples and franka_ros start with).
+_DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)  # [Nm]
+_DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)  # [N, Nm]
+
+
+@dataclass
+class CollisionThresholds:
+    lower_torque_acc: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    upper_torque_acc: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    lower_torque_nom: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    upper_torque_nom: np.ndarray = field(
+        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
+    )
+    lower_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    upper_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    lower_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+    upper_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
+
+
+class RobotSettings:
+    """The robot's setters (a part of :class:`~panda_py.sim.robot.RobotCore`): each checks
+    the mode and the value's range, then changes the setting, or answers rejected and
+    changes nothing."""
+
+    robot_mode: RobotMode
+    thresholds: CollisionThresholds
+    K_theta: np.ndarray
+    K_x: np.ndarray
+    guiding_axes: np.ndarray
+    guiding_elbow: bool
+    F_T_NE: np.ndarray
+    NE_T_EE: np.ndarray
+    EE_T_K: np.ndarray
+    m_load: float
+    F_x_Cload: np.ndarray
+    I_load: np.ndarray
+    filters: np.ndarray
+
+    def _fill_static(self) -> None:
+        raise NotImplementedError  # the state's setter-owned fields (RobotCore)
+
+    def _setter_check(self, *arrays: np.ndarray) -> GetterSetterStatus | None:
+        if self.robot_mode not in (RobotMode.IDLE, RobotMode.REFLEX):
+            return GetterSetterStatus.COMMAND_NOT_POSSIBLE_REJECTED
+        if not all_finite(*arrays):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        return None
+
+    @staticmethod
+    def _refuse(command: str, reason: str | None) -> GetterSetterStatus | None:
+        """INVALID_ARGUMENT_REJECTED (logged with ``reason``) if there is a reason."""
+        if reason is None:
+            return None
+        log.warning("%s rejected: %s", command, reason)
+        return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+
+    def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
+        arrays = [np.asarray(f[n], dtype=float) for n in fci.COLLISION_THRESHOLD_FIELDS]
+        bad = self._setter_check(*arrays) or self._refuse(
+            "SetCollisionBehavior",
+            check_collision_thresholds([(arrays[i], arrays[i + 1]) for i in (0, 2, 4, 6)]),
+        )
+        if bad is not None:
+            return bad
+        self.thresholds = CollisionThresholds(*arrays)
+        return GetterSetterStatus.SUCCESS
+
+    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
+        K = np.array(K_theta, dtype=float)
+        bad = self._setter_check(K) or self._refuse("SetJointImpedance", check_joint_stiffness(K))
+        if bad is not None:
+            return bad
+        self.K_theta = K
+        return GetterSetterStatus.SUCCESS
+
+    def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
+        K = np.array(K_x, dtype=float)
+        bad = self._setter_check(K) or self._refuse(
+            "SetCartesianImpedance", check_cartesian_stiffness(K)
+        )
+        if bad is not None:
+            return bad
+        self.K_x = K
+        return GetterSetterStatus.SUCCESS
+
+    def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
+        bad = self._setter_check()
+        if bad is not None:
+            return bad
+        self.guiding_axes = np.asarray(axes, dtype=bool)
+        self.guiding_elbow = bool(elbow)
+        return GetterSetterStatus.SUCCESS
+
+    def _set_transform(
+        self, flat: np.ndarray, attr: str, *, relative_to_ne: bool = False
+    ) -> GetterSetterStatus:
+        """Set the column-major transform ``flat`` as ``attr``; ``relative_to_ne``: it is
+        given from the flange and stored from the nominal EE."""
+        T = from_col_major(flat)
+        bad = self._setter_check(T) or self._refuse(attr, check_frame(attr, T))
+        if bad is not None:
+            return bad
+        setattr(self, attr, np.linalg.inv(self.F_T_NE) @ T if relative_to_ne else T)
+        self._fill_static()
+        return GetterSetterStatus.SUCCESS
+
+    def set_ee_to_k(self, EE_T_K: np.ndarray) -> GetterSetterStatus:
+        return self._set_transform(EE_T_K, "EE_T_K")
+
+    def set_ne_to_ee(self, NE_T_EE: np.ndarray) -> GetterSetterStatus:
+        return self._set_transform(NE_T_EE, "NE_T_EE")
+
+    def set_f_to_ee(self, F_T_EE: np.ndarray) -> GetterSetterStatus:
+        """Protocol v3's SetFToEE: the whole flange-to-EE transform (NE_T_EE follows)."""
+        return self._set_transform(F_T_EE, "NE_T_EE", relative_to_ne=True)
+
+    def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
+        F_x_C = np.asarray(F_x_C, dtype=float)
+        I_m = np.asarray(I, dtype=float).reshape(3, 3)
+        bad = self._setter_check(np.array([m]), F_x_C, I_m) or self._refuse(
+            "SetLoad", check_load(float(m), F_x_C, I_m)
+        )
+        if bad is not None:
+            return bad
+        self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
+        self._fill_static()
+        return GetterSetterStatus.SUCCESS
+
+    def set_filters(self, frequencies: np.ndarray) -> GetterSetterStatus:
+        f = np.asarray(frequencies, dtype=float)
+        bad = self._setter_check(f)
+        if bad is not None:
+            return bad
+        if np.any(f <= 0) or np.any(f > 1000):
+            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
+        self.filters = f
+        return GetterSetterStatus.SUCCESS
