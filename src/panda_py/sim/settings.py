@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -170,8 +171,9 @@ class RobotSettings:
     I_load: np.ndarray
     filters: np.ndarray
 
-    def _fill_static(self) -> None:
-        raise NotImplementedError  # the state's setter-owned fields (RobotCore)
+    if TYPE_CHECKING:
+
+        def _fill_static(self) -> None: ...  # the state's setter-owned fields (StateAssembly)
 
     def _setter_check(self, *arrays: np.ndarray) -> GetterSetterStatus | None:
         if self.robot_mode not in (RobotMode.IDLE, RobotMode.REFLEX):
