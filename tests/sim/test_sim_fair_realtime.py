@@ -26,10 +26,9 @@ def sim():
         yield s
 
 
-def test_a_stalled_simulator_does_not_blame_the_client(sim):
-    """The simulator process is stopped for 60 ms mid-motion (as a loaded machine may
-    do); it then catches up on ticks the client could never answer. Those are excused,
-    and the motion completes."""
+def _stalled_motion(sim) -> dict:
+    """A torque motion of 800 ticks during which the simulator process is stopped for
+    60 ms (as a loaded machine may do); returns the simulator's stats after it."""
     pid = sim._process.pid
     sim.reset_stats()
     ticks = 0
@@ -47,7 +46,21 @@ def test_a_stalled_simulator_does_not_blame_the_client(sim):
             return lf.motion_finished(out) if ticks >= 800 else out
 
         robot.control(torque)
-    st = sim.stats()
+    return sim.stats()
+
+
+def test_a_stalled_simulator_does_not_blame_the_client(sim):
+    """After the stall the simulator catches up on ticks the client could never answer;
+    those are excused and the motion completes. (A realtime client on a loaded machine
+    may still lose 20 in a row by itself: then it is tried again, up to three times;
+    before the excuse, the stall alone aborted every attempt.)"""
+    for attempt in range(3):
+        try:
+            st = _stalled_motion(sim)
+            break
+        except lf.ControlException:
+            if attempt == 2:
+                raise
     assert st["commands_excused"] >= 20, st
 
 
