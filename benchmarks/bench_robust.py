@@ -65,6 +65,23 @@ def _finish(proc: subprocess.Popen[str], timeout: float) -> dict[str, Any]:
         return {"final_status": "CLIENT FAILED", "aborted": [err.strip()[-500:]]}
 
 
+def _udp_ports(host: str) -> list[int]:
+    """The UDP ports bound to exactly ``host``: the simulator's (its robot and gripper
+    sockets). Clients bind 0.0.0.0, so spraying random ports would hit the honest
+    client too, and a real libfranka waits forever after one datagram with a huge
+    message id (the weakness issue 11 fixed in panda_py.libfranka); the soak is about
+    the simulator."""
+    want = socket.inet_aton(host)[::-1].hex().upper()  # /proc/net/udp: little-endian hex
+    ports = []
+    with open("/proc/net/udp") as f:
+        next(f)
+        for line in f:
+            address, port = line.split()[1].split(":")
+            if address == want:
+                ports.append(int(port, 16))
+    return ports
+
+
 class _Attackers:
     """Attack loops in threads until :meth:`stop`; counts rounds and unexpected errors."""
 
@@ -139,10 +156,12 @@ class _Attackers:
 
     def _fuzz_udp(self) -> None:
         rng = self._rng
+        ports = _udp_ports(self.host)
+        if not ports:
+            return
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             for _ in range(50):
-                # the robot's UDP ports are ephemeral: spray the ones the kernel hands out
-                port = int(rng.integers(32768, 61000))
+                port = ports[int(rng.integers(0, len(ports)))]
                 s.sendto(rng.bytes(int(rng.integers(1, 2000))), (self.host, port))
 
 
