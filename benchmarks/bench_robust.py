@@ -58,7 +58,12 @@ def _client(library: str, host: str, duration: float) -> subprocess.Popen[str]:
 
 
 def _finish(proc: subprocess.Popen[str], timeout: float) -> dict[str, Any]:
-    out, err = proc.communicate(timeout=timeout)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()  # a hung client (SCHED_FIFO 99 in pylibfranka) would starve the machine
+        proc.communicate()
+        return {"final_status": "CLIENT HUNG", "aborted": [f"no result after {timeout:g} s"]}
     try:
         return dict(json.loads(out.strip().splitlines()[-1]))
     except (IndexError, json.JSONDecodeError):
@@ -177,7 +182,8 @@ def _run(library: str, duration: float, kinds: list[str], seed: int) -> dict[str
             if attackers is not None:
                 attackers.stop()
         stats = sim.stats()
-        alive = sim.state()["robot_mode"] is not None  # the process still answers
+        robot_mode = int(sim.state()["robot_mode"])  # the process still answers
+        alive = True
     return {
         "attacks": kinds,
         "completed": result.get("final_status") == "SUCCESS",
@@ -191,6 +197,7 @@ def _run(library: str, duration: float, kinds: list[str], seed: int) -> dict[str
         "rounds": attackers.rounds if attackers else {},
         "attacker_errors": attackers.errors[:5] if attackers else [],
         "sim_alive": alive,
+        "robot_mode_after": robot_mode,
         "load": _load(),
     }
 
