@@ -314,7 +314,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind((host, 0))
     rx.setblocking(False)
-    feeder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    feeder = sink  # the client: states arrive at and commands leave from one socket
     command = d.new_command()
     mid = [0]
 
@@ -323,14 +323,14 @@ def profile_tick(robot: str, n: int = 3000) -> None:
         command["message_id"] = mid[0]
         feeder.sendto(command.tobytes(), rx.getsockname())
         conn.udp, udp = rx, conn.udp
-        conn.last_sent_id = -1
+        conn.last_sent_id = mid[0]  # it answers the state just sent
         srv._read_robot_udp(conn)
         conn.udp = udp
 
     def full_tick(_: int) -> None:
         receive_command()
         conn.awaiting = True
-        srv._tick()
+        srv._tick(time.monotonic(), late=False)
         try:
             while True:
                 sink.recv(4096, socket.MSG_DONTWAIT)
