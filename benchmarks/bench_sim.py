@@ -291,7 +291,8 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     import numpy as np
 
     from panda_py import fci
-    from panda_py.sim.server import SimConfig, SimServer, _RobotConnection
+    from panda_py.sim.connections import RobotConnection
+    from panda_py.sim.server import SimConfig, SimServer
     from panda_py.sim.wire import CommandWire, StateWire
 
     host = free_loopback_host()
@@ -304,7 +305,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     tx.bind((host, 0))
-    conn = _RobotConnection(socket.socket(), (host, 0))
+    conn = RobotConnection(socket.socket(), (host, 0))
     conn.dialect = d
     conn.state_wire, conn.command_wire = StateWire(d, core), CommandWire(d)
     conn.udp, conn.udp_target = tx, sink.getsockname()
@@ -313,7 +314,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind((host, 0))
     rx.setblocking(False)
-    feeder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    feeder = sink  # the client: states arrive at and commands leave from one socket
     command = d.new_command()
     mid = [0]
 
@@ -322,14 +323,14 @@ def profile_tick(robot: str, n: int = 3000) -> None:
         command["message_id"] = mid[0]
         feeder.sendto(command.tobytes(), rx.getsockname())
         conn.udp, udp = rx, conn.udp
-        conn.last_sent_id = -1
+        conn.last_sent_id = mid[0]  # it answers the state just sent
         srv._read_robot_udp(conn)
         conn.udp = udp
 
     def full_tick(_: int) -> None:
         receive_command()
         conn.awaiting = True
-        srv._tick()
+        srv._tick(time.monotonic(), late=False)
         try:
             while True:
                 sink.recv(4096, socket.MSG_DONTWAIT)

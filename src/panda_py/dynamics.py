@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from panda_py import _checks as checks
 from panda_py.robots.params import GRAVITY, RobotSpec, get_robot
 
 __all__ = ["LoadedArm", "coriolis", "gravity", "inverse_dynamics", "mass_matrix"]
@@ -240,26 +241,14 @@ def _crba(ch: _Chain, rot: list[Mat3], bodies: Sequence[_Body]) -> list[list[flo
 
 
 def _vector(name: str, value: ArrayLike, n: int, unit: str) -> list[float]:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
-    if arr.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: expected finite values {unit}, got {arr.tolist()}")
-    return arr.tolist()
+    values: list[float] = checks.vector(name, value, n, unit).tolist()
+    return values
 
 
 def _load(
     m_load: float, F_x_Cload: ArrayLike, I_load: ArrayLike | None
 ) -> tuple[float, Vec3, Mat3]:
-    try:
-        m = float(m_load)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"m_load: expected a mass [kg] >= 0, got {m_load!r}") from exc
-    if not (math.isfinite(m) and m >= 0.0):
-        raise ValueError(f"m_load: expected a finite mass [kg] >= 0, got {m_load!r}")
+    m = checks.number("m_load", m_load, "[kg]", low=0.0)
     c = _vector("F_x_Cload", F_x_Cload, 3, "[m]")
     if I_load is None:
         return m, (c[0], c[1], c[2]), _ZERO_I

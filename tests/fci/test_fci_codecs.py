@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pickle
 import struct
 from typing import Any
 
@@ -313,7 +314,7 @@ def test_connect_messages() -> None:
     with pytest.raises(fci.ProtocolError, match="command 0"):
         fci.decode_connect_request(struct.pack("<IIIHH", 1, 0, 16, 10, 1))
     with pytest.raises(fci.ProtocolError, match="ConnectStatus"):
-        fci.decode_connect_response(struct.pack("<IIIBH", 0, 0, 15, 2, 9))
+        fci.decode_connect_response(struct.pack("<IIIBH", 0, 0, 15, 3, 9))  # 2: busy
     with pytest.raises(ValueError, match="udp_port"):
         fci.encode_connect_request(10, 70000)
     with pytest.raises(ValueError, match="status"):
@@ -322,6 +323,14 @@ def test_connect_messages() -> None:
 
 def test_protocol_error_is_structured() -> None:
     err = fci.ProtocolError("thing", "1 byte", "2 bytes")
-    assert isinstance(err, ValueError)
+    # corrupt wire data is not a caller's ValueError; it is this package's error
+    assert isinstance(err, fci.FciError) and not isinstance(err, ValueError)
     assert str(err) == "thing: expected 1 byte, got 2 bytes"
     assert (err.what, err.expected, err.got) == ("thing", "1 byte", "2 bytes")
+    back = pickle.loads(pickle.dumps(err))
+    assert (type(back), str(back), back.what, back.got) == (
+        fci.ProtocolError,
+        str(err),
+        "thing",
+        "2 bytes",
+    )

@@ -38,4 +38,18 @@ def test_gripper_rejects_bad_arguments_before_sending(gripper):
         gripper.move(0.02, 0.0)
     with pytest.raises(ValueError, match="force"):
         gripper.grasp(0.02, 0.1, -1.0)
+    # the hand's ranges: stroke 0.08 m, peak force 140 N; a speed too slow to cross the
+    # stroke within the client's timeout would never be seen to finish (one above the
+    # hand's 0.1 m/s is run at 0.1, as a real hand does: panda-py's paper asks for 0.2)
+    with pytest.raises(ValueError, match=r"width: expected a finite number in \[0, 0.08\] \[m\]"):
+        gripper.move(0.09, 0.1)
+    with pytest.raises(ValueError, match=r"speed: .* \[m/s\], got 1e-300"):
+        gripper.move(0.04, 1e-300)
+    with pytest.raises(ValueError, match="speed"):
+        gripper.move(0.04, float("inf"))
+    with pytest.raises(ValueError, match="force"):
+        gripper.grasp(0.02, 0.1, 1000.0)
+    with pytest.raises(ValueError, match="epsilon_inner"):
+        gripper.grasp(0.02, 0.1, 20.0, epsilon_inner=float("inf"))
     assert gripper.move(0.05, 0.1) is True  # the connection is still in order
+    assert gripper.move(0.08, 0.2) is True

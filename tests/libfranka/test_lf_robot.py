@@ -276,3 +276,18 @@ def test_read_calls_back_until_false(robot):
 
     robot.read(cb)
     assert len(times) == 5 and bool(np.all(np.diff(times) > 0))
+
+
+@pytest.mark.parametrize("version", [5, 10])
+def test_read_once_after_a_setter_shows_the_new_value(sim, version):
+    """read_once discards queued states first (libfranka's readOnce), so a setter's effect
+    is visible in the very next read_once, as panda-python sees it."""
+    with lf.Robot(sim.host, version=version) as robot:
+        for mass in (0.25, 0.5, 0.0):
+            robot.set_load(mass, [0.0, 0.0, 0.05], np.eye(3) * 1e-3)
+            assert robot.read_once().m_load == pytest.approx(mass)
+        for k in (0.01, 0.0):
+            EE_T_K = np.eye(4)
+            EE_T_K[2, 3] = k
+            robot.set_k(EE_T_K)
+            assert robot.read_once().EE_T_K[14] == pytest.approx(k, abs=1e-7)

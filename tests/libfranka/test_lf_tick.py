@@ -119,6 +119,7 @@ def test_the_state_phase_follows_early_states_and_slews_after_late_ones(monkeypa
     net = _network.Network.__new__(_network.Network)  # no sockets: the phase logic only
     net._udp_size = 1
     net._next_due = 0.0
+    net._robot_ip, net._udp_peer, net.foreign_datagrams = "h", None, 0
     P = _network.STATE_PERIOD
     net._accept(b"x", ("h", 1))  # the first state sets the phase
     assert net._next_due == pytest.approx(100.0 + P)

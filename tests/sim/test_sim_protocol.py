@@ -297,8 +297,12 @@ def test_garbage_and_unknown_commands_keep_the_server_serving(sim):
     c.state()
     c.state()
     assert sim.stats()["bad_datagrams"] == before + 1
-    # a second client is refused while the first is connected
+    # a second client is refused while the first is connected: its Connect is answered
+    # "robot busy", then the connection is closed
     s = socket.create_connection((sim.host, 1337), timeout=5)
+    s.sendall(fci.encode_connect_request(10, 4242, command_id=0))
+    answer = s.recv(100)
+    assert fci.decode_connect_response(answer)[1] == fci.ConnectStatus.ROBOT_BUSY
     assert s.recv(100) == b""
     s.close()
     c.close()

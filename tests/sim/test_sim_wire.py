@@ -74,6 +74,8 @@ def test_command_wire_reads_back_what_was_sent(version: int) -> None:
     with rx, tx:
         rx.bind(("127.0.0.1", 0))
         rx.settimeout(5.0)
+        tx.bind(("127.0.0.1", 0))
+        client = tx.getsockname()
         for flags in ((True, False, True), (False, True, False)):
             cmd = d.new_command()
             cmd["message_id"] = 42
@@ -83,7 +85,7 @@ def test_command_wire_reads_back_what_was_sent(version: int) -> None:
             if "torque_command_finished" in (d.command_dtype.names or ()):
                 cmd["torque_command_finished"] = flags[2]
             tx.sendto(cmd.tobytes(), rx.getsockname())
-            size, mid = wire.receive(rx)
+            size, mid = wire.receive(rx, client)
             assert (size, mid) == (d.command_size, 42)
             c = wire.accept(mid)
             assert c.message_id == 42
@@ -94,7 +96,12 @@ def test_command_wire_reads_back_what_was_sent(version: int) -> None:
         # A wrong-sized datagram is reported with its size and leaves the command alone.
         before = c.tau_J_d.copy()
         tx.sendto(b"\x00" * (d.command_size + 1), rx.getsockname())
-        assert wire.receive(rx) == (d.command_size + 1, -1)
+        assert wire.receive(rx, client) == (d.command_size + 1, -1)
+        np.testing.assert_array_equal(c.tau_J_d, before)
+        # So is a right-sized one from anywhere but the client.
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger:
+            stranger.sendto(cmd.tobytes(), rx.getsockname())
+            assert wire.receive(rx, client) == (d.command_size, -1)
         np.testing.assert_array_equal(c.tau_J_d, before)
         with pytest.raises(ValueError):
             c.tau_J_d[0] = 1.0  # the robot's view of a command is read-only

@@ -11,10 +11,19 @@ Shared by the simulator (robot side) and the pure-Python client; see
 
 from __future__ import annotations
 
-from .codec import MAX_MESSAGE_SIZE, FieldSpec, Message, MessageReader, PayloadCodec, ProtocolError
+from .codec import (
+    MAX_MESSAGE_SIZE,
+    FciError,
+    FieldSpec,
+    Message,
+    MessageReader,
+    PayloadCodec,
+    ProtocolError,
+)
 from .enums import (
     ERROR_NAMES,
     ERROR_STRINGS,
+    STATE_GENERATOR_OF_MOVE,
     Command,
     CommandBaseStatus,
     ConnectStatus,
@@ -24,6 +33,8 @@ from .enums import (
     LoadModelLibraryArchitecture,
     LoadModelLibraryStatus,
     LoadModelLibrarySystem,
+    ModelLibraryArchitecture,
+    ModelLibrarySystem,
     MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -36,6 +47,7 @@ from .gripper import (
     GRIPPER_CONNECT_REQUEST,
     GRIPPER_CONNECT_RESPONSE,
     GRIPPER_HEADER,
+    GRIPPER_MAX_REQUEST_SIZE,
     GRIPPER_REQUESTS,
     GRIPPER_RESPONSE,
     GRIPPER_STATE_DTYPE,
@@ -54,12 +66,16 @@ from .gripper import (
     encode_gripper_state,
 )
 from .robot import (
+    COLLISION_THRESHOLD_FIELDS,
     COMMAND_PORT,
     CONNECT_REQUEST,
     CONNECT_RESPONSE,
     DEFAULT_DEVIATION,
     HEADER,
+    MAX_REQUEST_SIZE,
+    MESSAGE_ID,
     NEWEST_VERSION,
+    PERIOD,
     SUPPORTED_VERSIONS,
     Dialect,
     RobotMessageReader,
@@ -70,9 +86,11 @@ from .robot import (
     encode_connect_request,
     encode_connect_response,
     encode_message,
+    state_float_fields,
 )
 
 __all__ = [
+    "COLLISION_THRESHOLD_FIELDS",
     "COMMAND_PORT",
     "CONNECT_REQUEST",
     "CONNECT_RESPONSE",
@@ -83,13 +101,18 @@ __all__ = [
     "GRIPPER_CONNECT_REQUEST",
     "GRIPPER_CONNECT_RESPONSE",
     "GRIPPER_HEADER",
+    "GRIPPER_MAX_REQUEST_SIZE",
     "GRIPPER_REQUESTS",
     "GRIPPER_RESPONSE",
     "GRIPPER_STATE_DTYPE",
     "GRIPPER_VERSION",
     "HEADER",
     "MAX_MESSAGE_SIZE",
+    "MAX_REQUEST_SIZE",
+    "MESSAGE_ID",
     "NEWEST_VERSION",
+    "PERIOD",
+    "STATE_GENERATOR_OF_MOVE",
     "SUPPORTED_VERSIONS",
     "Command",
     "CommandBaseStatus",
@@ -97,6 +120,7 @@ __all__ = [
     "ControllerMode",
     "Dialect",
     "ErrorRecoveryStatus",
+    "FciError",
     "FieldSpec",
     "GetterSetterStatus",
     "GripperCommand",
@@ -108,6 +132,8 @@ __all__ = [
     "LoadModelLibrarySystem",
     "Message",
     "MessageReader",
+    "ModelLibraryArchitecture",
+    "ModelLibrarySystem",
     "MotionGeneratorMode",
     "MoveControllerMode",
     "MoveMotionGeneratorMode",
@@ -132,4 +158,5 @@ __all__ = [
     "encode_gripper_message",
     "encode_gripper_state",
     "encode_message",
+    "state_float_fields",
 ]

@@ -16,6 +16,7 @@ import numpy as np
 
 __all__ = [
     "MAX_MESSAGE_SIZE",
+    "FciError",
     "FieldSpec",
     "Message",
     "MessageReader",
@@ -34,11 +35,17 @@ MAX_MESSAGE_SIZE = 16 * 1024 * 1024
 FieldSpec = tuple[str, str] | tuple[str, str, int | tuple[int, ...]]
 
 
-class ProtocolError(ValueError):
+class FciError(Exception):
+    """The root of this package's errors."""
+
+
+class ProtocolError(FciError):
     """Bytes on the wire do not match the protocol: a size, a status or a version.
 
-    It is a :class:`ValueError`, so callers that validate input generically still catch it.
-    ``what``, ``expected`` and ``got`` are kept as attributes for structured handling.
+    Deliberately not a :class:`ValueError`: corrupt or hostile wire data is not a bad
+    argument of the caller, and must not be swallowed by code that validates its input.
+    ``what``, ``expected`` and ``got`` are kept as attributes for structured handling
+    (and survive pickling).
     """
 
     def __init__(self, what: str, expected: object, got: object) -> None:
@@ -46,6 +53,9 @@ class ProtocolError(ValueError):
         self.what = what
         self.expected = expected
         self.got = got
+
+    def __reduce__(self) -> tuple[type[ProtocolError], tuple[str, object, object]]:
+        return type(self), (self.what, self.expected, self.got)
 
 
 def packed_dtype(fields: Sequence[FieldSpec]) -> np.dtype[Any]:

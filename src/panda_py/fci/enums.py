@@ -16,6 +16,7 @@ import enum
 __all__ = [
     "ERROR_NAMES",
     "ERROR_STRINGS",
+    "STATE_GENERATOR_OF_MOVE",
     "Command",
     "CommandBaseStatus",
     "ConnectStatus",
@@ -25,6 +26,8 @@ __all__ = [
     "LoadModelLibraryArchitecture",
     "LoadModelLibraryStatus",
     "LoadModelLibrarySystem",
+    "ModelLibraryArchitecture",
+    "ModelLibrarySystem",
     "MotionGeneratorMode",
     "MoveControllerMode",
     "MoveMotionGeneratorMode",
@@ -64,6 +67,27 @@ class ConnectStatus(enum.IntEnum):
 
     SUCCESS = 0
     INCOMPATIBLE_LIBRARY_VERSION = 1
+    #: panda-sim only: another client holds the robot. A robot admits one client at a
+    #: time but publishes no status for refusing a second one; libfranka reports any
+    #: status but 0 and 1 as a protocol error, this package's client as "robot busy".
+    ROBOT_BUSY = 2
+
+
+class ModelLibraryArchitecture(enum.IntEnum):
+    """LoadModelLibrary's architecture field. Source: libfranka research_interface
+    ``robot/service_types.h``, ``LoadModelLibrary::Architecture``."""
+
+    X64 = 0
+    X86 = 1
+    ARM = 2
+    ARM64 = 3
+
+
+class ModelLibrarySystem(enum.IntEnum):
+    """LoadModelLibrary's system field (``LoadModelLibrary::System`` in libfranka)."""
+
+    LINUX = 0
+    WINDOWS = 1
 
 
 class LoadModelLibraryStatus(enum.IntEnum):
@@ -268,3 +292,13 @@ ERROR_STRINGS: tuple[str, ...] = tuple(
     name + "_flag" if name == "cartesian_position_motion_generator_invalid_frame" else name
     for name in ERROR_NAMES
 )
+
+
+#: The state's ``motion_generator_mode`` once a Move with this generator runs.
+STATE_GENERATOR_OF_MOVE: dict[MoveMotionGeneratorMode, MotionGeneratorMode] = {
+    MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
+    MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
+    MoveMotionGeneratorMode.CARTESIAN_POSITION: MotionGeneratorMode.CARTESIAN_POSITION,
+    MoveMotionGeneratorMode.CARTESIAN_VELOCITY: MotionGeneratorMode.CARTESIAN_VELOCITY,
+    MoveMotionGeneratorMode.NONE: MotionGeneratorMode.NONE,
+}

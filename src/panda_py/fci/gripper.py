@@ -22,6 +22,7 @@ __all__ = [
     "GRIPPER_CONNECT_REQUEST",
     "GRIPPER_CONNECT_RESPONSE",
     "GRIPPER_HEADER",
+    "GRIPPER_MAX_REQUEST_SIZE",
     "GRIPPER_REQUESTS",
     "GRIPPER_RESPONSE",
     "GRIPPER_STATE_DTYPE",
@@ -72,6 +73,10 @@ class GripperStatus(enum.IntEnum):
 class GripperConnectStatus(enum.IntEnum):
     SUCCESS = 0
     INCOMPATIBLE_LIBRARY_VERSION = 1
+    #: panda-sim only: another client holds the robot. A robot admits one client at a
+    #: time but publishes no status for refusing a second one; libfranka reports any
+    #: status but 0 and 1 as a protocol error, this package's client as "robot busy".
+    ROBOT_BUSY = 2
 
 
 #: Request payload codecs (after the 10-byte header). Widths [m], speed [m/s], force [N].
@@ -129,6 +134,13 @@ def _encode_small_message(command: int, command_id: int, payload: bytes) -> byte
 def encode_gripper_message(command: GripperCommand, command_id: int, payload: bytes) -> bytes:
     """10-byte header + ``payload``."""
     return _encode_small_message(int(GripperCommand(command)), command_id, payload)
+
+
+#: The longest gripper request, header included [bytes] (every request is fixed-size).
+GRIPPER_MAX_REQUEST_SIZE: int = max(
+    GRIPPER_HEADER.size + max(c.size for c in GRIPPER_REQUESTS.values()),
+    GRIPPER_CONNECT_REQUEST.size,
+)
 
 
 class GripperMessageReader(MessageReader):
@@ -214,7 +226,7 @@ def decode_gripper_connect_response(
     try:
         return command_id, GripperConnectStatus(status), version
     except ValueError:
-        raise ProtocolError("GripperConnectStatus value", "0 or 1", status) from None
+        raise ProtocolError("GripperConnectStatus value", "0..2", status) from None
 
 
 def decode_gripper_status(payload: bytes | bytearray | memoryview) -> GripperStatus:

@@ -53,6 +53,30 @@ def errors_count(version: int) -> int:
     return 37 if version <= 4 else 41
 
 
+#: SetCollisionBehavior's threshold fields in wire order: (lower, upper) pairs of joint
+#: torques (7) [Nm] then Cartesian forces (6) [N, Nm], acceleration phase before nominal.
+COLLISION_THRESHOLD_FIELDS = (
+    "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
+    "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
+    "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
+    "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
+)  # fmt: skip
+
+
+def state_float_fields() -> dict[str, int]:
+    """The RobotState's float fields of the newest version in wire order -> number of
+    values (older versions lack some, never reorder them)."""
+    fields = state_fields(NEWEST_VERSION)
+    out: dict[str, int] = {}
+    for spec in fields[1:]:  # after message_id
+        if spec[1] not in ("<f4", "<f8"):
+            continue
+        shape = spec[2] if len(spec) == 3 else 1
+        out[spec[0]] = int(np.prod(shape))
+    del out["control_command_success_rate"]  # a trailing scalar, not a state vector
+    return out
+
+
 def state_fields(version: int) -> list[FieldSpec]:
     """RobotState fields in wire order. 4x4 transforms are flat column-major 16-vectors."""
     f = "<f8" if version <= 9 else "<f4"  # v10 sends every float as float32
@@ -246,14 +270,7 @@ def request_codecs(version: int) -> dict[Command, PayloadCodec]:
         Command.STOP_MOVE: [],
         Command.GET_CARTESIAN_LIMIT: [("id", "<i4")],
         Command.SET_COLLISION_BEHAVIOR: [
-            ("lower_torque_thresholds_acceleration", "<f8", 7),
-            ("upper_torque_thresholds_acceleration", "<f8", 7),
-            ("lower_torque_thresholds_nominal", "<f8", 7),
-            ("upper_torque_thresholds_nominal", "<f8", 7),
-            ("lower_force_thresholds_acceleration", "<f8", 6),
-            ("upper_force_thresholds_acceleration", "<f8", 6),
-            ("lower_force_thresholds_nominal", "<f8", 6),
-            ("upper_force_thresholds_nominal", "<f8", 6),
+            (name, "<f8", 7 if "torque" in name else 6) for name in COLLISION_THRESHOLD_FIELDS
         ],
         Command.SET_JOINT_IMPEDANCE: [("K_theta", "<f8", 7)],
         Command.SET_CARTESIAN_IMPEDANCE: [("K_x", "<f8", 6)],

@@ -24,15 +24,24 @@ import numpy as np
 from . import layouts
 from .codec import MAX_MESSAGE_SIZE, MessageReader, PayloadCodec, ProtocolError
 from .enums import ERROR_NAMES, Command, ConnectStatus
-from .layouts import NEWEST_VERSION, SUPPORTED_VERSIONS
+from .layouts import (
+    COLLISION_THRESHOLD_FIELDS,
+    NEWEST_VERSION,
+    SUPPORTED_VERSIONS,
+    state_float_fields,
+)
 
 __all__ = [
+    "COLLISION_THRESHOLD_FIELDS",
     "COMMAND_PORT",
     "CONNECT_REQUEST",
     "CONNECT_RESPONSE",
     "DEFAULT_DEVIATION",
     "HEADER",
+    "MAX_REQUEST_SIZE",
+    "MESSAGE_ID",
     "NEWEST_VERSION",
+    "PERIOD",
     "SUPPORTED_VERSIONS",
     "Dialect",
     "RobotMessageReader",
@@ -43,10 +52,16 @@ __all__ = [
     "encode_connect_request",
     "encode_connect_response",
     "encode_message",
+    "state_float_fields",
 ]
 
 #: Robot TCP command port (``research_interface::robot::kCommandPort``).
 COMMAND_PORT = 1337
+#: The robot's control period: one state and one command per millisecond [s] (libfranka
+#: ``kDeltaT``; FCI docs: the robot streams states and expects commands at 1 kHz).
+PERIOD = 0.001
+#: The ``message_id`` every state and command starts with (u64 at offset 0).
+MESSAGE_ID = struct.Struct("<Q")
 
 #: Robot TCP header: command u32, command_id u32, size u32 (total incl. header) [12 B].
 HEADER = struct.Struct("<III")
@@ -320,6 +335,13 @@ def _build(version: int) -> Dialect:
 
 _DIALECTS: dict[int, Dialect] = {v: _build(v) for v in SUPPORTED_VERSIONS}
 
+#: The longest request of any supported version, header included [bytes]. Every request
+#: is fixed-size, so a robot reads nothing longer: a larger ``size`` field means a broken
+#: or hostile stream (give it to :class:`RobotMessageReader` as ``max_size``).
+MAX_REQUEST_SIZE: int = HEADER.size + max(
+    codec.size for d in _DIALECTS.values() for codec in d._requests.values()
+)
+
 
 def dialect(version: int) -> Dialect:
     """The :class:`Dialect` of robot protocol ``version``.
@@ -434,5 +456,5 @@ def decode_connect_response(
     try:
         connect_status = ConnectStatus(status)
     except ValueError:
-        raise ProtocolError("ConnectStatus value", "0 or 1", status) from None
+        raise ProtocolError("ConnectStatus value", "0..2", status) from None
     return command_id, connect_status, version

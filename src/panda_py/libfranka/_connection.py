@@ -15,6 +15,7 @@ from panda_py.libfranka._wire import layout
 from panda_py.libfranka.errors import (
     CommandException,
     IncompatibleVersionException,
+    NetworkException,
     ProtocolException,
 )
 
@@ -103,6 +104,8 @@ class RobotConnection:
             _, status, server_version = fci.decode_connect_response(msg.raw)
         except fci.ProtocolError as exc:
             raise translate(exc, "Connect") from exc
+        if status == ConnectStatus.ROBOT_BUSY:
+            raise NetworkException("libfranka: robot busy: another client is connected")
         if status == ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION:
             raise IncompatibleVersionException(
                 f"libfranka: Incompatible library version (server version: {server_version}, "
@@ -168,6 +171,12 @@ class RobotConnection:
         self.last_header = header
         self.last_id = header[0]
         return data
+
+    def receive_fresh_state(self) -> bytes:
+        """The first RobotState sent after this call (libfranka's ``readOnce``: queued
+        states, sent before whatever the caller just did, are discarded first)."""
+        self.net.discard_queued()
+        return self.receive_state()
 
     @property
     def last(self) -> np.void | None:

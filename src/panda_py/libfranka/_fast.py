@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from panda_py.fci import PERIOD
+
 __all__ = [
     "exp_so3",
     "is_pose",
@@ -27,7 +29,7 @@ __all__ = [
     "twist_limit",
 ]
 
-DT = 1e-3  # [s]
+DT = PERIOD  # [s]
 _NORM_EPS = 2.220446049250313e-16
 #: Tolerance on the norm of each rotation row and column of a commanded pose [-]
 #: (``kOrthonormalThreshold`` of libfranka's ``isHomogeneousTransformation``).

@@ -9,8 +9,13 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from panda_py import fci
+from panda_py._checks import timeout as checked_timeout
 from panda_py.libfranka._network import Network, translate
-from panda_py.libfranka.errors import CommandException, IncompatibleVersionException
+from panda_py.libfranka.errors import (
+    CommandException,
+    IncompatibleVersionException,
+    NetworkException,
+)
 
 _Hand = TypeVar("_Hand", bound="HandClient")
 
@@ -27,8 +32,7 @@ class HandClient:
     def __init__(
         self, hostname: str, port: int, udp_size: int, version: int, timeout: float
     ) -> None:
-        if isinstance(timeout, bool) or not (isinstance(timeout, (int, float)) and timeout > 0):
-            raise ValueError(f"timeout: expected a time > 0 [s], got {timeout!r}")
+        timeout = checked_timeout("timeout", timeout)
         self._net = Network(
             hostname,
             port,
@@ -49,6 +53,10 @@ class HandClient:
                 _, status, server = fci.decode_gripper_connect_response(msg.raw)
             except fci.ProtocolError as exc:
                 raise translate(exc, f"{self._TITLE} Connect") from exc
+            if status == fci.GripperConnectStatus.ROBOT_BUSY:
+                raise NetworkException(
+                    f"libfranka {self._LABEL}: robot busy: another client is connected"
+                )
             if status != fci.GripperConnectStatus.SUCCESS:
                 raise IncompatibleVersionException(
                     f"libfranka {self._LABEL}: Incompatible library version (server version: "

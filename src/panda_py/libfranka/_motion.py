@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from panda_py import fci
 from panda_py.fci import (
     DEFAULT_DEVIATION,
     Command,
@@ -34,14 +35,9 @@ __all__ = ["MotionSession", "motion_running"]
 
 START_TIMEOUT = 2.0  # [s] for the robot to switch into the requested modes
 STOP_TIMEOUT = 1.0  # [s] for the robot to go idle after StopMove
+FINISH_TIMEOUT = 1.0  # [s] for the robot to go idle after the last command
 
-_STATE_MG = {
-    MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
-    MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
-    MoveMotionGeneratorMode.CARTESIAN_POSITION: MotionGeneratorMode.CARTESIAN_POSITION,
-    MoveMotionGeneratorMode.CARTESIAN_VELOCITY: MotionGeneratorMode.CARTESIAN_VELOCITY,
-    MoveMotionGeneratorMode.NONE: MotionGeneratorMode.NONE,
-}
+_STATE_MG = fci.STATE_GENERATOR_OF_MOVE
 _IDLE_MG = (int(MotionGeneratorMode.IDLE), int(MotionGeneratorMode.NONE))
 _EXTERNAL = int(ControllerMode.EXTERNAL_CONTROLLER)
 _MOVE = int(RobotMode.MOVE)
@@ -175,7 +171,13 @@ class MotionSession:
         if control and conn.dialect.has_torque_command_finished:
             record["torque_command_finished"] = True
         header = _header(conn)
+        deadline = time.monotonic() + FINISH_TIMEOUT
         while motion_running(header) and header[3] == _MOVE:  # type: ignore[index]
+            if time.monotonic() > deadline:
+                raise ControlException(
+                    f"libfranka: the robot did not end the motion within {FINISH_TIMEOUT:g} s "
+                    "of its last command", log=self.log,
+                )  # fmt: skip
             conn.net.check_closed()
             self.send(command)
             conn.receive_state()

@@ -3,7 +3,9 @@
 Every socket call has a timeout, and every low-level failure (``OSError``,
 ``socket.timeout``, a malformed message) is translated to this package's exceptions in one
 function, :func:`translate`. The UDP socket is bound to ``0.0.0.0:0`` and commands go back
-to the source address of the states, as libfranka does.
+to the source address of the states, as libfranka does. Datagrams from any other address
+than the robot's (the TCP peer's) are dropped, so a stray or spoofed datagram can neither
+be taken for a state nor redirect the commands; every wait ends at a deadline.
 """
 
 from __future__ import annotations
@@ -17,7 +19,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from panda_py.fci import Message, MessageReader, ProtocolError
+from panda_py._checks import timeout as _timeout
+from panda_py.fci import MESSAGE_ID, PERIOD, Message, MessageReader, ProtocolError
 from panda_py.libfranka.errors import FrankaException, NetworkException, ProtocolException
 
 __all__ = ["CONNECT_TIMEOUT", "TCP_TIMEOUT", "UDP_TIMEOUT", "Network", "translate"]
@@ -34,13 +37,13 @@ UDP_TIMEOUT = 1.0  # [s] wait for a UDP datagram (libfranka: 1 s)
 # but still inside the spin moves it by PHASE_SLEW only (else one late state would end
 # the wait for the next, which comes on time, too late: woken on cold caches, or in the
 # middle of the loop's cache warm-up); a state later than the spin covers resets it.
-STATE_PERIOD = 1e-3  # [s]
+STATE_PERIOD = PERIOD  # [s]
 SPIN_LEAD = 150e-6  # [s]
 SPIN_BUDGET = 300e-6  # [s]
 PHASE_SLEW = 10e-6  # [s] per state
 _clock = time.perf_counter
 _UDP_BUFFER = 4096  # [bytes] larger than any state datagram
-_MESSAGE_ID = struct.Struct("<Q")
+_MESSAGE_ID = MESSAGE_ID
 
 
 def translate(exc: BaseException, what: str) -> FrankaException:
@@ -69,7 +72,7 @@ class Network:
         if not isinstance(host, str) or not host:
             raise ValueError(f"hostname: expected a host name or IP address, got {host!r}")
         self.host = host
-        self.timeout = timeout
+        self.timeout = _timeout("timeout", timeout)
         self._reader = reader
         self._udp_size = udp_size  # datagrams shorter than this are a protocol error
         self._responses: dict[int, deque[Message]] = {}
@@ -83,11 +86,14 @@ class Network:
         self.before_spin: Callable[[], None] | None = None
         self._tcp: socket.socket | None = None
         self._udp: socket.socket | None = None
+        self._robot_ip = ""  # states are accepted from this address only
+        self.foreign_datagrams = 0  # dropped: not from the robot's address
         try:
             self._tcp = socket.create_connection((host, port), timeout=CONNECT_TIMEOUT)
             self._tcp.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._tcp.setsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE, 1)
-            self._tcp.settimeout(timeout)
+            self._tcp.settimeout(self.timeout)
+            self._robot_ip = self._tcp.getpeername()[0]
             self._udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._udp.bind(("0.0.0.0", 0))
             # Non-blocking: a socket with a Python timeout waits for readability even when
@@ -96,6 +102,9 @@ class Network:
         except OSError as exc:
             self.close()
             raise translate(exc, f"Connection to {host}:{port}") from exc
+        except BaseException:
+            self.close()  # no socket is left open on any error path
+            raise
 
     @property
     def udp_port(self) -> int:
@@ -195,27 +204,52 @@ class Network:
 
     # --- UDP --------------------------------------------------------------------------
 
-    def _recv_udp(self, block: bool) -> bytes | None:
+    def _recv_udp(self, block: bool, deadline: float | None = None) -> bytes | None:
+        """The next datagram from the robot: None if none is queued (``block=False``);
+        else waits until ``deadline`` (``_clock()``; default one UDP timeout from now)."""
         udp = self._udp
         if udp is None:
             raise NetworkException("libfranka: connection is closed")
-        try:
-            if block:
-                if self.spin:
-                    data = self._spin_wait(udp)
-                    if data is not None:
-                        return data
-                ready, _, _ = select.select([udp], [], [], UDP_TIMEOUT)
-                if not ready:
-                    raise NetworkException("libfranka: UDP receive: Timeout")
-            data, addr = udp.recvfrom(_UDP_BUFFER)
-        except (BlockingIOError, InterruptedError):
-            return None  # nothing (left) to read; a readable datagram may have been dropped
-        except (OSError, ValueError) as exc:
-            raise translate(exc, "UDP receive") from exc
-        return self._accept(data, addr)
+        if block and deadline is None:
+            deadline = _clock() + UDP_TIMEOUT
+        spin = block and self.spin
+        while True:
+            try:
+                if block:
+                    if spin:
+                        spin = False  # once per call: foreign datagrams must not re-arm it
+                        data = self._spin_wait(udp)
+                        if data is not None:
+                            return data
+                    remaining = deadline - _clock()  # type: ignore[operator]
+                    if remaining <= 0.0:
+                        raise NetworkException("libfranka: UDP receive: Timeout")
+                    ready, _, _ = select.select([udp], [], [], remaining)
+                    if not ready:
+                        raise NetworkException("libfranka: UDP receive: Timeout")
+                data, addr = udp.recvfrom(_UDP_BUFFER)
+            except (BlockingIOError, InterruptedError):
+                if not block:
+                    return None  # nothing (left) to read
+                continue  # readable, then gone: wait again
+            except (OSError, ValueError) as exc:
+                raise translate(exc, "UDP receive") from exc
+            accepted = self._accept(data, addr)
+            if accepted is not None:
+                return accepted
 
-    def _accept(self, data: bytes, addr: tuple[str, int]) -> bytes:
+    def _foreign(self, addr: tuple[str, int]) -> bool:
+        """True (and counted) for a datagram not from the robot: the robot's IP always, and
+        once a state came, the same source port."""
+        peer = self._udp_peer
+        if addr[0] == self._robot_ip if peer is None else addr == peer:
+            return False
+        self.foreign_datagrams += 1
+        return True
+
+    def _accept(self, data: bytes, addr: tuple[str, int]) -> bytes | None:
+        if self._foreign(addr):
+            return None
         if len(data) < self._udp_size:
             raise ProtocolException("libfranka: incorrect object size")
         self._udp_peer = addr
@@ -251,7 +285,9 @@ class Network:
                 if _clock() > end:
                     return None
                 continue
-            return self._accept(data, addr)
+            got = self._accept(data, addr)
+            if got is not None:
+                return got
 
     def pending(self) -> bool:
         """True if a datagram waits on the UDP socket (a poll, no wait)."""
@@ -261,10 +297,12 @@ class Network:
     def receive_newest(self, last_id: int) -> bytes:
         """The newest robot state on the UDP socket whose ``message_id`` (u64 at offset 0)
         is above ``last_id``; waits for one if there is none (libfranka's
-        ``receiveRobotState``)."""
+        ``receiveRobotState``), at most one UDP timeout in all: states that keep coming
+        but are all older (after a bogus id) end in the same timeout as silence."""
         best: bytes | None = None
         best_id = last_id
         unpack = _MESSAGE_ID.unpack_from
+        deadline = 0.0
         while best is None:
             data = self._recv_udp(block=False)
             while data is not None:
@@ -273,7 +311,9 @@ class Network:
                     best, best_id = data, mid
                 data = self._recv_udp(block=False)
             if best is None:
-                data = self._recv_udp(block=True)
+                if not deadline:
+                    deadline = _clock() + UDP_TIMEOUT
+                data = self._recv_udp(block=True, deadline=deadline)
                 if data is not None and unpack(data)[0] > best_id:
                     best, best_id = data, unpack(data)[0]
         return best
@@ -289,6 +329,30 @@ class Network:
         while last is None:
             last = self._recv_udp(block=True)
         return last
+
+    def discard_queued(self) -> None:
+        """Drop every datagram already queued on the UDP socket (libfranka's ``readOnce``
+        does this first, so what follows was sent after everything the caller did)."""
+        udp = self._udp
+        if udp is None:
+            raise NetworkException("libfranka: connection is closed")
+        try:
+            while True:
+                _, addr = udp.recvfrom(_UDP_BUFFER)
+                self._foreign(addr)  # counted if it was
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            raise translate(exc, "UDP receive") from exc
+
+    def receive_fresh(self) -> bytes:
+        """The next datagram sent after this call: queued ones are discarded first, then
+        this waits (up to the UDP timeout) for a new one (libfranka's gripper ``readOnce``)."""
+        self.discard_queued()
+        data = None
+        while data is None:
+            data = self._recv_udp(block=True)
+        return data
 
     def send_udp(self, data: Any) -> None:
         """Send a datagram to where the last state came from."""

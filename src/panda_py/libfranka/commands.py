@@ -80,6 +80,19 @@ def _elbow(value: Any) -> FloatArray | None:
     return e
 
 
+def _elbow_attribute() -> Any:
+    """The ``elbow`` attribute of Cartesian commands, checked on every assignment so that a
+    bad value fails where it is set, not inside the control loop."""
+
+    def get(self: Any) -> FloatArray | None:
+        return self._elbow
+
+    def set(self: Any, value: Any) -> None:
+        self._elbow = _elbow(value)
+
+    return property(get, set, doc="Elbow (2,): joint-3 value, joint-4 flip sign +-1; or None.")
+
+
 def _value(name: str, doc: str) -> Any:
     """The public value attribute of a command: its float64 array. The constructor's checked
     list of the same numbers rides along in ``_values`` for the 1 kHz path, which then
@@ -138,14 +151,15 @@ class CartesianPose:
     """End-effector pose ``O_T_EE`` (16 values column-major, or a 4x4 matrix) [m], with an
     optional ``elbow`` (joint-3 position [rad], joint-4 flip sign +-1)."""
 
-    __slots__ = ("_array", "_values", "elbow", "motion_finished")
+    __slots__ = ("_array", "_elbow", "_values", "motion_finished")
 
     def __init__(self, O_T_EE: Any, elbow: Any = None) -> None:
         self._array, self._values = _pose(O_T_EE)
-        self.elbow: FloatArray | None = _elbow(elbow)
+        self._elbow: FloatArray | None = _elbow(elbow)
         self.motion_finished = False
 
     O_T_EE = _value("O_T_EE", "End-effector pose (16,) column-major [m].")
+    elbow = _elbow_attribute()
 
     def has_elbow(self) -> bool:
         return self.elbow is not None
@@ -155,14 +169,15 @@ class CartesianVelocities:
     """End-effector twist ``O_dP_EE`` (6,) [m/s, rad/s] in the base frame, with an
     optional ``elbow`` (joint-3 velocity [rad/s], joint-4 flip sign +-1)."""
 
-    __slots__ = ("_array", "_values", "elbow", "motion_finished")
+    __slots__ = ("_array", "_elbow", "_values", "motion_finished")
 
     def __init__(self, O_dP_EE: Any, elbow: Any = None) -> None:
         self._array, self._values = _checked("O_dP_EE", O_dP_EE, 6, "[m/s, rad/s]")
-        self.elbow: FloatArray | None = _elbow(elbow)
+        self._elbow: FloatArray | None = _elbow(elbow)
         self.motion_finished = False
 
     O_dP_EE = _value("O_dP_EE", "End-effector twist (6,) [m/s, rad/s].")
+    elbow = _elbow_attribute()
 
     def has_elbow(self) -> bool:
         return self.elbow is not None

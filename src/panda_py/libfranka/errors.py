@@ -8,6 +8,7 @@ callers never need to match on message text.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -100,6 +101,14 @@ class IncompatibleVersionException(FrankaException):
         super().__init__(message)
         self.server_version = server_version
         self.library_version = library_version
+
+    def __reduce__(self) -> tuple[Any, tuple[str]]:
+        # keyword-only fields: rebuilt through a partial so the exception pickles (it
+        # crosses the control process's boundary)
+        rebuild = functools.partial(
+            type(self), server_version=self.server_version, library_version=self.library_version
+        )
+        return rebuild, (str(self),)
 
 
 #: panda-py's name (``panda_py.IncompatibleVersionError``) for the same error

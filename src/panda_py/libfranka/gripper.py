@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from panda_py import fci
+from panda_py._checks import number
 from panda_py.fci import GripperCommand
 from panda_py.libfranka._hand import ACTION_TIMEOUT, HandClient
 from panda_py.libfranka.state import GripperState
+from panda_py.robots.params import FRANKA_HAND
 
 __all__ = ["ACTION_TIMEOUT", "Gripper"]
 
@@ -20,15 +21,9 @@ _NAMES = {
 }
 
 
-def _number(name: str, value: Any, unit: str, *, positive: bool = False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected a number {unit}, got {value!r}") from exc
-    if not math.isfinite(x) or x < 0.0 or (positive and x == 0.0):
-        bound = "> 0" if positive else ">= 0"
-        raise ValueError(f"{name}: expected a finite value {bound} {unit}, got {value!r}")
-    return x
+_HAND = FRANKA_HAND
+#: Grasp tolerances beyond the stroke mean nothing [m].
+_MAX_EPSILON = _HAND.max_width
 
 
 class Gripper(HandClient):
@@ -44,6 +39,16 @@ class Gripper(HandClient):
             fci.GRIPPER_VERSION,
             timeout,
         )
+
+    def _width(self, width: Any) -> float:
+        return number("width", width, "[m]", low=0.0, high=_HAND.max_width)
+
+    def _speed(self, speed: Any) -> float:
+        """A finite speed fast enough to cross the stroke within this client's timeout (a
+        slower action could never be seen to finish). Above the hand's 0.1 m/s the hand
+        runs at its maximum, as a real one does: panda-py's paper calls
+        ``gripper.move(0.08, 0.2)``."""
+        return number("speed", speed, "[m/s]", low=_HAND.max_width / self._net.timeout)
 
     def _execute(self, command: GripperCommand, **fields: Any) -> bool:
         payload = fci.GRIPPER_REQUESTS[command].encode(**fields)
@@ -61,8 +66,8 @@ class Gripper(HandClient):
         """Move the fingers to ``width`` [m] at ``speed`` [m/s]."""
         return self._execute(
             GripperCommand.MOVE,
-            width=_number("width", width, "[m]"),
-            speed=_number("speed", speed, "[m/s]", positive=True),
+            width=self._width(width),
+            speed=self._speed(speed),
         )
 
     def grasp(self, width: float, speed: float, force: float, epsilon_inner: float = 0.005,
@@ -71,11 +76,11 @@ class Gripper(HandClient):
         the final width lies within ``[width - epsilon_inner, width + epsilon_outer]``."""
         return self._execute(
             GripperCommand.GRASP,
-            width=_number("width", width, "[m]"),
-            speed=_number("speed", speed, "[m/s]", positive=True),
-            force=_number("force", force, "[N]"),
-            epsilon_inner=_number("epsilon_inner", epsilon_inner, "[m]"),
-            epsilon_outer=_number("epsilon_outer", epsilon_outer, "[m]"),
+            width=self._width(width),
+            speed=self._speed(speed),
+            force=number("force", force, "[N]", low=0.0, high=_HAND.peak_force),
+            epsilon_inner=number("epsilon_inner", epsilon_inner, "[m]", low=0.0, high=_MAX_EPSILON),
+            epsilon_outer=number("epsilon_outer", epsilon_outer, "[m]", low=0.0, high=_MAX_EPSILON),
         )
 
     def stop(self) -> bool:
@@ -83,7 +88,8 @@ class Gripper(HandClient):
         return self._execute(GripperCommand.STOP)
 
     def read_once(self) -> GripperState:
-        """The newest gripper state (waits up to 1 s for one)."""
-        return GripperState(fci.decode_gripper_state(self._net.receive_any()))
+        """A fresh gripper state: queued ones are discarded and the next awaited (up to 1 s),
+        as libfranka's ``readOnce``."""
+        return GripperState(fci.decode_gripper_state(self._net.receive_fresh()))
 
     readOnce = read_once

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import fci
 from panda_py.robots.params import RobotKind, RobotSpec, get_robot
 
 __all__ = [
@@ -46,7 +47,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-DELTA_T = 1e-3  # [s] control period (libfranka kDeltaT)
+DELTA_T = fci.PERIOD  # [s] control period (libfranka kDeltaT)
 LIMIT_EPS = 1e-3  # margin below each published limit (libfranka kLimitEps)
 NORM_EPS = float(np.finfo(float).eps)  # below this a Cartesian jerk/acc counts as zero
 MAX_CUTOFF_FREQUENCY = 1000.0  # [Hz] at and above this the low-pass filter is off

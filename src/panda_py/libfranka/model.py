@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import dynamics
+from panda_py._checks import vector as _vec
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import Frame
 from panda_py.robots.params import GRAVITY, RobotKind, RobotSpec, get_robot
@@ -26,22 +27,6 @@ __all__ = ["Model"]
 
 FloatArray = NDArray[np.float64]
 _IDENTITY16 = np.eye(4).reshape(16)
-
-
-def _vec(name: str, value: Any, n: int, unit: str) -> FloatArray:
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
-    if n == 16 and arr.shape == (4, 4):
-        arr = arr.reshape(16, order="F")
-    if n == 9 and arr.shape == (3, 3):
-        arr = arr.reshape(9, order="F")
-    if arr.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: expected finite values {unit}, got {arr.tolist()}")
-    return arr
 
 
 def _frame(frame: Any) -> Frame:

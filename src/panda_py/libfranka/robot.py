@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from panda_py import fci
+from panda_py._checks import timeout as _timeout
+from panda_py._checks import vector as _vec
 from panda_py.fci import Command
 from panda_py.libfranka._connection import RobotConnection
 from panda_py.libfranka._motion import MotionSession
@@ -41,22 +43,6 @@ log = logging.getLogger("panda_py.libfranka")
 
 #: Robot TCP requests other than motions wait this long for their response [s].
 REQUEST_TIMEOUT = TCP_TIMEOUT
-
-
-def _vec(name: str, value: Any, n: int, unit: str) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
-    if arr.shape == (4, 4) and n == 16:
-        arr = arr.reshape(16, order="F")  # a 4x4 matrix -> column-major
-    if arr.shape == (3, 3) and n == 9:
-        arr = arr.reshape(9, order="F")
-    if arr.shape != (n,):
-        raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: expected finite values {unit}, got {arr.tolist()}")
-    return arr
 
 
 class Robot(NamedControlMixin):
@@ -91,8 +77,7 @@ class Robot(NamedControlMixin):
             raise ValueError(f"log_size: expected an int >= 0, got {log_size!r}")
         if version is not None and version not in fci.SUPPORTED_VERSIONS:
             raise ValueError(f"version: expected one of {fci.SUPPORTED_VERSIONS}, got {version!r}")
-        if not (isinstance(timeout, (int, float)) and timeout > 0):
-            raise ValueError(f"timeout: expected a time > 0 [s], got {timeout!r}")
+        timeout = _timeout("timeout", timeout)
         spec = None if robot is None else get_robot(robot)
         check_realtime(config)  # as libfranka >= 0.18: before anything is sent
         self._realtime_config = config
@@ -159,9 +144,10 @@ class Robot(NamedControlMixin):
         return self._limits
 
     def read_once(self) -> RobotState:
-        """The newest robot state (waits up to 1 s for one newer than the last read)."""
+        """A fresh robot state: queued states are discarded and the next one is awaited (up
+        to 1 s), as libfranka's ``readOnce`` does, so a setter's effect is visible in it."""
         self._no_motion("read_once")
-        return RobotState(self._conn.dialect, self._conn.receive_state())
+        return RobotState(self._conn.dialect, self._conn.receive_fresh_state())
 
     def read(self, read_callback: Callable[[RobotState], bool]) -> None:
         """Call ``read_callback(state)`` for every new state until it returns False."""
@@ -208,12 +194,7 @@ class Robot(NamedControlMixin):
         ``(lower_torque_thresholds, upper_torque_thresholds, lower_force_thresholds,
         upper_force_thresholds)`` used for both phases. Torques (7,) [Nm], forces (6,)
         [N, N, N, Nm, Nm, Nm]."""
-        eight = (
-            "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
-            "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
-            "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
-            "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
-        )  # fmt: skip
+        eight = fci.COLLISION_THRESHOLD_FIELDS
         four = ("lower_torque_thresholds", "upper_torque_thresholds", "lower_force_thresholds",
                 "upper_force_thresholds")  # fmt: skip
         n = len(args) + len(kwargs)

@@ -3,35 +3,25 @@ argument, what it expects and what it got)."""
 
 from __future__ import annotations
 
-import math
-
-
-def _number(name: str, value: object) -> float:
-    try:
-        return float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name}: expected a number, got {value!r}") from exc
+from panda_py._checks import number
 
 
 def speed_factor(value: object) -> float:
     """A fraction of the robot's velocity and acceleration limits, in (0, 1]."""
-    v = _number("speed_factor", value)
-    if not 0.0 < v <= 1.0:
-        raise ValueError(f"speed_factor: expected a number in (0, 1], got {value!r}")
-    return v
+    return number("speed_factor", value, low=0.0, low_open=True, high=1.0)
 
 
 def max_deviation(value: object) -> float:
     """How far blends may cut corners [rad or m], finite and >= 0."""
-    v = _number("max_deviation", value)
-    if not (math.isfinite(v) and v >= 0.0):
-        raise ValueError(f"max_deviation: expected a finite number >= 0, got {value!r}")
-    return v
+    return number("max_deviation", value, "[rad or m]", low=0.0)
 
 
 def timeout(value: object) -> float:
     """Planning time budget [s], > 0 (may be infinite)."""
-    v = _number("timeout", value)
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"timeout: expected a number of seconds > 0, got {value!r}") from exc
     if not v > 0.0:
         raise ValueError(f"timeout: expected a number of seconds > 0, got {value!r}")
     return v

@@ -17,7 +17,6 @@ loading model library" (plain ``Robot`` use still works without a model).
 
 from __future__ import annotations
 
-import enum
 import hashlib
 import os
 import platform
@@ -29,6 +28,7 @@ import tempfile
 import threading
 from pathlib import Path
 
+from panda_py.fci.enums import ModelLibraryArchitecture, ModelLibrarySystem
 from panda_py.robots.csource import EXPORTED_SYMBOLS, c_source
 from panda_py.robots.params import RobotSpec, get_robot
 
@@ -43,21 +43,9 @@ __all__ = [
 ]
 
 
-class Architecture(enum.IntEnum):
-    """LoadModelLibrary's architecture field. Source: libfranka research_interface
-    ``robot/service_types.h``, ``LoadModelLibrary::Architecture``."""
-
-    X64 = 0
-    X86 = 1
-    ARM = 2
-    ARM64 = 3
-
-
-class System(enum.IntEnum):
-    """LoadModelLibrary's system field (``LoadModelLibrary::System`` in libfranka)."""
-
-    LINUX = 0
-    WINDOWS = 1
+# The protocol's platform enums live with the protocol (re-exported here).
+Architecture = ModelLibraryArchitecture
+System = ModelLibrarySystem
 
 
 # ELF e_machine of each architecture (System V ABI), to check what the compiler built.

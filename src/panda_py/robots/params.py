@@ -91,6 +91,7 @@ class HandSpec:
     max_width: float  # [m] fully open
     max_speed: float  # [m/s]
     max_force: float  # [N] continuous grasp force
+    peak_force: float  # [N] the most a grasp may command
 
 
 @dataclass(frozen=True)
@@ -150,6 +151,7 @@ FRANKA_HAND = HandSpec(
     max_width=0.08,  # [m] Franka Hand data sheet: 80 mm stroke
     max_speed=0.1,  # [m/s] libfranka Gripper::move documentation (max 0.1 m/s)
     max_force=70.0,  # [N] Franka Hand data sheet: 70 N continuous, 140 N peak
+    peak_force=140.0,  # [N] Franka Hand data sheet
 )
 
 _TAU_MAX = _t7(87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)  # [Nm] FCI docs, both robots

@@ -77,7 +77,9 @@ class Simulator:
     protocol versions it accepts (a real robot speaks exactly one); by default every
     supported version is served, chosen from the client's Connect request. ``desk`` adds
     the simulated Desk (HTTPS/WSS on ``host``, see :class:`DeskConfig`), coupled to the FCI;
-    without it the robot is always unlocked with the FCI active.
+    without it the robot is always unlocked with the FCI active. ``connect_timeout`` [s]: a
+    TCP connection that sends no Connect within it is closed (it would hold the robot from
+    every other client).
     """
 
     def __init__(
@@ -95,6 +97,7 @@ class Simulator:
         log_level: str = "WARNING",
         start_timeout: float = 60.0,
         desk: DeskConfig | None = None,
+        connect_timeout: float = 5.0,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -106,6 +109,7 @@ class Simulator:
             scene=scene,
             extra=str(extra) if extra is not None else None,
             q_start=tuple(float(x) for x in q_start),
+            connect_timeout=connect_timeout,
         )
         self.log_level = log_level
         self.start_timeout = start_timeout

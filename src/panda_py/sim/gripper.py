@@ -25,7 +25,7 @@ _STALL_SPEED = 0.002  # [m/s] below this the fingers count as stopped
 _STALL_TICKS = 60  # [ticks] stopped this long (after moving) ends a grasp
 _GOAL_TOLERANCE = 0.001  # [m] a move has arrived within this
 _MOVE_TIMEOUT = 1.0  # [s] after its profile ended, a blocked move gives up
-_MAX_FORCE = 140.0  # [N] Franka Hand data sheet: 140 N peak grasp force
+_MAX_FORCE = FRANKA_HAND.peak_force  # [N]
 _TEMPERATURE = 31  # [deg C] reported hand temperature
 
 

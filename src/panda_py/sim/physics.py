@@ -11,11 +11,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from panda_py.fci import PERIOD
 from panda_py.kinematics import get_kinematics, hand_F_T_EE, warmup
 from panda_py.robots.mjcf import model_xml
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
 
-DT = 0.001  # [s] one control tick
+DT = PERIOD  # [s] one control tick: one MuJoCo step
 
 # Tracking bandwidth of the robot's internal joint controller at the default stiffness:
 # a computed-torque law with natural frequency OMEGA [rad/s], critically damped.

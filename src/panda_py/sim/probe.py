@@ -204,3 +204,87 @@ def follow_joint_positions(client: RawClient, q_of_t: Any, duration: float) -> t
         s = client.state()
     final, _ = client.response(Command.MOVE, cid)
     return final, s
+
+
+# -- hostile clients (the simulator's robustness tests and benchmarks) --------------------
+
+
+def slow_reader(
+    host: str, requests: int = 2000, *, version: int = 10, port: int = fci.COMMAND_PORT
+) -> socket.socket:
+    """Connect, then send ``requests`` requests and never read an answer: GetRobotModel
+    on the FCI port (each answered with the URDF, about 5 kB), Stop on the gripper port.
+    Returns the socket (the caller closes it); the robot should disconnect it once its
+    answers pile up, and never wait for it."""
+    from panda_py.fci import gripper as g
+
+    tcp = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    tcp.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # fills at once
+    tcp.settimeout(5.0)
+    tcp.connect((host, port))
+    if port == fci.COMMAND_PORT:
+        tcp.sendall(fci.encode_connect_request(version, 9))
+        d = fci.dialect(version)
+        batch = b"".join(d.encode_request(Command.GET_ROBOT_MODEL, i + 1) for i in range(100))
+    else:
+        tcp.sendall(g.encode_gripper_connect_request(9))
+        stop = g.GripperCommand.STOP
+        batch = b"".join(g.encode_gripper_message(stop, i + 1, b"") for i in range(100))
+    try:
+        for _ in range(max(1, requests // 100)):
+            tcp.sendall(batch)
+    except OSError:
+        pass  # disconnected, as it should be
+    return tcp
+
+
+def gripper_flood(host: str, requests: int = 20000) -> int:
+    """Connect to the gripper and pipeline ``requests`` Stop commands as fast as the
+    socket takes them, reading answers only to keep the stream going; returns how many
+    answers arrived (the hand answers all of them)."""
+    from panda_py.fci import gripper as g
+
+    tcp = socket.create_connection((host, g.GRIPPER_COMMAND_PORT), timeout=10.0)
+    with tcp:
+        tcp.sendall(g.encode_gripper_connect_request(9))
+        reader = g.GripperMessageReader()
+        got = -1  # the Connect answer
+        batch = b"".join(
+            g.encode_gripper_message(g.GripperCommand.STOP, i + 1, b"") for i in range(500)
+        )
+        for _ in range(max(1, requests // 500)):
+            tcp.sendall(batch)
+            tcp.setblocking(False)
+            try:
+                while data := tcp.recv(65536):
+                    got += len(reader.feed(data))
+                return got  # the robot hung up (e.g. "robot busy")
+            except BlockingIOError:
+                pass
+            finally:
+                tcp.setblocking(True)
+        deadline = time.monotonic() + 10.0
+        while got < requests and time.monotonic() < deadline:
+            data = tcp.recv(65536)
+            if not data:
+                break
+            got += len(reader.feed(data))
+        return got
+
+
+def oversized_message(host: str, size: int = 16 << 20, *, port: int = fci.COMMAND_PORT) -> bool:
+    """Connect and send one message of ``size`` bytes (a header announcing it, then the
+    bytes). Returns True if the robot hung up before all of it was sent."""
+    tcp = socket.create_connection((host, port), timeout=10.0)
+    with tcp:
+        try:
+            tcp.sendall(fci.HEADER.pack(0, 0, size))
+            chunk = bytes(65536)
+            for _ in range(size // len(chunk)):
+                tcp.sendall(chunk)
+        except OSError:
+            return True
+        try:
+            return tcp.recv(100) == b""
+        except OSError:
+            return True

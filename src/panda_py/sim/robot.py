@@ -1,4 +1,6 @@
-"""The simulated robot's core: mode machine, Move lifecycle, setters, safety, state.
+"""The simulated robot's core: mode machine, Move lifecycle (a Move starts or is refused
+in :meth:`RobotCore.request_move`), command checks. Its parts: the setters in
+:mod:`.settings`, the state in :mod:`.state`, the checks' arithmetic in :mod:`.safety`.
 
 Version-independent: it speaks in :mod:`panda_py.fci` enums and fills a float64 "master"
 state keyed by libfranka's field names; the server copies that into each connection's
@@ -8,15 +10,15 @@ wire dialect.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from panda_py import fci
 from panda_py.fci import (
     ERROR_NAMES,
     ControllerMode,
     ErrorRecoveryStatus,
-    GetterSetterStatus,
     MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
@@ -25,16 +27,20 @@ from panda_py.fci import (
     StopMoveStatus,
 )
 from panda_py.kinematics import get_kinematics
-from panda_py.robots.params import FRANKA_HAND, GRAVITY, RobotSpec
+from panda_py.robots.params import FRANKA_HAND, RobotSpec
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
     START_CARTESIAN_TOLERANCE,
     START_POSE_TOLERANCE,
     CartesianSignal,
     JointSignal,
+    all_finite,
+    from_col_major,
     is_valid_transform,
     pose_error,
 )
+from panda_py.sim.settings import CollisionThresholds, RobotSettings
+from panda_py.sim.state import CONTACT_FIELDS, StateAssembly
 
 log = logging.getLogger("panda_py.sim")
 
@@ -45,74 +51,6 @@ _ERROR_INDEX = {name: i for i, name in enumerate(ERROR_NAMES)}
 MAX_CONSECUTIVE_LOST = 20
 # Window of control_command_success_rate [ticks].
 SUCCESS_WINDOW = 100
-# First-order filter constant of tau_ext_hat_filtered (about 16 Hz at 1 kHz).
-_EXT_FILTER = 0.1
-
-# Power-up collision thresholds. Source: libfranka examples_common.cpp
-# setDefaultBehavior (the values Franka's examples and franka_ros start with).
-_DEFAULT_TORQUE_THRESHOLDS = (20.0, 20.0, 18.0, 18.0, 16.0, 14.0, 12.0)  # [Nm]
-_DEFAULT_FORCE_THRESHOLDS = (20.0, 20.0, 20.0, 25.0, 25.0, 25.0)  # [N, Nm]
-
-_JOINT_GENERATORS = (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY)
-_CARTESIAN_GENERATORS = (
-    MotionGeneratorMode.CARTESIAN_POSITION,
-    MotionGeneratorMode.CARTESIAN_VELOCITY,
-)
-
-_MG_FROM_MOVE = {
-    MoveMotionGeneratorMode.JOINT_POSITION: MotionGeneratorMode.JOINT_POSITION,
-    MoveMotionGeneratorMode.JOINT_VELOCITY: MotionGeneratorMode.JOINT_VELOCITY,
-    MoveMotionGeneratorMode.CARTESIAN_POSITION: MotionGeneratorMode.CARTESIAN_POSITION,
-    MoveMotionGeneratorMode.CARTESIAN_VELOCITY: MotionGeneratorMode.CARTESIAN_VELOCITY,
-    MoveMotionGeneratorMode.NONE: MotionGeneratorMode.NONE,
-}
-
-
-# The state's float fields in the order every wire layout has them (v5+; older layouts
-# lack some): name -> number of float64 values.
-_STATE_SIZES = {
-    "O_T_EE": 16, "O_T_EE_d": 16, "F_T_EE": 16, "EE_T_K": 16, "F_T_NE": 16, "NE_T_EE": 16,
-    "m_ee": 1, "I_ee": 9, "F_x_Cee": 3, "m_load": 1, "I_load": 9, "F_x_Cload": 3,
-    "elbow": 2, "elbow_d": 2, "tau_J": 7, "tau_J_d": 7, "dtau_J": 7, "q": 7, "q_d": 7,
-    "dq": 7, "dq_d": 7, "ddq_d": 7, "joint_contact": 7, "cartesian_contact": 6,
-    "joint_collision": 7, "cartesian_collision": 6, "tau_ext_hat_filtered": 7,
-    "O_F_ext_hat_K": 6, "K_F_ext_hat_K": 6, "O_dP_EE_d": 6, "O_ddP_O": 3, "elbow_c": 2,
-    "delbow_c": 2, "ddelbow_c": 2, "O_T_EE_c": 16, "O_dP_EE_c": 6, "O_ddP_EE_c": 6,
-    "theta": 7, "dtheta": 7, "accelerometer_top": 18, "accelerometer_bottom": 18,
-}  # fmt: skip
-# Fields that hold contact estimates (zero without contact).
-_CONTACT_FIELDS = (
-    "joint_contact", "joint_collision", "tau_ext_hat_filtered", "cartesian_contact",
-    "cartesian_collision", "O_F_ext_hat_K", "K_F_ext_hat_K",
-)  # fmt: skip
-
-
-def from_col_major(v: np.ndarray) -> np.ndarray:
-    return np.asarray(v, dtype=float).reshape(4, 4).T.copy()
-
-
-def _finite(*arrays: np.ndarray) -> bool:
-    return all(np.isfinite(a).all() for a in arrays)
-
-
-@dataclass
-class CollisionThresholds:
-    lower_torque_acc: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    upper_torque_acc: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    lower_torque_nom: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    upper_torque_nom: np.ndarray = field(
-        default_factory=lambda: np.array(_DEFAULT_TORQUE_THRESHOLDS)
-    )
-    lower_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    upper_force_acc: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    lower_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
-    upper_force_nom: np.ndarray = field(default_factory=lambda: np.array(_DEFAULT_FORCE_THRESHOLDS))
 
 
 @dataclass
@@ -131,7 +69,7 @@ class Command:
     torque_command_finished: bool
 
 
-class RobotCore:
+class RobotCore(RobotSettings, StateAssembly):
     """The robot's behaviour, advanced one 1 ms tick at a time by the server."""
 
     def __init__(self, spec: RobotSpec, physics: Physics, q_start: np.ndarray) -> None:
@@ -154,26 +92,6 @@ class RobotCore:
         self.reset(q_start)
 
     # -- setup ---------------------------------------------------------------------------
-
-    def _new_state(self) -> None:
-        """The state: named float64 views into one buffer laid out in the wire's field
-        order (see :mod:`panda_py.sim.wire`), so a connection copies it in a few blocks."""
-        total = sum(_STATE_SIZES.values())
-        self.state_buffer = np.zeros(total)
-        self.state_offsets: dict[str, tuple[int, int]] = {}
-        self.state: dict[str, np.ndarray] = {}
-        start = 0
-        for name, n in _STATE_SIZES.items():
-            self.state_offsets[name] = (start, start + n)
-            view = self.state_buffer[start : start + n]
-            self.state[name] = view.reshape(6, 3) if name.startswith("accelerometer") else view
-            start += n
-        # 4x4 views onto the column-major transforms: writing T there stores T's columns.
-        self._T_view = {
-            name: self.state[name].reshape(4, 4).T
-            for name in ("O_T_EE", "O_T_EE_d", "F_T_EE", "EE_T_K", "F_T_NE", "NE_T_EE",
-                         "O_T_EE_c")
-        }  # fmt: skip
 
     def reset(self, q: np.ndarray) -> None:
         """Power-up state at joint positions ``q`` [rad]: idle, no errors, defaults set."""
@@ -224,32 +142,10 @@ class RobotCore:
         self.success_rate = 0.0
         self.pending_final: MoveStatus | None = None
         self.finger_force = 0.0  # [N] set by the gripper each tick
-        for name in _CONTACT_FIELDS:
+        for name in CONTACT_FIELDS:
             self.state[name][:] = 0.0
         self._filled_mode: MotionGeneratorMode | None = None  # all fields to be written
         self._fill_state()
-
-    def _fill_static(self) -> None:
-        """The state fields only setters change (end effector, load, gravity)."""
-        s, T = self.state, self._T_view
-        self.F_T_EE = self.F_T_NE @ self.NE_T_EE
-        self._EE_T_F = np.linalg.inv(self.F_T_EE)
-        self._NE_identity = bool(np.array_equal(self.NE_T_EE, np.eye(4)))
-        T["F_T_EE"][:] = self.F_T_EE
-        T["EE_T_K"][:] = self.EE_T_K
-        T["F_T_NE"][:] = self.F_T_NE
-        T["NE_T_EE"][:] = self.NE_T_EE
-        s["m_ee"][0] = self.m_ee
-        s["I_ee"][:] = self.I_ee.T.reshape(9)
-        s["F_x_Cee"][:] = self.F_x_Cee
-        s["m_load"][0] = self.m_load
-        s["I_load"][:] = self.I_load.T.reshape(9)
-        s["F_x_Cload"][:] = self.F_x_Cload
-        s["O_ddP_O"][:] = GRAVITY
-
-    def _elbow_sign(self, q4: float) -> float:
-        # libfranka: elbow[1] is the flip direction of joint 4 relative to q_elbow-flip.
-        return 1.0 if q4 > self.spec.elbow_flip_q else -1.0
 
     # -- TCP requests ----------------------------------------------------------------------
 
@@ -283,7 +179,7 @@ class RobotCore:
             log.warning("Move rejected: no motion generator needs an external controller (v7+)")
             return MoveStatus.INVALID_ARGUMENT_REJECTED
         dev = np.asarray(deviations, dtype=float)
-        if not _finite(dev) or np.any(dev <= 0.0):
+        if not all_finite(dev) or np.any(dev <= 0.0):
             log.warning("Move rejected: maximum deviations %s out of range", dev.tolist())
             return MoveStatus.INVALID_ARGUMENT_REJECTED
         if use_async:
@@ -291,7 +187,7 @@ class RobotCore:
             return MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
         q = self.physics.q.copy()
         self.robot_mode = RobotMode.MOVE
-        self.mg_mode = _MG_FROM_MOVE[mg]
+        self.mg_mode = fci.STATE_GENERATOR_OF_MOVE[mg]
         self.ctrl_mode = ControllerMode(int(ctrl))
         self.first_command = True
         self.consecutive_lost = 0
@@ -327,102 +223,6 @@ class RobotCore:
             self.q_hold = self.physics.q.copy()
             self.joint.reset(self.q_hold)
         return ErrorRecoveryStatus.SUCCESS
-
-    def _setter_check(self, *arrays: np.ndarray) -> GetterSetterStatus | None:
-        if self.robot_mode not in (RobotMode.IDLE, RobotMode.REFLEX):
-            return GetterSetterStatus.COMMAND_NOT_POSSIBLE_REJECTED
-        if not _finite(*arrays):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        return None
-
-    def set_collision_behavior(self, f: dict[str, np.ndarray]) -> GetterSetterStatus:
-        names = (
-            "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
-            "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
-            "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
-            "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
-        )  # fmt: skip
-        arrays = [np.asarray(f[n], dtype=float) for n in names]
-        bad = self._setter_check(*arrays)
-        if bad is not None:
-            return bad
-        if any(np.any(a < 0) for a in arrays) or any(
-            np.any(arrays[i] > arrays[i + 1]) for i in range(0, 8, 2)
-        ):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.thresholds = CollisionThresholds(*arrays)
-        return GetterSetterStatus.SUCCESS
-
-    def _set_stiffness(self, attr: str, values: np.ndarray) -> GetterSetterStatus:
-        K = np.asarray(values, dtype=float)
-        bad = self._setter_check(K)
-        if bad is not None:
-            return bad
-        if np.any(K < 0):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        setattr(self, attr, K)
-        return GetterSetterStatus.SUCCESS
-
-    def set_joint_impedance(self, K_theta: np.ndarray) -> GetterSetterStatus:
-        return self._set_stiffness("K_theta", K_theta)
-
-    def set_cartesian_impedance(self, K_x: np.ndarray) -> GetterSetterStatus:
-        return self._set_stiffness("K_x", K_x)
-
-    def set_guiding_mode(self, axes: np.ndarray, elbow: bool) -> GetterSetterStatus:
-        bad = self._setter_check()
-        if bad is not None:
-            return bad
-        self.guiding_axes = np.asarray(axes, dtype=bool)
-        self.guiding_elbow = bool(elbow)
-        return GetterSetterStatus.SUCCESS
-
-    def _set_transform(
-        self, flat: np.ndarray, attr: str, *, relative_to_ne: bool = False
-    ) -> GetterSetterStatus:
-        """Set the column-major transform ``flat`` as ``attr``; ``relative_to_ne``: it is
-        given from the flange and stored from the nominal EE."""
-        T = from_col_major(flat)
-        bad = self._setter_check(T)
-        if bad is not None:
-            return bad
-        if not is_valid_transform(T):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        setattr(self, attr, np.linalg.inv(self.F_T_NE) @ T if relative_to_ne else T)
-        self._fill_static()
-        return GetterSetterStatus.SUCCESS
-
-    def set_ee_to_k(self, EE_T_K: np.ndarray) -> GetterSetterStatus:
-        return self._set_transform(EE_T_K, "EE_T_K")
-
-    def set_ne_to_ee(self, NE_T_EE: np.ndarray) -> GetterSetterStatus:
-        return self._set_transform(NE_T_EE, "NE_T_EE")
-
-    def set_f_to_ee(self, F_T_EE: np.ndarray) -> GetterSetterStatus:
-        """Protocol v3's SetFToEE: the whole flange-to-EE transform (NE_T_EE follows)."""
-        return self._set_transform(F_T_EE, "NE_T_EE", relative_to_ne=True)
-
-    def set_load(self, m: float, F_x_C: np.ndarray, I: np.ndarray) -> GetterSetterStatus:
-        F_x_C = np.asarray(F_x_C, dtype=float)
-        I_m = np.asarray(I, dtype=float).reshape(3, 3)
-        bad = self._setter_check(np.array([m]), F_x_C, I_m)
-        if bad is not None:
-            return bad
-        if m < 0 or not np.allclose(I_m, I_m.T, atol=1e-9):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.m_load, self.F_x_Cload, self.I_load = float(m), F_x_C, I_m
-        self._fill_static()
-        return GetterSetterStatus.SUCCESS
-
-    def set_filters(self, frequencies: np.ndarray) -> GetterSetterStatus:
-        f = np.asarray(frequencies, dtype=float)
-        bad = self._setter_check(f)
-        if bad is not None:
-            return bad
-        if np.any(f <= 0) or np.any(f > 1000):
-            return GetterSetterStatus.INVALID_ARGUMENT_REJECTED
-        self.filters = f
-        return GetterSetterStatus.SUCCESS
 
     # -- faults and buttons (simulator API) ----------------------------------------------
 
@@ -485,11 +285,13 @@ class RobotCore:
         self.tau_J_d[:] = 0.0
         self.pending_final = status
 
-    def tick(self, command: Command | None) -> None:
+    def tick(self, command: Command | None, *, excused: bool = False) -> None:
         """Advance one tick. ``command`` is the client's answer to the last state (None
-        when it was lost or outside a motion)."""
+        when it was lost or outside a motion). ``excused``: a missing command is not the
+        client's fault (the robot itself was late), so it is extrapolated like a lost
+        one but not counted against the client."""
         if self.robot_mode == RobotMode.MOVE:
-            torque = self._motion_tick(command)
+            torque = self._motion_tick(command, excused)
             if self.robot_mode != RobotMode.MOVE:
                 torque = self._hold_torque()
         else:
@@ -502,11 +304,13 @@ class RobotCore:
         scale = np.maximum(self.K_theta / self._K_default, 1e-3)
         return self.physics.joint_tracking_torque(self.q_hold, np.zeros(7), np.zeros(7), scale)
 
-    def _motion_tick(self, command: Command | None) -> np.ndarray:
+    def _motion_tick(self, command: Command | None, excused: bool = False) -> np.ndarray:
         ph = self.physics
         if command is None and self.first_command:
             return self._hold_torque()  # the client's loop has not started yet
-        if command is None:
+        if command is None and excused:
+            self._extrapolate()
+        elif command is None:
             self.consecutive_lost += 1
             self.lost_total += 1
             self._record_success(False)
@@ -578,13 +382,13 @@ class RobotCore:
         mg = self.mg_mode
         external = self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
         if mg == MotionGeneratorMode.JOINT_POSITION:
-            finite = _finite(c.q_c)
+            finite = all_finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
-            finite = _finite(c.dq_c)
+            finite = all_finite(c.dq_c)
         elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
-            finite = _finite(c.O_T_EE_c, c.elbow_c)
+            finite = all_finite(c.O_T_EE_c, c.elbow_c)
         elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
-            finite = _finite(c.O_dP_EE_c, c.elbow_c)
+            finite = all_finite(c.O_dP_EE_c, c.elbow_c)
         else:
             finite = True
         # NaN fails every <= test: a torque command that is within its range and its
@@ -594,7 +398,7 @@ class RobotCore:
             (np.abs(tau) <= self._tau_max).all()
             and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
         )
-        if not finite or (not tau_ok and not _finite(tau)):
+        if not finite or (not tau_ok and not all_finite(tau)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
             return MoveStatus.INPUT_ERROR_ABORTED
@@ -670,108 +474,8 @@ class RobotCore:
         q = self.physics.solve_ik(O_T_F, self.joint.q, q3)
         self.joint.push_position(q)
 
-    # -- physics and state -------------------------------------------------------------
+    # -- physics -----------------------------------------------------------------------
 
     def _apply(self, torque: np.ndarray) -> None:
         self.physics.step(torque, self.finger_force)
         self._fill_state()
-
-    def _fill_state(self) -> None:
-        """The per-tick fields (the static ones are written by :meth:`_fill_static`)."""
-        ph, s, Tv = self.physics, self.state, self._T_view
-        q, dq = ph.q, ph.dq
-        mg = self.mg_mode
-        moving_cart = mg in _CARTESIAN_GENERATORS
-        moving = moving_cart or mg in _JOINT_GENERATORS
-        # O_T_EE of the measured joints: the arm's own kinematics (the same as MuJoCo's
-        # flange site times F_T_EE, to rounding; the tests hold them together).
-        joint = self.joint
-        O_T_EE = Tv["O_T_EE"]
-        self._ee_pose(q, O_T_EE)
-        if moving_cart:
-            Tv["O_T_EE_d"][:] = self.cart.T
-        else:
-            self._ee_pose(joint.q, Tv["O_T_EE_d"])
-        s["elbow"][:] = (q[2], self._elbow_sign(q[3]))
-        elbow_d = s["elbow_d"]
-        elbow_d[:] = (joint.q[2], self._elbow_sign(joint.q[3]))
-        if moving_cart:
-            s["elbow_c"][:] = self.elbow_c
-            s["delbow_c"][:] = self.delbow_c
-            s["ddelbow_c"][:] = self.ddelbow_c
-            Tv["O_T_EE_c"][:] = self.cart.T
-            s["O_dP_EE_d"][:] = self.cart.v
-            s["O_dP_EE_c"][:] = self.cart.v
-            s["O_ddP_EE_c"][:] = self.cart.a
-        else:
-            s["elbow_c"][:] = elbow_d
-            s["O_T_EE_c"][:] = s["O_T_EE_d"]
-            if self._filled_mode != mg:  # zeros stand until a Cartesian motion
-                for name in ("delbow_c", "ddelbow_c", "O_dP_EE_d", "O_dP_EE_c", "O_ddP_EE_c"):
-                    s[name][:] = 0.0
-        tau_J = ph.tau_applied + ph.gravity_torque() - self.tau_ext
-        np.subtract(tau_J, s["tau_J"], out=s["dtau_J"])
-        s["dtau_J"] *= 1.0 / DT
-        s["tau_J"][:] = tau_J
-        s["tau_J_d"][:] = self.tau_J_d
-        s["q"][:] = q
-        s["dq"][:] = dq
-        s["theta"][:] = q
-        s["dtheta"][:] = dq
-        if moving:
-            s["q_d"][:] = joint.q
-            s["dq_d"][:] = joint.dq
-            s["ddq_d"][:] = joint.ddq
-        else:
-            s["q_d"][:] = self.q_hold
-            if self._filled_mode != mg:
-                s["dq_d"][:] = 0.0
-                s["ddq_d"][:] = 0.0
-        self._filled_mode = mg
-        self._fill_contacts(O_T_EE)
-        # Accelerometers of joints 1..6 (v10): specific force at rest in each link frame,
-        # R_i^T (0, 0, g) = g times the third row of each rotation.
-        top = s["accelerometer_top"]
-        np.multiply(ph.link_z_rows(), -GRAVITY[2], out=top)
-        s["accelerometer_bottom"][:] = top
-
-    def _ee_pose(self, q: np.ndarray, out: np.ndarray) -> None:
-        """O_T_EE at joints ``q`` into ``out`` (4x4; fk of the nominal EE, then NE_T_EE)."""
-        if self._NE_identity:
-            out[:] = self._kin.fk(q)
-        else:
-            np.matmul(self._kin.fk(q), self.NE_T_EE, out=out)
-
-    def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
-        s, t = self.state, self.thresholds
-        raw = self.physics.contact_torques()
-        if not self.contact_active and not raw.any():
-            return  # no contact now or lately: the zeros written last time stand
-        self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
-        if not raw.any() and np.abs(self.tau_ext).max() < 1e-9:
-            self.tau_ext[:] = 0.0
-            self.contact_active = False
-            for name in _CONTACT_FIELDS:
-                s[name][:] = 0.0
-            return
-        self.contact_active = True
-        tau = self.tau_ext
-        s["tau_ext_hat_filtered"][:] = tau
-        s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom
-        s["joint_collision"][:] = np.abs(tau) > t.upper_torque_nom
-        # Wrench at K that explains tau_ext: least squares on tau = J_K^T F.
-        J = self.physics.flange_jacobian()
-        O_T_K = O_T_EE @ self.EE_T_K
-        r = O_T_K[:3, 3] - self.physics.flange_pose()[:3, 3]
-        J_K = J.copy()
-        J_K[:3] = J[:3] + np.cross(J[3:].T, r).T  # v_K = v_F + w x r
-        F, *_ = np.linalg.lstsq(J_K.T, tau, rcond=None)
-        s["O_F_ext_hat_K"][:] = F
-        R = O_T_K[:3, :3]
-        s["K_F_ext_hat_K"][:3] = R.T @ F[:3]
-        s["K_F_ext_hat_K"][3:] = R.T @ F[3:]
-        s["cartesian_contact"][:] = np.abs(F) > t.lower_force_nom
-        s["cartesian_collision"][:] = np.abs(F) > t.upper_force_nom
-
-    def state_modes(self) -> tuple[int, int, int]:
-        return int(self.mg_mode), int(self.ctrl_mode), int(self.robot_mode)

@@ -12,9 +12,10 @@ import math
 
 import numpy as np
 
+from panda_py.fci import PERIOD
 from panda_py.robots.params import RobotSpec
 
-DT = 0.001  # [s]
+DT = PERIOD  # [s]
 # Numerical slack on every limit: commands computed exactly at a limit must pass.
 _REL = 1e-6
 _ABS = 1e-9
@@ -206,6 +207,15 @@ def integrate_twist(T: np.ndarray, v: np.ndarray, dt: float) -> np.ndarray:
         R = np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
         out[:3, :3] = R @ T[:3, :3]
     return out
+
+
+def all_finite(*arrays: np.ndarray) -> bool:
+    """True if no array holds a NaN or an infinity."""
+    return all(np.isfinite(a).all() for a in arrays)
+
+
+def from_col_major(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(4, 4).T.copy()
 
 
 def is_valid_transform(T: np.ndarray) -> bool:

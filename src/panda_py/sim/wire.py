@@ -19,7 +19,7 @@ import numpy as np
 from panda_py import fci
 from panda_py.sim.robot import Command, RobotCore
 
-_U64 = struct.Struct("<Q")
+_U64 = fci.MESSAGE_ID
 
 
 class StateWire:
@@ -120,11 +120,12 @@ class CommandWire:
             torque_command_finished=False,
         )
 
-    def receive(self, sock: socket.socket) -> tuple[int, int]:
+    def receive(self, sock: socket.socket, source: tuple[str, int] | None) -> tuple[int, int]:
         """Read one datagram into the scratch buffer: (its size, its message id or -1);
-        raises BlockingIOError when none is queued."""
-        n = sock.recv_into(self._scratch)
-        if n != self.size:
+        -1 too if it did not come from ``source`` (the client's address). Raises
+        BlockingIOError when none is queued."""
+        n, addr = sock.recvfrom_into(self._scratch)
+        if n != self.size or addr != source:
             return n, -1
         return n, _U64.unpack_from(self._scratch)[0]
 

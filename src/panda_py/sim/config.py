@@ -1,0 +1,78 @@
+"""How a simulated robot runs (:class:`SimConfig`) and what its loop counts
+(:class:`Stats`)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from panda_py import fci
+from panda_py.robots.params import START_POSE, get_robot
+
+# Realtime: a tick that starts, or a state that goes out, this long after the tick was
+# due is late [s].
+LATE_THRESHOLD = 0.0005
+# UDP datagrams read from one socket per loop pass (a flood must not starve the tick).
+DATAGRAMS_PER_PASS = 64
+
+
+@dataclass
+class SimConfig:
+    """How to run a simulated robot."""
+
+    host: str = "127.0.0.1"
+    robot: str = "fer"
+    lockstep: bool = False
+    lockstep_timeout: float = 2.0  # [s] wait for a command this long before counting it lost
+    # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never).
+    # A sleeping simulator wakes on cold caches: its next tick takes about twice as long.
+    lockstep_spin: float = 300e-6
+    versions: tuple[int, ...] | None = None  # accept only these protocol versions
+    robot_port: int = fci.COMMAND_PORT
+    gripper_port: int = fci.GRIPPER_COMMAND_PORT
+    scene: bool = True
+    extra: str | None = None  # MJCF file with extra bodies
+    q_start: tuple[float, ...] = START_POSE
+    desk_link: Any = None  # the simulated Desk's shared block (RawArray); None: no Desk
+    # A TCP connection must send Connect within this time [s], else it is closed (it
+    # would hold the robot from every other client).
+    connect_timeout: float = 5.0
+
+    def __post_init__(self) -> None:
+        get_robot(self.robot)  # validates the name
+        if self.versions is not None:
+            bad = [v for v in self.versions if v not in fci.SUPPORTED_VERSIONS]
+            if bad or not self.versions:
+                raise ValueError(
+                    f"versions: expected a non-empty subset of {fci.SUPPORTED_VERSIONS}, "
+                    f"got {self.versions}"
+                )
+        if not self.lockstep_timeout > 0:
+            raise ValueError(f"lockstep_timeout: expected > 0 s, got {self.lockstep_timeout}")
+        if not 0 <= self.lockstep_spin <= 0.01:
+            raise ValueError(f"lockstep_spin: expected 0..0.01 s, got {self.lockstep_spin}")
+        if not 0 < self.connect_timeout <= 3600:
+            raise ValueError(f"connect_timeout: expected 0..3600 s, got {self.connect_timeout}")
+        if len(self.q_start) != 7:
+            raise ValueError(f"q_start: expected 7 joint positions, got {len(self.q_start)}")
+
+
+@dataclass
+class Stats:
+    ticks: int = 0
+    late_ticks: int = 0
+    resyncs: int = 0
+    commands_received: int = 0
+    commands_lost: int = 0
+    # Missing commands not counted against the client: the simulator (or the machine)
+    # was late, with the state or with the tick that expected the answer.
+    commands_excused: int = 0
+    bad_datagrams: int = 0
+    clients_dropped: int = 0  # disconnected for not reading, idling or a broken stream
+    worst_late: float = 0.0  # [s] the latest a realtime tick started after its deadline
+    started: float = field(default_factory=time.monotonic)
+    cpu_started: float = field(default_factory=time.process_time)
+
+
+__all__ = ["DATAGRAMS_PER_PASS", "LATE_THRESHOLD", "SimConfig", "Stats"]

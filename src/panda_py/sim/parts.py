@@ -1,0 +1,66 @@
+"""What every part of the simulator's server shares: :class:`ServerState` declares the
+state the loop owns and the methods one part calls on another, so each part (sockets,
+FCI session, gripper session, model delivery, control RPC) lives in its own module and
+:class:`~panda_py.sim.server.SimServer` is their sum."""
+
+from __future__ import annotations
+
+import selectors
+import socket
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import TYPE_CHECKING, Any
+
+from panda_py import fci
+from panda_py.fci import Command
+from panda_py.robots.params import RobotSpec
+from panda_py.sim.config import SimConfig, Stats
+from panda_py.sim.connections import Client, GripperConnection, RobotConnection
+from panda_py.sim.gripper import GripperCore
+from panda_py.sim.physics import Physics
+from panda_py.sim.robot import RobotCore
+
+
+class ServerState:
+    """Attributes of the one-threaded server; set up by ``SimServer.__init__``."""
+
+    config: SimConfig
+    spec: RobotSpec
+    physics: Physics
+    core: RobotCore
+    gripper: GripperCore
+    desk: Any  # DeskLink | None: the simulated Desk's state (brakes, FCI)
+    stats: Stats
+    tick_count: int
+    drop_commands: int
+    robot_conn: RobotConnection | None
+    gripper_conn: GripperConnection | None
+    _running: bool
+    _sel: selectors.BaseSelector
+    _robot_listener: socket.socket
+    _gripper_listener: socket.socket
+    _refusing: list[Client]
+    _control: Any
+    _gripper_pending: dict[int, int]
+    _budget: float
+    _tick_deadline: float
+    _next_check: float
+    _models: ThreadPoolExecutor
+    _urdf: Future[bytes | str]
+    _libraries: dict[tuple[int, int], Future[bytes | str]]
+    _model_requests: list[tuple[RobotConnection, Command, int, Future[bytes | str]]]
+
+    if TYPE_CHECKING:  # provided by the parts, called across them
+
+        def _send_tcp(self, conn: Client, data: bytes) -> None: ...
+        def _drop(self, conn: Client, reason: str) -> None: ...
+        def _close_conn(self, conn: Client) -> None: ...
+        def _handle_robot_message(self, conn: RobotConnection, msg: fci.Message) -> None: ...
+        def _handle_gripper_message(self, conn: GripperConnection, msg: fci.Message) -> None: ...
+        def _reply(
+            self, conn: RobotConnection, command: Command, cid: int, status: Any, **extra: Any
+        ) -> None: ...
+        def _answer_models(self) -> None: ...
+        def _read_robot_udp(self, conn: RobotConnection) -> None: ...
+
+
+__all__ = ["ServerState"]
