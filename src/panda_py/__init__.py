@@ -24,6 +24,8 @@ _LAZY: dict[str, str] = {
     "ControlProcessError": "panda_py.rt.process",
     # panda-py's name for a robot speaking a protocol version no client here speaks
     "IncompatibleVersionError": "panda_py.libfranka.errors",
+    "Desk": "panda_py.desk",
+    "TOKEN_PATH": "panda_py.desk",
 }
 
 # submodules panda-py exposes as attributes (``panda_py.controllers``, ...), imported lazily

@@ -192,3 +192,36 @@ def test_joint_walls_push_back_near_the_limits() -> None:
     assert all(v < 0 for v in t)  # near the upper limit: pushed down
     t = walls.torques(np.full(7, -1.99), np.full(7, -0.1))
     assert all(v > 0 for v in t)
+
+
+def test_control_model_answers_as_libfrankas_model() -> None:
+    from panda_py.libfranka import Frame, Model, RobotState
+    from panda_py.rt.model import ControlModel
+
+    dialect = fci.dialect(5)
+    rng = np.random.default_rng(5)
+    rec = np.zeros(1, dialect.state_dtype)[0]
+    rec["q"] = [0.1, -0.7, 0.2, -2.2, 0.1, 1.6, 0.7]
+    rec["dq"] = rng.normal(size=7) * 0.3
+    F_T_EE = np.eye(4)
+    F_T_EE[2, 3] = 0.1034
+    rec["F_T_EE"] = F_T_EE.reshape(16, order="F")
+    rec["EE_T_K"] = np.eye(4).reshape(16)
+    rec["m_ee"] = 0.73  # the totals are combined from the hand and the load
+    rec["F_x_Cee"] = [-0.01, 0.0, 0.03]
+    rec["I_ee"] = [0.001, 0, 0, 0, 0.0025, 0, 0, 0, 0.0017]
+    rec["m_load"] = 0.2
+    rec["F_x_Cload"] = [0.0, 0.0, 0.05]
+    rec["I_load"] = [1e-4, 0, 0, 0, 1e-4, 0, 0, 0, 1e-4]
+    state = RobotState(dialect, rec)
+    fast, slow = ControlModel("fer"), Model("fer")
+    np.testing.assert_allclose(
+        fast.zero_jacobian(Frame.kEndEffector, state),
+        slow.zero_jacobian(Frame.kEndEffector, state),
+        atol=1e-12,
+    )
+    np.testing.assert_allclose(fast.coriolis(state), slow.coriolis(state), atol=1e-12)
+    np.testing.assert_allclose(fast.gravity(state), slow.gravity(state), atol=1e-12)
+    np.testing.assert_allclose(fast.mass(state), slow.mass(state), atol=1e-12)
+    g = [0.0, 0.0, -9.0]
+    np.testing.assert_allclose(fast.gravity(state, g), slow.gravity(state, g), atol=1e-12)

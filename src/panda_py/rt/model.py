@@ -15,6 +15,8 @@ from numpy.typing import NDArray
 
 from panda_py import dynamics, kinematics
 from panda_py.libfranka.model import Model
+from panda_py.libfranka.state import RobotState
+from panda_py.libfranka.types import Frame
 
 __all__ = ["ControlModel"]
 
@@ -87,3 +89,43 @@ class ControlModel(Model):
         tau = self._arm(state).gravity(state.q.tolist())
         self._grav = (state, tau)
         return tau
+
+    # --- libfranka's Model API for a RobotState, on the fast paths ----------------------
+
+    def zero_jacobian(self, frame: Any, q: Any, F_T_EE: Any = None, EE_T_K: Any = None) -> Any:
+        """As :meth:`Model.zero_jacobian`; for the end effector of a ``RobotState`` the
+        compiled kinematics answer (42,) column-major, as libfranka."""
+        if _is_state(q) and F_T_EE is None and EE_T_K is None and _is_ee(frame):
+            return self.ee_jacobian(q).reshape(42, order="F")
+        return super().zero_jacobian(frame, q, F_T_EE, EE_T_K)
+
+    def coriolis(self, q: Any, dq: Any = None, I_total: Any = None, m_total: Any = None,
+                 F_x_Ctotal: Any = None) -> Any:  # fmt: skip
+        if _is_state(q) and dq is None and I_total is None:
+            return self.coriolis_of(q).copy()
+        return super().coriolis(q, dq, I_total, m_total, F_x_Ctotal)
+
+    def gravity(self, q: Any, m_total: Any = None, F_x_Ctotal: Any = None,
+                gravity_earth: Any = None) -> Any:  # fmt: skip
+        if _is_state(q) and m_total is None and F_x_Ctotal is None and gravity_earth is None:
+            return self.gravity_of(q).copy()
+        if gravity_earth is None:
+            return super().gravity(q, m_total, F_x_Ctotal)
+        return super().gravity(q, m_total, F_x_Ctotal, gravity_earth)
+
+    def mass(self, q: Any, I_total: Any = None, m_total: Any = None,
+             F_x_Ctotal: Any = None) -> Any:  # fmt: skip
+        if _is_state(q) and I_total is None:
+            return self.mass_of(q).reshape(49, order="F")
+        return super().mass(q, I_total, m_total, F_x_Ctotal)
+
+
+def _is_state(value: Any) -> bool:
+    return type(value) is RobotState
+
+
+def _is_ee(frame: Any) -> bool:
+    try:
+        return Frame(frame) == Frame.kEndEffector
+    except ValueError:
+        return False

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from panda_py.robots.params import START_POSE
+from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
 from panda_py.sim.server import SimConfig
 
 log = logging.getLogger("panda_py.sim")
@@ -74,7 +75,9 @@ class Simulator:
     for each answer ``lockstep_spin`` seconds before sleeping on it (0: sleep at once, less
     CPU, about 1.4x slower). ``versions`` pins the
     protocol versions it accepts (a real robot speaks exactly one); by default every
-    supported version is served, chosen from the client's Connect request.
+    supported version is served, chosen from the client's Connect request. ``desk`` adds
+    the simulated Desk (HTTPS/WSS on ``host``, see :class:`DeskConfig`), coupled to the FCI;
+    without it the robot is always unlocked with the FCI active.
     """
 
     def __init__(
@@ -91,6 +94,7 @@ class Simulator:
         q_start: Sequence[float] = START_POSE,
         log_level: str = "WARNING",
         start_timeout: float = 60.0,
+        desk: DeskConfig | None = None,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -108,6 +112,8 @@ class Simulator:
         self._process: Any = None
         self._conn: Any = None
         self._lock = threading.Lock()
+        self.desk_config = desk
+        self.desk: DeskProcess | None = None  # the running Desk's handle
 
     @property
     def host(self) -> str:
@@ -121,6 +127,10 @@ class Simulator:
     def start(self) -> Simulator:
         if self._process is not None:
             raise SimulatorError("simulator already started")
+        link = None
+        if self.desk_config is not None:
+            link = DeskLink.create(locked=self.desk_config.locked)
+            self.config.desk_link = link.array
         ctx = multiprocessing.get_context("spawn")
         parent, child = ctx.Pipe()
         proc = ctx.Process(
@@ -140,9 +150,19 @@ class Simulator:
             proc.join(1)
             raise SimulatorError(f"simulator failed to start on {self.host}: {detail}")
         self._process, self._conn = proc, parent
+        if link is not None and self.desk_config is not None:
+            desk = DeskProcess(self.host, self.config.robot, self.desk_config, link, self.log_level)
+            try:
+                self.desk = desk.start(self.start_timeout)
+            except RuntimeError as exc:
+                self.stop()
+                raise SimulatorError(str(exc)) from exc
         return self
 
     def stop(self) -> None:
+        desk, self.desk = self.desk, None
+        if desk is not None:
+            desk.stop()
         proc, conn = self._process, self._conn
         if proc is None:
             return
@@ -159,6 +179,9 @@ class Simulator:
 
     def kill(self) -> None:
         """End the simulator abruptly, as a robot that loses power (for failure tests)."""
+        desk, self.desk = self.desk, None
+        if desk is not None:
+            desk.stop()
         proc = self._process
         if proc is not None:
             proc.kill()
@@ -221,6 +244,13 @@ class Simulator:
     def set_joint_positions(self, q: Sequence[float]) -> None:
         """Teleport the (idle) arm to ``q`` [rad], at rest."""
         self._request("set_joint_positions", list(q))
+
+    def press_pilot_button(self, button: str = "circle") -> None:
+        """Press and release a Pilot button on the simulated Desk (``circle`` confirms a
+        forced take on the FER, ``top`` on the FR3)."""
+        if self.desk is None:
+            raise SimulatorError("this simulator has no Desk (Simulator(..., desk=DeskConfig()))")
+        self.desk.press_pilot_button(button)
 
     def stats(self) -> dict[str, Any]:
         """Tick counts, late ticks, lost commands, wall, simulated and CPU time."""

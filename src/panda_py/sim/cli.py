@@ -17,6 +17,7 @@ from types import FrameType
 
 from panda_py import fci
 from panda_py.robots.params import ROBOTS
+from panda_py.sim.desk.launch import add_desk_arguments, start_desk
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -59,6 +60,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--scene", metavar="MJCF", help="add the bodies of this MJCF file")
     p.add_argument("--viewer", action="store_true", help="open the MuJoCo viewer (needs a display)")
     p.add_argument("--log-level", default="INFO", help="logging level (default %(default)s)")
+    add_desk_arguments(p)
     return p
 
 
@@ -67,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level.upper(), format="panda-sim %(levelname)s: %(message)s")
     from panda_py.sim.server import SimConfig, SimServer
 
+    desk = None
     try:
         config = SimConfig(
             host=args.host,
@@ -78,9 +81,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             scene=not args.no_scene,
             extra=args.scene,
         )
+        desk, config.desk_link = start_desk(args, config.host, config.robot)
         server = SimServer(config)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, RuntimeError) as exc:
         print(f"panda-sim: {exc}", file=sys.stderr)
+        if desk is not None:
+            desk.stop()
         return 2
 
     def stop(signum: int, frame: FrameType | None) -> None:
@@ -101,7 +107,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.host,
         mode,
     )
-    server.serve_forever()
+    try:
+        server.serve_forever()
+    finally:
+        if desk is not None:
+            desk.stop()
     return 0
 
 

@@ -34,6 +34,7 @@ from panda_py.fci import (
     RobotMode,
 )
 from panda_py.robots.params import START_POSE, get_robot
+from panda_py.sim.desk.link import DeskLink, accept_fci_connect, may_start_move
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import Command as RobotCommand
@@ -68,6 +69,7 @@ class SimConfig:
     scene: bool = True
     extra: str | None = None  # MJCF file with extra bodies
     q_start: tuple[float, ...] = START_POSE
+    desk_link: Any = None  # the simulated Desk's shared block (RawArray); None: no Desk
 
     def __post_init__(self) -> None:
         get_robot(self.robot)  # validates the name
@@ -135,6 +137,7 @@ class SimServer:
         self.physics = Physics(self.spec, scene=config.scene, extra=extra)
         self.core = RobotCore(self.spec, self.physics, np.asarray(config.q_start, dtype=float))
         self.gripper = GripperCore(self.physics)
+        self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
         self.stats = Stats()
         self.tick_count = 0
         self.drop_commands = 0
@@ -292,6 +295,8 @@ class SimServer:
         self.core.tick(command if self.core.robot_mode == RobotMode.MOVE else None)
         self.tick_count += 1
         self.stats.ticks += 1
+        if self.desk is not None:
+            self.desk.publish(self.tick_count, self.core.state, self.core.robot_mode)
         if conn is not None:
             if self.core.pending_final is not None:
                 self._send_move_final(conn, self.core.pending_final)
@@ -324,6 +329,11 @@ class SimServer:
         try:
             sock, addr = listener.accept()
         except OSError:
+            return
+        if robot and not accept_fci_connect(self.desk):
+            log.warning("refusing the FCI client from %s:%d: the FCI is not active", *addr)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\1\0\0\0\0\0\0\0")
+            sock.close()  # a reset, as from a robot whose FCI port is closed
             return
         current = self.robot_conn if robot else self.gripper_conn
         if current is not None and not self._alive(current):
@@ -502,6 +512,9 @@ class SimServer:
         self, conn: _RobotConnection, command: Command, cid: int, f: dict[str, Any]
     ) -> None:
         assert conn.dialect is not None
+        if not may_start_move(self.desk):  # the brakes are closed
+            self._reply(conn, command, cid, MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED)
+            return
         deviations = np.concatenate((f["maximum_path_deviation"], f["maximum_goal_pose_deviation"]))
         status = self.core.request_move(
             f["controller_mode"],

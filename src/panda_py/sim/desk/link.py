@@ -1,0 +1,84 @@
+"""The one robot behind two faces: state shared by the Desk process and the FCI loop.
+
+A block of shared doubles (``multiprocessing.RawArray``, no lock). The Desk writes the
+brake and FCI switches; the loop reads them without waiting (one load each) when a client
+connects or a motion starts. The loop publishes the arm's joint positions and end-effector
+pose at 20 Hz under a sequence counter (a seqlock: odd while writing) for the Desk's page.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+from typing import Any
+
+import numpy as np
+
+BRAKES_OPEN, FCI_ACTIVE, SEQ, ROBOT_MODE, SIM_TIME = 0, 1, 2, 3, 4
+Q = slice(8, 15)  # [rad]
+O_T_EE = slice(16, 32)  # column-major 4x4
+SIZE = 32
+PUBLISH_EVERY = 50  # [ticks] 20 Hz for the page's live view
+
+
+class DeskLink:
+    """Shared brake/FCI switches and the published arm pose (see the module docstring)."""
+
+    def __init__(self, array: Any) -> None:
+        self.array = array  # pickled into the child processes at spawn
+        self.view = np.frombuffer(array, dtype=np.float64)
+
+    @classmethod
+    def create(cls, *, locked: bool) -> DeskLink:
+        """A new block: a robot after power-up (``locked``) or unlocked with the FCI on."""
+        array = multiprocessing.get_context("spawn").RawArray("d", SIZE)
+        link = cls(array)
+        link.view[BRAKES_OPEN] = link.view[FCI_ACTIVE] = 0.0 if locked else 1.0
+        return link
+
+    # -- the Desk's side ---------------------------------------------------------------
+
+    def set_switches(self, *, brakes_open: bool, fci_active: bool) -> None:
+        self.view[BRAKES_OPEN] = 1.0 if brakes_open else 0.0
+        self.view[FCI_ACTIVE] = 1.0 if fci_active else 0.0
+
+    def snapshot(self) -> dict[str, Any] | None:
+        """The newest published arm state, or None before the loop published any."""
+        v = self.view
+        for _ in range(100):
+            seq = v[SEQ]
+            if seq == 0.0 or seq % 2:
+                if seq == 0.0:
+                    return None
+                continue
+            q, pose = v[Q].tolist(), v[O_T_EE].tolist()
+            mode, t = int(v[ROBOT_MODE]), float(v[SIM_TIME])
+            if v[SEQ] == seq:
+                return {"q": q, "O_T_EE": pose, "robot_mode": mode, "time": t}
+        return None
+
+    # -- the FCI loop's side (never waits) ---------------------------------------------
+
+    def publish(self, tick: int, state: dict[str, np.ndarray], robot_mode: int) -> None:
+        if tick % PUBLISH_EVERY:
+            return
+        v = self.view
+        v[SEQ] += 1.0
+        v[Q] = state["q"]
+        v[O_T_EE] = state["O_T_EE"]
+        v[ROBOT_MODE] = robot_mode
+        v[SIM_TIME] = tick * 1e-3
+        v[SEQ] += 1.0
+
+
+def accept_fci_connect(link: DeskLink | None) -> bool:
+    """Accept an FCI client? A robot refuses FCI connections while the FCI is inactive
+    (panda-py #47). Without a Desk the robot is always ready."""
+    return link is None or link.view[FCI_ACTIVE] != 0.0
+
+
+def may_start_move(link: DeskLink | None) -> bool:
+    """May a Move start? Not while the brakes are closed."""
+    return link is None or link.view[BRAKES_OPEN] != 0.0
+
+
+__all__ = ["DeskLink", "accept_fci_connect", "may_start_move"]
