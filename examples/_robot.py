@@ -20,9 +20,13 @@ def robot_host(
     description: str | None,
     argv: Sequence[str] | None = None,
     options: Callable[[argparse.ArgumentParser], None] | None = None,
+    *,
+    desk: bool = False,
 ) -> Iterator[tuple[str, argparse.Namespace]]:
     """Parse the example's arguments and yield ``(hostname, args)``: ``--host`` if given,
-    otherwise the address of a simulator started here (``--robot``, ``--realtime``)."""
+    otherwise the address of a simulator started here (``--robot``, ``--realtime``).
+    ``desk``: the simulator also serves its Desk, locked as after power-up, and
+    ``args.desk_host`` is its address (a real robot's Desk is at ``--host``)."""
     parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
     parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
     parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
@@ -31,12 +35,18 @@ def robot_host(
         options(parser)
     args = parser.parse_args(argv)
     if args.host:
+        args.desk_host = args.host
         yield args.host, args
         return
     from panda_py.sim import Simulator, free_loopback_host
+    from panda_py.sim.desk import DeskConfig
 
-    with Simulator(free_loopback_host(), robot=args.robot, lockstep=not args.realtime) as sim:
+    config = DeskConfig(port=0, locked=True) if desk else None  # port 0: any free port
+    with Simulator(
+        free_loopback_host(), robot=args.robot, lockstep=not args.realtime, desk=config
+    ) as sim:
         print(f"(a simulated {args.robot.upper()} on {sim.host})")
+        args.desk_host = sim.desk.hostname if sim.desk is not None else sim.host
         yield sim.host, args
 
 

@@ -51,6 +51,23 @@ def test_the_index_lists_every_example() -> None:
         assert f"({script.name})" in index, script.name
 
 
+def test_01_desk_unlock_then_connect(tmp_path: Path) -> None:
+    env = {"PANDA_PY_DESK_DIR": str(tmp_path / "desk")}  # the token store, not the user's
+    out = run_example("01", cwd=tmp_path, env=env)
+    assert "brakes open, FCI active" in out
+    assert "at the start pose: [-0.    -0.785 -0.    -2.356  0.     1.571  0.785]" in out
+    assert "brakes locked, control released" in out
+
+
+def test_01_wrong_desk_password_is_a_clear_error(tmp_path: Path) -> None:
+    (script,) = EXAMPLES.glob("01_*.py")
+    env = {**os.environ, "PYTHONPATH": str(SRC), "PANDA_PY_DESK_DIR": str(tmp_path / "desk")}
+    done = subprocess.run([sys.executable, str(script), "--password", "wrong"], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode != 0
+    assert "refused 'franka': wrong password?" in done.stderr
+
+
 def test_02_connect(tmp_path: Path) -> None:
     out = run_example("02", cwd=tmp_path)
     assert "joint positions q [rad]: [ 0.    -0.785  0.    -2.356  0.     1.571  0.785]" in out
