@@ -201,8 +201,16 @@ def _robot(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
         yield host, sim
 
 
-def run(panda: panda_py.Panda, gripper: libfranka.Gripper, figure: Path, *, tty: bool) -> dict:
-    """The demo's motions; returns what the summary reports."""
+def run(
+    panda: panda_py.Panda,
+    gripper: libfranka.Gripper,
+    figure: Path,
+    *,
+    tty: bool,
+    cube: Callable[[], np.ndarray] | None = None,
+) -> dict:
+    """The demo's motions; returns what the summary reports. ``cube``: where the cube
+    is [m], if someone can tell (the simulator can)."""
     steps = Steps(panda, tty=tty)
     above = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, HOVER]))
     at_cube = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, CUBE_SIZE / 2]))
@@ -216,6 +224,8 @@ def run(panda: panda_py.Panda, gripper: libfranka.Gripper, figure: Path, *, tty:
         raise DemoError(f"grasp: no {CUBE_SIZE * 1000:.0f} mm cube between the fingers")
     print("  grasped")
     steps.to_pose("lift", above)
+    if cube is not None:
+        print(f"  the cube is {(cube()[2] - CUBE_POSITION[2]) * 100:.1f} cm above the table")
 
     print("2. The paper's two paths, logged (its code block 5)")
     T_0 = panda_py.fk(constants.JOINT_POSITION_START)
@@ -271,7 +281,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise DemoError(f"no robot answers at {host}: {exc}") from exc
             with panda:
                 print(f"Connected to {host}")
-                summary = run(panda, gripper, args.figure, tty=sys.stdout.isatty())
+                watch = None if sim is None else lambda: np.asarray(sim.state()["cube_position"])
+                summary = run(panda, gripper, args.figure, tty=sys.stdout.isatty(), cube=watch)
             if sim is not None:
                 cube = np.asarray(sim.state()["cube_position"])
                 summary["cube"] = cube

@@ -37,6 +37,12 @@ def _children(pid: int) -> set[int]:
     return found
 
 
+def number_in(pattern: str, out: str) -> float:
+    match = re.search(pattern, out)
+    assert match is not None, f"{pattern!r} not in:\n{out}"
+    return float(match[1])
+
+
 def _state(pid: int) -> str:
     """The process's state letter ("" once it is gone, "Z" a zombie)."""
     try:
@@ -64,6 +70,7 @@ def test_demo_picks_the_cube_draws_the_paths_and_writes_the_figure(demo_run) -> 
     for step in ("1. Pick up the cube", "grasped", "2. The paper's two paths", "3. Put the cube"):
         assert step in out
     assert out.count("100%") == 13  # every motion arrived
+    assert number_in(r"the cube is ([\d.]+) cm above the table", out) > 10.0  # lifted
     straight = float(re.search(r"at most ([\d.]+) mm from the straight line", out)[1])
     curve = float(re.search(r"up to ([\d.]+) mm away from it", out)[1])
     assert straight < 2.0 and curve > 10.0
