@@ -11,7 +11,7 @@ from panda_py import constants, libfranka
 CUBE = np.array([0.5, 0.0, 0.02])  # [m] where panda-sim's cube rests, its centre
 WIDTH = 0.04  # [m] the cube's edge
 ABOVE = CUBE + np.array([0, 0, 0.1])  # [m] TCP positions: 10 cm above the cube,
-AT_CUBE = CUBE + np.array([0, 0, 0.02])  # and with the fingers around it
+AT_CUBE = CUBE + np.array([0, 0, 0.005])  # and with the fingers around it
 
 
 def tcp_at(position):
@@ -31,8 +31,8 @@ if __name__ == "__main__":
         panda.move_to_start()
         panda.move_to_pose(tcp_at(ABOVE))
         panda.move_to_pose(tcp_at(AT_CUBE))
-        # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 20 N
-        grasped = gripper.grasp(WIDTH, speed=0.05, force=20.0, epsilon_inner=0.005,
+        # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 40 N
+        grasped = gripper.grasp(WIDTH, speed=0.05, force=40.0, epsilon_inner=0.005,
                                 epsilon_outer=0.005)  # fmt: skip
         print(f"grasped: {grasped}")
         lifted = panda.move_to_pose(tcp_at(ABOVE))
