@@ -15,7 +15,13 @@ import pytest
 
 pytestmark = pytest.mark.timeout(240)
 
-ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
+# the panda_py under test, also where another checkout is installed
+SRC = Path(__file__).resolve().parents[2] / "src"  # this checkout's panda_py
+ENV = {
+    **os.environ,
+    "PYTHONUNBUFFERED": "1",
+    "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
+}
 
 
 def _children(pid: int) -> set[int]:

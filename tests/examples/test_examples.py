@@ -13,12 +13,10 @@ from pathlib import Path
 
 import pytest
 
-import panda_py
-
 pytestmark = pytest.mark.timeout(180)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-SRC = Path(panda_py.__file__).resolve().parents[1]
+SRC = Path(__file__).resolve().parents[2] / "src"  # this checkout's panda_py
 
 
 def run_example(name: str, *args: str, cwd: Path, env: dict | None = None) -> str:
