@@ -1,96 +1,321 @@
-"""The demo: a simulated Panda picks up the cube, planned and driven from pure Python.
+"""The demo: pick up the cube and draw the paper's two paths, on panda_py's public API.
 
-    panda-py-demo            # lockstep simulator (robust on a loaded machine)
-    panda-py-demo --realtime # the simulator keeps 1 kHz wall-clock time like a robot
+    panda-py-demo                   # an embedded lockstep simulator (robust on a loaded machine)
+    panda-py-demo --realtime        # the simulator keeps 1 kHz wall-clock time like a robot
+    panda-py-demo --robot fr3       # a simulated FR3
+    panda-py-demo --host 172.16.0.2 # the same demo on a real robot (a cube at 0.5, 0, 0)
 
-It starts the embedded simulator, plans joint trajectories with our analytical IK and
-time-optimal planner, streams them over the real FCI protocol at 1 kHz, grasps the cube
-with the gripper protocol and lifts it, printing what happens.
+Everything below is what a user writes: ``panda_py.Panda``, ``libfranka.Gripper`` and
+``fk``/``ik``. The simulator is only started (and always stopped, on Ctrl-C too) when no
+``--host`` is given. The paper's figure (the logged end-effector path of ``move_to_pose``,
+a straight line, beside ``move_to_joint_position``'s curve) is written as a PNG.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+import threading
 import time
-from collections.abc import Sequence
+import zlib
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from panda_py import fci
-from panda_py.kinematics import fk, ik_full
-from panda_py.motion import JointTrajectory
-from panda_py.robots.mjcf import CUBE_POSITION, CUBE_SIZE
-from panda_py.robots.params import START_POSE
-from panda_py.sim import Simulator, free_loopback_host
-from panda_py.sim.probe import GripperProbe, RawClient, follow_joint_positions
+import panda_py
+from panda_py import constants, libfranka
+
+# Where panda-sim's scene places the cube; put one there on a real robot's table.
+CUBE_POSITION = np.array([0.5, 0.0, 0.02])  # [m] its centre, in the robot's base frame
+CUBE_SIZE = 0.04  # [m] edge length
+HOVER = 0.15  # [m] approach height above the grasp
+# [m] the TCP this far above the cube's centre: the finger pads hold most of its side, so
+# it stays in the hand through the paper's fast moves (at its top edge it slipped out)
+GRASP_HEIGHT = 0.005
+GRASP_FORCE = 60.0  # [N]
+BAR_WIDTH = 30  # characters
 
 
-def _q_at(position: np.ndarray, q_near: np.ndarray) -> np.ndarray:
-    """Joint positions putting the TCP at ``position`` [m], pointing down, nearest ``q_near``."""
-    T = fk(np.asarray(START_POSE))
+class DemoError(RuntimeError):
+    """A step of the demo did not succeed (the message says which and why)."""
+
+
+def _bar(fraction: float) -> str:
+    n = round(max(0.0, min(1.0, fraction)) * BAR_WIDTH)
+    return "[" + "#" * n + "." * (BAR_WIDTH - n) + f"] {100 * fraction:3.0f}%"
+
+
+class Steps:
+    """Runs the demo's motions one at a time with a progress bar each, and keeps their
+    times for the summary."""
+
+    def __init__(self, panda: panda_py.Panda, *, tty: bool) -> None:
+        self.panda = panda
+        self.tty = tty
+        self.times: list[tuple[str, float]] = []
+
+    def move(self, label: str, motion: Callable[[], bool], goal: Callable[[], float]) -> None:
+        """Run ``motion`` (a blocking move) in a thread and show its progress, measured by
+        ``goal()``, the distance left (any unit), against where it started."""
+        start = max(goal(), 1e-9)
+        result: dict[str, Any] = {}
+
+        def run() -> None:
+            try:
+                result["ok"] = motion()
+            except BaseException as exc:  # re-raised in the main thread below
+                result["error"] = exc
+
+        t0 = time.monotonic()
+        worker = threading.Thread(target=run, name=f"demo: {label}", daemon=True)
+        worker.start()
+        while worker.is_alive():
+            worker.join(0.1)
+            if self.tty:
+                print(f"\r  {_bar(1.0 - goal() / start)} {label}", end="", flush=True)
+        elapsed = time.monotonic() - t0
+        if "error" in result:
+            print()
+            raise DemoError(f"{label}: {result['error']}") from result["error"]
+        ok = bool(result.get("ok"))
+        done = 1.0 if ok else 1.0 - goal() / start
+        print(f"\r  {_bar(done)} {label} ({elapsed:.1f} s)", flush=True)
+        self.times.append((label, elapsed))
+        if not ok:
+            raise DemoError(f"{label}: the motion did not reach its goal (see the log above)")
+
+    def to_pose(self, label: str, pose: np.ndarray, **kwargs: Any) -> None:
+        target = pose[:3, 3]
+        self.move(
+            label,
+            lambda: self.panda.move_to_pose(pose, **kwargs),
+            lambda: float(np.linalg.norm(self.panda.get_position() - target)),
+        )
+
+    def to_joints(self, label: str, q: np.ndarray, **kwargs: Any) -> None:
+        self.move(
+            label,
+            lambda: self.panda.move_to_joint_position(q, **kwargs),
+            lambda: float(np.linalg.norm(self.panda.q - q)),
+        )
+
+
+def _tcp_at(position: np.ndarray) -> np.ndarray:
+    """The start pose's orientation (pointing down) with the TCP at ``position`` [m]."""
+    T = panda_py.fk(constants.JOINT_POSITION_START)
     T[:3, 3] = position
-    solutions = ik_full(T, q_init=q_near, q_7=float(q_near[6]))
-    finite = solutions[np.all(np.isfinite(solutions), axis=1)]
-    if not len(finite):
-        raise RuntimeError(f"no IK solution for a TCP at {list(position)}")
-    return finite[np.argmin(np.linalg.norm(finite - q_near, axis=1))]
+    return T
 
 
-def _move(client: RawClient, sim: Simulator, waypoints: list[np.ndarray], label: str) -> None:
-    """Follow a time-optimal path from where the arm is now through ``waypoints``."""
-    q_now = np.asarray(client.state()["q"], dtype=float)
-    traj = JointTrajectory([q_now, *waypoints], speed_factor=0.2)
-    t0 = time.monotonic()
-    status, state = follow_joint_positions(client, traj.get_joint_positions, traj.get_duration())
-    tcp = np.asarray(state["O_T_EE"], dtype=float).reshape(4, 4).T[:3, 3]
-    print(
-        f"  {label}: {status.name.lower()} after {traj.get_duration():.2f} s of robot time "
-        f"({time.monotonic() - t0:.2f} s wall); TCP at {np.round(tcp, 3).tolist()} m"
+def deviation_from_line(xy: np.ndarray) -> float:
+    """Largest distance [m] of a path (N, 2) from the straight line between its ends."""
+    a, b = xy[0], xy[-1]
+    d = b - a
+    return float(np.max(np.abs(d[0] * (xy[:, 1] - a[1]) - d[1] * (xy[:, 0] - a[0])))) / float(
+        np.linalg.norm(d)
     )
-    if status != fci.MoveStatus.SUCCESS:
-        errors = fci.dialect(client.server_version).active_errors(state["errors"])
-        lost = sim.stats()["commands_lost"]
-        raise RuntimeError(f"{label} failed: {status.name} {list(errors)}, {lost} commands lost")
+
+
+# --- the figure -----------------------------------------------------------------------------
+
+
+def write_figure(path: Path, pose_xy: np.ndarray, joint_xy: np.ndarray) -> str:
+    """The paper's figure: the two logged paths, x against y [m], side by side. Drawn
+    with matplotlib when it is installed (``pip install ".[examples]"``), otherwise as a
+    plain raster (no axis labels); returns which."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        _write_png(path, [pose_xy, joint_xy])
+        return "plain raster (install matplotlib for axes)"
+    fig, axes = plt.subplots(1, 2, figsize=(8, 4), sharex=True, sharey=True)
+    for ax, xy, title in zip(
+        axes, (pose_xy, joint_xy), ("move_to_pose", "move_to_joint_position"), strict=True
+    ):
+        ax.plot(xy[:, 1], xy[:, 0])
+        ax.set_title(title)
+        ax.set_xlabel("y [m]")
+        ax.grid(True)
+    axes[0].set_ylabel("x [m]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return "matplotlib"
+
+
+def _write_png(path: Path, paths: list[np.ndarray], size: int = 320) -> None:
+    """Panels of ``size`` pixels, one per path (y across, x up, shared scale), as a
+    grayscale PNG written with zlib alone."""
+    both = np.concatenate(paths)
+    span = max(float(np.ptp(both, axis=0).max()), 1e-6)
+    lo = (both.min(axis=0) + both.max(axis=0) - span) / 2  # centred, equal scales
+    margin = 16
+    image = np.full((size, size * len(paths)), 255, dtype=np.uint8)
+    for k, xy in enumerate(paths):
+        x0 = k * size
+        image[margin, x0 + margin : x0 + size - margin] = 160  # panel frame
+        image[size - margin, x0 + margin : x0 + size - margin] = 160
+        image[margin : size - margin, x0 + margin] = 160
+        image[margin : size - margin, x0 + size - margin] = 160
+        # densify the polyline so consecutive samples leave no gaps
+        t = np.linspace(0.0, len(xy) - 1, 4 * size)
+        pts = np.column_stack([np.interp(t, np.arange(len(xy)), xy[:, i]) for i in (0, 1)])
+        u = (pts - lo) / span * (size - 2 * margin - 1)
+        cols = (x0 + margin + u[:, 1]).astype(int)
+        rows = (size - margin - 1 - u[:, 0]).astype(int)
+        for dr in (0, 1):
+            image[np.clip(rows + dr, 0, size - 1), cols] = 0
+    raw = b"".join(b"\x00" + row.tobytes() for row in image)
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return len(data).to_bytes(4, "big") + body + zlib.crc32(body).to_bytes(4, "big")
+
+    header = image.shape[1].to_bytes(4, "big") + image.shape[0].to_bytes(4, "big")
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header + bytes([8, 0, 0, 0, 0]))
+        + chunk(b"IDAT", zlib.compress(raw, 9))
+        + chunk(b"IEND", b"")
+    )
+
+
+# --- the demo ---------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def _robot(args: argparse.Namespace) -> Iterator[tuple[str, Any]]:
+    """The robot's address: ``--host``, or an embedded simulator started here and stopped
+    on the way out, whatever the way out is."""
+    if args.host:
+        yield args.host, None
+        return
+    from panda_py.sim import Simulator, free_loopback_host
+
+    host = free_loopback_host()
+    mode = "realtime" if args.realtime else "lockstep"
+    print(f"Starting a simulated {args.robot.upper()} on {host} ({mode})", flush=True)
+    with Simulator(host, robot=args.robot, lockstep=not args.realtime) as sim:
+        yield host, sim
+
+
+def run(
+    panda: panda_py.Panda,
+    gripper: libfranka.Gripper,
+    figure: Path,
+    *,
+    tty: bool,
+    cube: Callable[[], np.ndarray] | None = None,
+) -> dict:
+    """The demo's motions; returns what the summary reports. ``cube``: where the cube
+    is [m], if someone can tell (the simulator can)."""
+    steps = Steps(panda, tty=tty)
+    above = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, HOVER]))
+    at_cube = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, GRASP_HEIGHT]))
+
+    print("1. Pick up the cube, lift it, put it back")
+    steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
+    gripper.move(0.08, 0.1)
+    steps.to_pose("above the cube", above)
+    steps.to_pose("down to the cube", at_cube)
+    if not gripper.grasp(CUBE_SIZE, 0.05, GRASP_FORCE, 0.005, 0.005):
+        raise DemoError(f"grasp: no {CUBE_SIZE * 1000:.0f} mm cube between the fingers")
+    print("  grasped")
+    steps.to_pose("lift", above)
+    if cube is not None:
+        print(f"  the cube is {(cube()[2] - CUBE_POSITION[2]) * 100:.1f} cm above the table")
+    # Set down before the paper's moves: panda-sim's soft contacts let a held cube slide
+    # out of the fingers within some seconds.
+    steps.to_pose("down to the table", at_cube)
+    gripper.move(0.08, 0.1)
+    steps.to_pose("retreat", above)
+
+    print("2. The paper's two paths, logged (its code block 5)")
+    T_0 = panda_py.fk(constants.JOINT_POSITION_START)
+    T_0[1, 3] = 0.25
+    T_1 = T_0.copy()
+    T_1[1, 3] = -0.25
+    steps.to_pose("to T_0", T_0)
+    panda.enable_logging(40_000)
+    steps.to_pose("move_to_pose(T_1), logged", T_1, speed_factor=0.1)
+    panda.disable_logging()
+    log = panda.get_log()
+    steps.to_pose("back to T_0", T_0)
+    panda.enable_logging(40_000)
+    steps.to_joints("move_to_joint_position(ik(T_1)), logged", panda_py.ik(T_1))
+    panda.disable_logging()
+    joint_log = panda.get_log()
+    steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
+    pose_xy = np.array(log["O_T_EE"])[:, 12:14]
+    joint_xy = np.array(joint_log["O_T_EE"])[:, 12:14]
+    how = write_figure(figure, pose_xy, joint_xy)
+    return {
+        "times": steps.times,
+        "pose_deviation": deviation_from_line(pose_xy),
+        "joint_deviation": deviation_from_line(joint_xy),
+        "samples": (len(pose_xy), len(joint_xy)),
+        "figure": how,
+    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="panda-py-demo", description=__doc__.splitlines()[0])
+    parser.add_argument("--host", help="a real robot's FCI address (default: a simulator)")
     parser.add_argument("--realtime", action="store_true", help="run the simulator in realtime")
-    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"])
+    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
+    parser.add_argument(
+        "--figure", type=Path, default=Path("panda_py_demo_paths.png"), help="the PNG to write"
+    )
     args = parser.parse_args(argv)
-    host = free_loopback_host()
-    mode = "realtime" if args.realtime else "lockstep"
-    print(f"Starting a simulated {args.robot.upper()} on {host} ({mode})")
-    with Simulator(host, robot=args.robot, lockstep=not args.realtime) as sim:
-        robot = RawClient(host, fci.NEWEST_VERSION)
-        hand = GripperProbe(host)
-        print(f"Connected: FCI protocol v{robot.server_version}, gripper v{hand.server_version}")
-        s = robot.state()
-        q0 = np.asarray(s["q"], dtype=float)
+    t0 = time.monotonic()
+    try:
+        with _robot(args) as (host, sim):
+            try:
+                panda = panda_py.Panda(host)
+                gripper = libfranka.Gripper(host)
+            except Exception as exc:
+                raise DemoError(f"no robot answers at {host}: {exc}") from exc
+            with panda:
+                print(f"Connected to {host}")
+                watch = None if sim is None else lambda: np.asarray(sim.state()["cube_position"])
+                summary = run(panda, gripper, args.figure, tty=sys.stdout.isatty(), cube=watch)
+            if sim is not None:
+                cube = np.asarray(sim.state()["cube_position"])
+                summary["cube"] = cube
+    except DemoError as exc:
+        print(f"panda-py-demo: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("\npanda-py-demo: interrupted; the simulator is stopped", file=sys.stderr)
+        return 130
+    total = time.monotonic() - t0
+    print("Summary")
+    for label, seconds in summary["times"]:
+        print(f"  {seconds:5.1f} s  {label}")
+    n_pose, n_joint = summary["samples"]
+    print(
+        f"  move_to_pose: {n_pose} states logged, at most "
+        f"{summary['pose_deviation'] * 1000:.1f} mm from the straight line"
+    )
+    print(
+        f"  move_to_joint_position: {n_joint} states logged, up to "
+        f"{summary['joint_deviation'] * 1000:.1f} mm away from it"
+    )
+    if "cube" in summary:
+        moved = np.linalg.norm(summary["cube"][:2] - CUBE_POSITION[:2])
         print(
-            f"  q = {np.round(q0, 3).tolist()} rad, mode {fci.RobotMode(int(s['robot_mode'])).name}"
+            f"  cube back at {np.round(summary['cube'], 3).tolist()} m "
+            f"({moved * 1000:.0f} mm from where it was)"
         )
-        cube = np.asarray(CUBE_POSITION)
-        above = _q_at(cube + np.array([0.0, 0.0, 0.15]), q0)
-        grasp = _q_at(cube + np.array([0.0, 0.0, CUBE_SIZE / 2]), above)
-        print(
-            f"Cube at {cube.tolist()} m; planning with analytical IK and time-optimal trajectories"
-        )
-        _move(robot, sim, [above, grasp], "reach down to the cube")
-        ok = hand.request(fci.GripperCommand.GRASP, width=CUBE_SIZE, epsilon_inner=0.005,
-                          epsilon_outer=0.005, speed=0.05, force=30.0)  # fmt: skip
-        width = float(hand.state()["width"])
-        print(f"  grasp: {ok.name.lower()}, fingers at {width * 1000:.1f} mm")
-        _move(robot, sim, [above], "lift")
-        lifted = sim.state()["cube_position"]
-        rise = (lifted[2] - cube[2]) * 100
-        print(f"Cube now at {np.round(lifted, 3).tolist()} m ({rise:.1f} cm up)")
-        stats = sim.stats()
-        print(f"Simulator: {stats['ticks']} ticks, {stats['commands_lost']} commands lost")
-        robot.close()
-        hand.close()
-        return 0 if lifted[2] - cube[2] > 0.05 and ok == fci.GripperStatus.SUCCESS else 1
+    print(f"  total {total:.1f} s")
+    print(f"Figure ({summary['figure']}): {args.figure.resolve()}")
+    return 0
 
 
 if __name__ == "__main__":

@@ -1,0 +1,44 @@
+"""Grasp the cube with the gripper and lift it (libfranka's Gripper: homing, move, grasp).
+
+On a real robot, put a 4 cm cube at x = 0.5 m, y = 0 on the table first."""
+
+import numpy as np
+from _robot import connect, robot_host
+
+import panda_py
+from panda_py import constants, libfranka
+
+CUBE = np.array([0.5, 0.0, 0.02])  # [m] where panda-sim's cube rests, its centre
+WIDTH = 0.04  # [m] the cube's edge
+ABOVE = CUBE + np.array([0, 0, 0.1])  # [m] TCP positions: 10 cm above the cube,
+AT_CUBE = CUBE + np.array([0, 0, 0.005])  # and with the fingers around it
+
+
+def tcp_at(position):
+    """The start pose's orientation (fingers down) with the TCP at ``position`` [m]."""
+    T = panda_py.fk(constants.JOINT_POSITION_START)
+    T[:3, 3] = position
+    return T
+
+
+if __name__ == "__main__":
+    with robot_host(__doc__) as (hostname, args):
+        panda = connect(hostname)
+        gripper = libfranka.Gripper(hostname)
+        gripper.homing()  # calibrates the fingers: opens them fully
+        print(f"open: {gripper.read_once().width * 1000:.1f} mm")
+
+        panda.move_to_start()
+        panda.move_to_pose(tcp_at(ABOVE))
+        panda.move_to_pose(tcp_at(AT_CUBE))
+        # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 40 N
+        grasped = gripper.grasp(WIDTH, speed=0.05, force=40.0, epsilon_inner=0.005,
+                                epsilon_outer=0.005)  # fmt: skip
+        print(f"grasped: {grasped}")
+        lifted = panda.move_to_pose(tcp_at(ABOVE))
+        print(f"lifted: {lifted}")
+
+        panda.move_to_pose(tcp_at(AT_CUBE))  # put it back
+        gripper.move(0.08, 0.1)
+        panda.move_to_start()
+        panda.close()

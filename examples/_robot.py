@@ -1,0 +1,58 @@
+"""Shared by the examples: the robot an example runs on.
+
+``python examples/03_joint_motion_ik.py`` starts a simulated robot (panda-sim, in lockstep)
+for the example and stops it afterwards; ``--host 172.16.0.2`` runs the same code on the
+robot at that address instead. Each example's own code only ever sees a hostname.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+from collections.abc import Callable, Iterator, Sequence
+
+import panda_py
+
+
+@contextlib.contextmanager
+def robot_host(
+    description: str | None,
+    argv: Sequence[str] | None = None,
+    options: Callable[[argparse.ArgumentParser], None] | None = None,
+    *,
+    desk: bool = False,
+) -> Iterator[tuple[str, argparse.Namespace]]:
+    """Parse the example's arguments and yield ``(hostname, args)``: ``--host`` if given,
+    otherwise the address of a simulator started here (``--robot``, ``--realtime``).
+    ``desk``: the simulator also serves its Desk, locked as after power-up, and
+    ``args.desk_host`` is its address (a real robot's Desk is at ``--host``)."""
+    parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
+    parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
+    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
+    parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
+    if options is not None:
+        options(parser)
+    args = parser.parse_args(argv)
+    if args.host:
+        args.desk_host = args.host
+        yield args.host, args
+        return
+    from panda_py.sim import Simulator, free_loopback_host
+    from panda_py.sim.desk import DeskConfig
+
+    config = DeskConfig(port=0, locked=True) if desk else None  # port 0: any free port
+    with Simulator(
+        free_loopback_host(), robot=args.robot, lockstep=not args.realtime, desk=config
+    ) as sim:
+        print(f"(a simulated {args.robot.upper()} on {sim.host})")
+        args.desk_host = sim.desk.hostname if sim.desk is not None else sim.host
+        yield sim.host, args
+
+
+def connect(hostname: str) -> panda_py.Panda:
+    """``panda_py.Panda(hostname)``, or exit with a clear message if no robot answers."""
+    try:
+        return panda_py.Panda(hostname)
+    except Exception as exc:
+        sys.exit(f"No robot answers at {hostname} ({exc}). Is FCI active in Desk?")

@@ -1,0 +1,155 @@
+"""Every script in examples/, run as a user runs it (``python examples/NN_*.py``, against
+the embedded lockstep simulator), judged by the outcome it prints, not only its exit code.
+Examples that need the ``examples`` extra are skipped, saying so, where it is not installed."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.timeout(180)
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+SRC = Path(__file__).resolve().parents[2] / "src"  # this checkout's panda_py
+
+
+def run_example(name: str, *args: str, cwd: Path, env: dict | None = None) -> str:
+    """Run examples/<name>*.py; return its stdout (fails on a non-zero exit)."""
+    (script,) = EXAMPLES.glob(f"{name}_*.py")
+    environ = {**os.environ, **(env or {}), "PYTHONUNBUFFERED": "1"}
+    environ["PYTHONPATH"] = os.pathsep.join([str(SRC), environ.get("PYTHONPATH", "")])
+    done = subprocess.run([sys.executable, str(script), *args], cwd=cwd, env=environ,
+                          capture_output=True, text=True, timeout=170)  # fmt: skip
+    assert done.returncode == 0, f"{script.name} failed:\n{done.stdout}\n{done.stderr}"
+    return done.stdout
+
+
+def number(pattern: str, out: str) -> float:
+    match = re.search(pattern, out)
+    assert match is not None, f"{pattern!r} not in:\n{out}"
+    return float(match[1])
+
+
+def needs(*modules: str) -> pytest.MarkDecorator:
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    return pytest.mark.skipif(
+        bool(missing), reason=f'needs {", ".join(missing)}: pip install ".[examples]"'
+    )
+
+
+def test_the_index_lists_every_example() -> None:
+    index = (EXAMPLES / "README.md").read_text()
+    for script in sorted(EXAMPLES.glob("[0-9][0-9]_*.py")):
+        assert f"({script.name})" in index, script.name
+
+
+def test_01_desk_unlock_then_connect(tmp_path: Path) -> None:
+    env = {"PANDA_PY_DESK_DIR": str(tmp_path / "desk")}  # the token store, not the user's
+    out = run_example("01", cwd=tmp_path, env=env)
+    assert "brakes open, FCI active" in out
+    assert "at the start pose: [-0.    -0.785 -0.    -2.356  0.     1.571  0.785]" in out
+    assert "brakes locked, control released" in out
+
+
+def test_01_wrong_desk_password_is_a_clear_error(tmp_path: Path) -> None:
+    (script,) = EXAMPLES.glob("01_*.py")
+    env = {**os.environ, "PYTHONPATH": str(SRC), "PANDA_PY_DESK_DIR": str(tmp_path / "desk")}
+    done = subprocess.run([sys.executable, str(script), "--password", "wrong"], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert done.returncode != 0
+    assert "refused 'franka': wrong password?" in done.stderr
+
+
+def test_02_connect(tmp_path: Path) -> None:
+    out = run_example("02", cwd=tmp_path)
+    assert "joint positions q [rad]: [ 0.    -0.785  0.    -2.356  0.     1.571  0.785]" in out
+    assert number(r"gripper width: ([\d.]+) mm", out) == pytest.approx(80.0, abs=1.0)
+
+
+@pytest.mark.parametrize("name", ["03", "04"])
+def test_03_04_motions_reach_the_pose(name: str, tmp_path: Path) -> None:
+    out = run_example(name, cwd=tmp_path)
+    assert number(r"end effector ([\d.]+) mm from the goal", out) < 2.0
+    if name == "04":
+        assert "move_to_pose returned True" in out
+
+
+@needs("matplotlib")
+def test_05_logging_figure(tmp_path: Path) -> None:
+    out = run_example("05", "--figure", "f.png", "--speed-factor", "0.2", cwd=tmp_path)
+    assert number(r"move_to_pose: ([\d.]+) mm from a straight line", out) < 2.0
+    assert number(r"move_to_joint_position: ([\d.]+) mm from it", out) > 10.0
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_06_cartesian_impedance(tmp_path: Path) -> None:
+    out = run_example("06", "--runtime", "3", cwd=tmp_path)
+    # --runtime is wall time; 0.1 sin(t) runs on robot time (in lockstep, as fast as the
+    # machine allows): at least its first crest, +10 cm, lies in it
+    assert number(r"to ([-\d.]+) cm", out) > 7.0
+    assert number(r"y swung from ([-\d.]+) to", out) < 1.0
+    assert number(r"(\d+) ticks", out) > 2500
+
+
+def test_07_gripper(tmp_path: Path) -> None:
+    out = run_example("07", cwd=tmp_path)
+    assert "grasped: True" in out and "lifted: True" in out
+
+
+def test_08_teaching_mode(tmp_path: Path) -> None:
+    out = run_example("08", "--duration", "1", cwd=tmp_path)
+    assert number(r"recorded (\d+) poses", out) >= 900
+    assert number(r"up to ([\d.]+) mm from where it started", out) < 5.0  # nobody pushed
+
+
+def test_09_torque_controller(tmp_path: Path) -> None:
+    out = run_example("09", cwd=tmp_path)
+    assert number(r"(\d+) updates", out) >= 250
+    assert number(r"max ([\d.]+) rad", out) < 0.15  # follows a 0.2 rad sine
+
+
+def test_10_model_wrench(tmp_path: Path) -> None:
+    out = run_example("10", cwd=tmp_path)
+    gravity = re.search(r"gravity torques \[Nm\]: \[([^\]]+)\]", out)
+    assert gravity is not None and float(gravity[1].split()[3]) > 10  # the elbow holds the arm
+    assert "Jacobian (6x7, base frame)" in out and "O_F_ext_hat_K" in out
+
+
+@needs("roboticstoolbox", "qpsolvers", "daqp", "spatialmath")
+def test_11_rtb_arrives_at_its_goal(tmp_path: Path) -> None:
+    out = run_example("11", cwd=tmp_path)
+    assert "arrived: True" in out
+    assert number(r"([\d.]+) mm and", out) < 10.0
+    assert number(r"and ([\d.]+) deg from the goal", out) < 2.0
+    moved = re.search(r"moved \[([^\]]+)\] m", out)
+    assert moved is not None
+    assert [float(v) for v in moved[1].split()] == pytest.approx([0.2, 0.2, -0.1], abs=0.01)
+
+
+def test_12_mujoco_mirrors_and_predicts(tmp_path: Path) -> None:
+    out = run_example("12", "--runtime", "2", cwd=tmp_path)
+    assert number(r"mirrored (\d+) states", out) > 100
+    assert number(r"mean error ([\d.]+) mrad", out) < 3.0
+
+
+@needs("matplotlib")
+def test_12_records_frames_offscreen(tmp_path: Path) -> None:
+    out = run_example("12", "--runtime", "1", "--record", "frames.png", cwd=tmp_path,
+                      env={"MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")})  # fmt: skip
+    assert "recorded" in out
+    assert (tmp_path / "frames.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_no_robot_at_host_is_a_clear_error(tmp_path: Path) -> None:
+    (script,) = EXAMPLES.glob("03_*.py")
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    done = subprocess.run([sys.executable, str(script), "--host", "127.0.0.1"], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode != 0
+    assert "No robot answers at 127.0.0.1" in done.stderr
