@@ -1,4 +1,4 @@
-"""The proposed README top section (examples/README_PROPOSAL.md): every ```python block
+"""The README's quick start: every ```python block
 runs, in order, in one namespace, against a simulated robot with its Desk, and does what
 the text says."""
 
@@ -15,11 +15,25 @@ from panda_py.sim.desk import DEFAULT_PASSWORD, DEFAULT_USER, DeskConfig
 
 pytestmark = pytest.mark.timeout(180)
 
-PROPOSAL = Path(__file__).resolve().parents[2] / "examples" / "README_PROPOSAL.md"
+PROPOSAL = Path(__file__).resolve().parents[2] / "README.md"
 
 
-def python_blocks() -> list[str]:
-    return re.findall(r"```python\n(.*?)```", PROPOSAL.read_text(), flags=re.S)
+def python_blocks(section: str = "## Quick start") -> list[str]:
+    """The ```python blocks of the README section that starts with ``section``."""
+    text = PROPOSAL.read_text()
+    start = text.index(section)
+    following = re.search(r"\n##+ ", text[start + 1 :])  # the next heading of any level
+    body = text[start : start + 1 + following.start()] if following else text[start:]
+    return re.findall(r"```python\n(.*?)```", body, flags=re.S)
+
+
+def test_the_simulator_section_runs() -> None:
+    (block,) = python_blocks("### The simulator")
+    host = free_loopback_host()
+    assert '"127.0.0.2"' in block
+    ns: dict = {}
+    exec(block.replace('"127.0.0.2"', repr(host)), ns)
+    assert ns["sim"].host == host
 
 
 def test_the_first_command_is_the_demo_and_the_second_is_ci() -> None:
