@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from panda_py.libfranka.model import Model
-from panda_py.libfranka.robot import _vec
+from panda_py.libfranka.robot import _vec, collision_thresholds
 from panda_py.libfranka.state import RobotState
 
 if TYPE_CHECKING:
@@ -19,36 +19,15 @@ if TYPE_CHECKING:
 
 __all__ = ["RobotProxy"]
 
-_COLLISION_EIGHT = (
-    "lower_torque_thresholds_acceleration", "upper_torque_thresholds_acceleration",
-    "lower_torque_thresholds_nominal", "upper_torque_thresholds_nominal",
-    "lower_force_thresholds_acceleration", "upper_force_thresholds_acceleration",
-    "lower_force_thresholds_nominal", "upper_force_thresholds_nominal",
-)  # fmt: skip
-_COLLISION_FOUR = (
-    "lower_torque_thresholds", "upper_torque_thresholds",
-    "lower_force_thresholds", "upper_force_thresholds",
-)  # fmt: skip
-
 
 def _collision_args(args: tuple[Any, ...], kwargs: dict[str, Any]) -> list[np.ndarray]:
-    n = len(args) + len(kwargs)
-    names = _COLLISION_EIGHT if n == 8 else _COLLISION_FOUR if n == 4 else None
-    if names is None:
-        raise ValueError(f"set_collision_behavior: expected 4 or 8 arguments, got {n}")
-    values = dict(zip(names, args, strict=False))
-    for key, value in kwargs.items():
-        if key not in names or key in values:
-            raise ValueError(f"set_collision_behavior: unexpected argument {key!r}")
-        values[key] = value
-    out = []
-    for name in names:
-        torque = "torque" in name
-        arr = _vec(name, values[name], 7 if torque else 6, "[Nm]" if torque else "[N]")
+    """The 8 checked threshold arrays, in the order of ``Robot.set_collision_behavior``;
+    thresholds must not be negative."""
+    arrays = collision_thresholds(args, kwargs)
+    for name, arr in arrays.items():
         if (arr < 0.0).any():
             raise ValueError(f"{name}: expected thresholds >= 0, got {arr.tolist()}")
-        out.append(arr)
-    return out
+    return list(arrays.values())
 
 
 class RobotProxy:

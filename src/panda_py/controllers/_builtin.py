@@ -155,10 +155,11 @@ class IntegratedVelocity(TorqueController):
         return self._K * (self._q_d - state.q) - self._D * state.dq
 
 
-class AppliedTorque(TorqueController):
-    """Applies the given joint torques plus joint damping: ``tau = tau_d - D dq``."""
+class _Applied(TorqueController):
+    """What AppliedTorque and AppliedForce share: one filtered input (its name and size
+    are the first signal) plus filtered joint damping: ``tau = map(input) - D dq``."""
 
-    signals: ClassVar[dict[str, int]] = {"torque": 7, "damping": 7, "filter_coeff": 1}
+    _input: ClassVar[tuple[str, int, str]]  # name, size, unit of the applied input
 
     def __init__(self, damping: Any = ZERO7, filter_coeff: float = 1.0) -> None:
         super().__init__()
@@ -169,12 +170,13 @@ class AppliedTorque(TorqueController):
         self._bind_views()
 
     def _bind_views(self) -> None:
+        n = self._input[1]
         v = self._values
-        self._tau_t, self._D_t = v[0:7], v[7:14]
+        self._in_t, self._D_t = v[0:n], v[n : n + 7]
 
-    def set_control(self, torque: Any) -> None:
-        """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
-        self._send(0, _fast("torque", torque, 7, "[Nm]"))
+    def _set_input(self, value: Any) -> None:
+        name, n, unit = self._input
+        self._send(0, _fast(name, value, n, unit))
 
     def set_damping(self, damping: Any) -> None:
         self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
@@ -183,53 +185,44 @@ class AppliedTorque(TorqueController):
         self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
-        self.initial_signals(torque=np.zeros(7))
-        self._tau, self._D = np.zeros(7), self._D_t.copy()
+        name, n, _ = self._input
+        self.initial_signals(**{name: np.zeros(n)})
+        self._in, self._D = np.zeros(n), self._D_t.copy()
+
+    def _filtered(self) -> FloatArray:
+        a = float(self._values[self._input[1] + 7])
+        laws.ema(self._in, self._in_t, a)
+        laws.ema(self._D, self._D_t, a)
+        return self._in
+
+
+class AppliedTorque(_Applied):
+    """Applies the given joint torques plus joint damping: ``tau = tau_d - D dq``."""
+
+    signals: ClassVar[dict[str, int]] = {"torque": 7, "damping": 7, "filter_coeff": 1}
+    _input = ("torque", 7, "[Nm]")
+
+    def set_control(self, torque: Any) -> None:
+        """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
+        self._set_input(torque)
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = float(self._values[14])
-        laws.ema(self._tau, self._tau_t, a)
-        laws.ema(self._D, self._D_t, a)
-        return self._tau - self._D * state.dq
+        return self._filtered() - self._D * state.dq
 
 
-class AppliedForce(TorqueController):
+class AppliedForce(_Applied):
     """Applies a wrench at the end effector (base frame) plus joint damping:
     ``tau = J^T f - D dq``."""
 
     signals: ClassVar[dict[str, int]] = {"force": 6, "damping": 7, "filter_coeff": 1}
-
-    def __init__(self, damping: Any = ZERO7, filter_coeff: float = 1.0) -> None:
-        super().__init__()
-        self._write(
-            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
-            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
-        )
-        self._bind_views()
-
-    def _bind_views(self) -> None:
-        v = self._values
-        self._f_t, self._D_t = v[0:6], v[6:13]
+    _input = ("force", 6, "[N, Nm]")
 
     def set_control(self, force: Any) -> None:
         """Wrench at the end effector in the base frame [N, Nm]."""
-        self._send(0, _fast("force", force, 6, "[N, Nm]"))
-
-    def set_damping(self, damping: Any) -> None:
-        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
-
-    def set_filter(self, filter_coeff: float) -> None:
-        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
-
-    def start(self, state: Any, model: Any) -> None:
-        self.initial_signals(force=np.zeros(6))
-        self._f, self._D = np.zeros(6), self._D_t.copy()
+        self._set_input(force)
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = float(self._values[13])
-        laws.ema(self._f, self._f_t, a)
-        laws.ema(self._D, self._D_t, a)
-        return model.ee_jacobian(state).T @ self._f - self._D * state.dq
+        return model.ee_jacobian(state).T @ self._filtered() - self._D * state.dq
 
 
 class Force(TorqueController):

@@ -45,6 +45,30 @@ log = logging.getLogger("panda_py.libfranka")
 REQUEST_TIMEOUT = TCP_TIMEOUT
 
 
+def collision_thresholds(args: tuple[Any, ...], kwargs: dict[str, Any]) -> dict[str, Any]:
+    """``set_collision_behavior``'s 4 or 8 arguments (positional or by name) as the 8
+    checked arrays the robot takes, by their wire names."""
+    eight = fci.COLLISION_THRESHOLD_FIELDS
+    four = ("lower_torque_thresholds", "upper_torque_thresholds", "lower_force_thresholds",
+            "upper_force_thresholds")  # fmt: skip
+    n = len(args) + len(kwargs)
+    names = eight if n == 8 else four if n == 4 else None
+    if names is None:
+        raise ValueError(f"set_collision_behavior: expected 4 or 8 arguments, got {n}")
+    values = dict(zip(names, args, strict=False))
+    for key, value in kwargs.items():
+        if key not in names or key in values:
+            raise ValueError(f"set_collision_behavior: unexpected argument {key!r}")
+        values[key] = value
+    arrays = {
+        k: _vec(k, values[k], 7 if "torque" in k else 6, "[Nm]" if "torque" in k else "[N]")
+        for k in names
+    }
+    if n == 4:
+        arrays = {k: arrays[k.replace("_acceleration", "").replace("_nominal", "")] for k in eight}
+    return arrays
+
+
 class Robot(NamedControlMixin):
     """A Franka arm (libfranka's ``franka::Robot`` with panda-py's Python names).
 
@@ -194,27 +218,7 @@ class Robot(NamedControlMixin):
         ``(lower_torque_thresholds, upper_torque_thresholds, lower_force_thresholds,
         upper_force_thresholds)`` used for both phases. Torques (7,) [Nm], forces (6,)
         [N, N, N, Nm, Nm, Nm]."""
-        eight = fci.COLLISION_THRESHOLD_FIELDS
-        four = ("lower_torque_thresholds", "upper_torque_thresholds", "lower_force_thresholds",
-                "upper_force_thresholds")  # fmt: skip
-        n = len(args) + len(kwargs)
-        names = eight if n == 8 else four if n == 4 else None
-        if names is None:
-            raise ValueError(f"set_collision_behavior: expected 4 or 8 arguments, got {n}")
-        values = dict(zip(names, args, strict=False))
-        for key, value in kwargs.items():
-            if key not in names or key in values:
-                raise ValueError(f"set_collision_behavior: unexpected argument {key!r}")
-            values[key] = value
-        arrays = {
-            k: _vec(k, values[k], 7 if "torque" in k else 6, "[Nm]" if "torque" in k else "[N]")
-            for k in names
-        }
-        if n == 4:
-            arrays = {
-                k: arrays[k.replace("_acceleration", "").replace("_nominal", "")] for k in eight
-            }
-        self._execute(Command.SET_COLLISION_BEHAVIOR, **arrays)
+        self._execute(Command.SET_COLLISION_BEHAVIOR, **collision_thresholds(args, kwargs))
 
     def set_joint_impedance(self, K_theta: Any) -> None:
         """Stiffness of the internal joint impedance controller (7,) [Nm/rad]."""
