@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from panda_py.robots.params import START_POSE
+from panda_py.sim.children import stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
 from panda_py.sim.server import SimConfig
 
@@ -171,15 +172,7 @@ class Simulator:
         if proc is None:
             return
         self._process = self._conn = None
-        try:
-            conn.send(("stop",))
-        except (OSError, EOFError):
-            pass
-        proc.join(5)
-        if proc.is_alive():
-            proc.kill()
-            proc.join(5)
-        conn.close()
+        stop_child(proc, conn, kill=True)
 
     def kill(self) -> None:
         """End the simulator abruptly, as a robot that loses power (for failure tests)."""

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from panda_py.sim.children import stop_child
 from panda_py.sim.desk.link import DeskLink
 
 log = logging.getLogger("panda_py.sim.desk")
@@ -284,15 +285,7 @@ class DeskProcess:
         if proc is None:
             return
         self._process = self._conn = None
-        try:
-            conn.send(("stop",))
-        except (OSError, EOFError):
-            pass
-        proc.join(5)
-        if proc.is_alive():
-            proc.terminate()
-            proc.join(5)
-        conn.close()
+        stop_child(proc, conn, kill=False)
 
 
 __all__ = ["DEFAULT_PASSWORD", "DEFAULT_USER", "DeskConfig", "DeskProcess", "DeskStartError"]
