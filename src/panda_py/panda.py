@@ -26,7 +26,7 @@ from panda_py._robot_proxy import RobotProxy
 from panda_py.context import PandaContext
 from panda_py.controllers import laws
 from panda_py.controllers._base import TorqueController
-from panda_py.libfranka._realtime import has_realtime_kernel
+from panda_py.libfranka._realtime import fifo_permitted, has_realtime_kernel
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
@@ -47,19 +47,11 @@ _warned_realtime = False
 def realtime_priority_available() -> tuple[bool, str]:
     """Whether a process may run under ``SCHED_FIFO`` (what the control process asks for),
     and why not (an empty message when it may)."""
-    import os
-
-    if not hasattr(os, "sched_setscheduler"):
-        return False, "this platform has no SCHED_FIFO"
-    try:
-        top = os.sched_get_priority_max(os.SCHED_FIFO)
-        policy = os.sched_getscheduler(0)
-        param = os.sched_getparam(0)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(top))
-        os.sched_setscheduler(0, policy, param)
-    except OSError as exc:
-        return False, f"SCHED_FIFO is not permitted: {exc.strerror}"
-    return True, ""
+    if fifo_permitted():
+        return True, ""
+    return False, (
+        "SCHED_FIFO is not permitted (grant the rtprio limit or CAP_SYS_NICE, as for libfranka)"
+    )
 
 
 def _copy_keep_order(view: np.ndarray) -> FloatArray:
@@ -89,13 +81,7 @@ class Panda:
             raise ValueError(f"hostname: expected the robot's address, got {hostname!r}")
         if not isinstance(name, str):
             raise ValueError(f"name: expected a str (the logger's name), got {name!r}")
-        try:
-            config = RealtimeConfig(realtime_config)
-        except ValueError:
-            raise ValueError(
-                f"realtime_config: expected RealtimeConfig.kEnforce or kIgnore, "
-                f"got {realtime_config!r}"
-            ) from None
+        config = RealtimeConfig.parse(realtime_config)
         self._name = name
         self._logger = logging.getLogger(name)
         self._controller: TorqueController | None = None

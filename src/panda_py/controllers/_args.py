@@ -1,8 +1,9 @@
 """Argument checks for controller inputs and parameters, in the user's process.
 
 Every check names the argument, what it expects and what it got, and returns plain
-Python floats (cheap to pack into shared memory). Nothing reaches the control process
-unchecked: a robot is never sent a non-finite value.
+Python floats (cheap to pack into shared memory). Scalars go through the package's
+:func:`panda_py._checks.number`; vectors come back as lists for the fast path. Nothing
+reaches the control process unchecked: a robot is never sent a non-finite value.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import math
 from typing import Any
 
 import numpy as np
+
+from panda_py._checks import number
 
 __all__ = [
     "matrix6",
@@ -64,27 +67,16 @@ def nonnegative(name: str, value: Any, n: int, unit: str = "") -> list[float]:
 
 
 def scalar(name: str, value: Any, unit: str = "") -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{name}: expected a number {unit}, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{name}: expected a finite number {unit}, got {v}")
-    return v
+    return number(name, value, unit)
 
 
 def nonnegative_scalar(name: str, value: Any, unit: str = "") -> float:
-    v = scalar(name, value, unit)
-    if v < 0.0:
-        raise ValueError(f"{name}: expected a number >= 0 {unit}, got {v}")
-    return v
+    return number(name, value, unit, low=0.0)
 
 
 def unit_interval(name: str, value: Any) -> float:
     """A filter coefficient: a number in (0, 1] (1: no filtering)."""
-    v = scalar(name, value)
-    if not 0.0 < v <= 1.0:
-        raise ValueError(f"{name}: expected a number in (0, 1], got {v}")
-    return v
+    return number(name, value, low=0.0, low_open=True, high=1.0)
 
 
 def quaternion(name: str, value: Any) -> list[float]:

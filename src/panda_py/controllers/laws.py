@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py.motion._rotation import from_matrix
+
 __all__ = [
     "DTAU_MAX_PER_TICK",
     "JointWalls",
@@ -50,25 +52,7 @@ def ema(filtered: FloatArray, target: FloatArray, alpha: float) -> None:
 
 def quat_from_matrix(O_T_EE: FloatArray) -> FloatArray:
     """Unit quaternion (x, y, z, w) of the rotation of a flat column-major transform."""
-    m = O_T_EE
-    r00, r10, r20 = m[0], m[1], m[2]
-    r01, r11, r21 = m[4], m[5], m[6]
-    r02, r12, r22 = m[8], m[9], m[10]
-    tr = r00 + r11 + r22
-    if tr > 0.0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = (r21 - r12) / s, (r02 - r20) / s, (r10 - r01) / s, 0.25 * s
-    elif r00 > r11 and r00 > r22:
-        s = 2.0 * math.sqrt(1.0 + r00 - r11 - r22)
-        q = 0.25 * s, (r01 + r10) / s, (r02 + r20) / s, (r21 - r12) / s
-    elif r11 > r22:
-        s = 2.0 * math.sqrt(1.0 + r11 - r00 - r22)
-        q = (r01 + r10) / s, 0.25 * s, (r12 + r21) / s, (r02 - r20) / s
-    else:
-        s = 2.0 * math.sqrt(1.0 + r22 - r00 - r11)
-        q = (r02 + r20) / s, (r12 + r21) / s, 0.25 * s, (r10 - r01) / s
-    out = np.array(q)
-    return out / math.sqrt(float(out @ out))
+    return from_matrix(O_T_EE.reshape(4, 4, order="F"))
 
 
 def slerp(q0: FloatArray, q1: FloatArray, t: float) -> FloatArray:

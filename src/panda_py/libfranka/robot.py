@@ -90,13 +90,7 @@ class Robot(NamedControlMixin):
         robot: str | RobotKind | RobotSpec | None = None,
         timeout: float = REQUEST_TIMEOUT,
     ) -> None:
-        try:
-            config = RealtimeConfig(realtime_config)
-        except ValueError:
-            raise ValueError(
-                f"realtime_config: expected RealtimeConfig.kEnforce or kIgnore, "
-                f"got {realtime_config!r}"
-            ) from None
+        config = RealtimeConfig.parse(realtime_config)
         if isinstance(log_size, bool) or not isinstance(log_size, int) or log_size < 0:
             raise ValueError(f"log_size: expected an int >= 0, got {log_size!r}")
         if version is not None and version not in fci.SUPPORTED_VERSIONS:

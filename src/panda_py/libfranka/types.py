@@ -54,6 +54,16 @@ class RealtimeConfig(enum.IntEnum):
     kEnforce = 0
     kIgnore = 1
 
+    @classmethod
+    def parse(cls, value: Any) -> RealtimeConfig:
+        """``value`` as a RealtimeConfig, or a ValueError naming the argument."""
+        try:
+            return cls(value)
+        except ValueError:
+            raise ValueError(
+                f"realtime_config: expected RealtimeConfig.kEnforce or kIgnore, got {value!r}"
+            ) from None
+
 
 class Frame(enum.IntEnum):
     """Frames of :class:`~panda_py.libfranka.Model` (libfranka's ``franka::Frame``)."""

@@ -57,6 +57,12 @@ PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
 LIMIT_RATE = True  # libfranka's defaults for robot.control(), as panda-py uses them
 CUTOFF_FREQUENCY = 100.0  # [Hz]
+# what Panda.get_robot() may run on the robot (between ticks)
+ROBOT_METHODS = frozenset({
+    "set_collision_behavior", "set_joint_impedance", "set_cartesian_impedance",
+    "set_guiding_mode", "set_k", "set_ee", "set_load", "set_filters",
+    "automatic_error_recovery", "stop", "read_once", "server_version", "get_robot_model",
+})  # fmt: skip
 
 
 def limits_spec_for_version(server_version: int) -> str:
@@ -149,9 +155,7 @@ class ControlServer:
     def _warm_up(self, state: RobotState) -> None:
         """Run every law once (results discarded) so nothing compiles or loads mid-loop."""
         assert self.model is not None and self.walls is not None
-        warm = getattr(kinematics, "warmup", None)
-        if warm is not None:
-            warm()
+        kinematics.warmup()
         from panda_py.controllers import _builtin
 
         for cls in (
@@ -288,23 +292,8 @@ class ControlServer:
 
     def _req_robot(self, method: str, args: tuple, kwargs: dict, *, fds: list[int],
                    running: bool) -> Any:  # fmt: skip
-        allowed = {
-            "set_collision_behavior",
-            "set_joint_impedance",
-            "set_cartesian_impedance",
-            "set_guiding_mode",
-            "set_k",
-            "set_ee",
-            "set_load",
-            "set_filters",
-            "automatic_error_recovery",
-            "stop",
-            "read_once",
-            "server_version",
-            "get_robot_model",
-        }
-        if method not in allowed:
-            raise ValueError(f"method: expected one of {sorted(allowed)}, got {method!r}")
+        if method not in ROBOT_METHODS:
+            raise ValueError(f"method: expected one of {sorted(ROBOT_METHODS)}, got {method!r}")
         if method == "read_once":
             self._not_running(running, "read_once")
             return self._fresh_state()
