@@ -144,3 +144,17 @@ def test_no_robot_at_the_address() -> None:
     with pytest.raises(NetworkException):
         panda_py.Panda(free_loopback_host())
     assert time.monotonic() - start < 10.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"realtime_config": 7}, "realtime_config"),
+        ({"name": 3}, "name"),
+        ({"hostname": ""}, "hostname"),
+    ],
+)
+def test_bad_constructor_arguments_start_no_process(kwargs: dict, match: str) -> None:
+    args = {"hostname": "127.0.0.1", **kwargs}
+    with pytest.raises(ValueError, match=match):
+        panda_py.Panda(**args)
