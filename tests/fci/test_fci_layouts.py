@@ -429,5 +429,5 @@ def test_all_is_honest() -> None:
     for name in fci.__all__:
         assert hasattr(fci, name), name
     public = {n for n in dir(fci) if not n.startswith("_")}
-    modules = {"codec", "enums", "gripper", "layouts", "robot", "vacuum", "annotations"}
+    modules = {"codec", "enums", "gripper", "layouts", "move", "robot", "vacuum", "annotations"}
     assert public - modules == set(fci.__all__)

@@ -2,6 +2,7 @@
 
 * robot protocol versions 3-10 (libfranka 0.4.0-0.21.x): :func:`dialect` gives the
   version's command ids, status numbering, UDP state/command dtypes and TCP payload codecs;
+* the Move request and v10's asynchronous motion generator in :mod:`panda_py.fci.move`;
 * gripper protocol v3 (TCP 1338) in :mod:`panda_py.fci.gripper`;
 * vacuum gripper protocol v1 (TCP 1339) in :mod:`panda_py.fci.vacuum`.
 
@@ -65,6 +66,13 @@ from .gripper import (
     encode_gripper_message,
     encode_gripper_state,
 )
+from .move import (
+    ASYNC_GOAL_TOLERANCE,
+    ASYNC_REACHED_VELOCITY,
+    MoveRequest,
+    TargetStatus,
+    target_status,
+)
 from .robot import (
     COLLISION_THRESHOLD_FIELDS,
     COMMAND_PORT,
@@ -90,6 +98,8 @@ from .robot import (
 )
 
 __all__ = [
+    "ASYNC_GOAL_TOLERANCE",
+    "ASYNC_REACHED_VELOCITY",
     "COLLISION_THRESHOLD_FIELDS",
     "COMMAND_PORT",
     "CONNECT_REQUEST",
@@ -137,12 +147,14 @@ __all__ = [
     "MotionGeneratorMode",
     "MoveControllerMode",
     "MoveMotionGeneratorMode",
+    "MoveRequest",
     "MoveStatus",
     "PayloadCodec",
     "ProtocolError",
     "RobotMessageReader",
     "RobotMode",
     "StopMoveStatus",
+    "TargetStatus",
     "decode_connect_request",
     "decode_connect_response",
     "decode_gripper_connect_request",
@@ -159,4 +171,5 @@ __all__ = [
     "encode_gripper_state",
     "encode_message",
     "state_float_fields",
+    "target_status",
 ]

@@ -16,6 +16,7 @@ from panda_py.libfranka._realtime import (
     has_realtime_kernel,
     set_current_thread_to_highest_priority,
 )
+from panda_py.libfranka.async_control import AsyncPositionControlHandler, TargetStatus
 from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
@@ -72,6 +73,7 @@ MAX_TORQUE_RATE = RateLimits.for_robot("fer").max_torque_rate.tolist()
 __all__ = [
     "MAX_TORQUE_RATE",
     "ActiveControl",
+    "AsyncPositionControlHandler",
     "CartesianPose",
     "CartesianVelocities",
     "CommandException",
@@ -97,6 +99,7 @@ __all__ = [
     "Robot",
     "RobotMode",
     "RobotState",
+    "TargetStatus",
     "Torques",
     "VacuumGripper",
     "VacuumGripperDeviceStatus",

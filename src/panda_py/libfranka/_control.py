@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import gc
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from panda_py.fci import MoveControllerMode, MoveMotionGeneratorMode
@@ -14,6 +14,7 @@ from panda_py.libfranka._commander import Commander, check_cutoff
 from panda_py.libfranka._motion import MotionSession
 from panda_py.libfranka._realtime import check_realtime, realtime_scope
 from panda_py.libfranka._warm import rehearsal
+from panda_py.libfranka.async_control import check_maximum_velocities
 from panda_py.libfranka.commands import (
     CartesianPose,
     CartesianVelocities,
@@ -68,11 +69,14 @@ class ControlMixin(RobotBase):
     """``Robot``'s control methods."""
 
     def _start(
-        self, controller: MoveControllerMode, generator: MoveMotionGeneratorMode
+        self,
+        controller: MoveControllerMode,
+        generator: MoveMotionGeneratorMode,
+        maximum_velocity: tuple[float, ...] | None = None,
     ) -> MotionSession:
         if self._session is not None and not self._session.done:
             raise InvalidOperationException("libfranka: Attempted to start multiple motions!")
-        session = MotionSession(self._conn, controller, generator, self._log)
+        session = MotionSession(self._conn, controller, generator, self._log, maximum_velocity)
         self._session = session
         return session
 
@@ -255,6 +259,26 @@ class ControlMixin(RobotBase):
     ) -> ActiveControl:
         """Start a joint velocity generator driven by the caller."""
         return self._start_active(JointVelocities, controller_mode, limit_rate, cutoff_frequency)
+
+    def start_async_joint_position_control(
+        self,
+        controller_mode: ControllerMode = ControllerMode.kJointImpedance,
+        maximum_velocities: Sequence[float] | None = None,
+    ) -> ActiveControl:
+        """Start protocol v10's asynchronous joint position control (libfranka's
+        ``startAsyncJointPositionControl``): each ``writeOnce(JointPositions)`` is a target
+        the robot's own generator moves to at up to ``maximum_velocities`` [rad/s] (7, each
+        > 0 and within the robot's limit; required, as in libfranka). Use it through
+        :class:`~panda_py.libfranka.AsyncPositionControlHandler`."""
+        velocity = check_maximum_velocities(self._limits.spec, maximum_velocities)
+        check_realtime(self._realtime_config)
+        controller, generator, has_mg = self._plan(JointPositions, False, controller_mode)
+        commander = Commander(self._conn.dialect, self._limits, False, 1000.0)
+        session = self._start(controller, generator, velocity)
+        session.caller_driven = True
+        return ActiveControl(
+            self, session, commander, commander.joint_positions, control=False, motion=has_mg
+        )
 
     def start_cartesian_pose_control(
         self,

@@ -11,12 +11,12 @@ import numpy as np
 
 from panda_py import fci
 from panda_py.fci import (
-    DEFAULT_DEVIATION,
     Command,
     ControllerMode,
     MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
+    MoveRequest,
     MoveStatus,
     RobotMode,
 )
@@ -66,7 +66,10 @@ class MotionSession:
         controller: MoveControllerMode,
         generator: MoveMotionGeneratorMode,
         log: deque[RobotState],
+        maximum_velocity: tuple[float, ...] | None = None,
     ) -> None:
+        """``maximum_velocity`` [rad/s] makes it protocol v10's asynchronous motion (the
+        robot's own generator moves to the targets the commands carry)."""
         if motion_running(_header(conn)):
             raise InvalidOperationException("libfranka: Attempted to start multiple motions!")
         self.conn = conn
@@ -78,15 +81,11 @@ class MotionSession:
         self.expect_mg = int(_STATE_MG[generator])
         self.expect_ctrl = int(controller)
         d = conn.dialect
-        fields: dict[str, Any] = {
-            "controller_mode": int(controller),
-            "motion_generator_mode": int(generator),
-            "maximum_path_deviation": np.array(DEFAULT_DEVIATION),
-            "maximum_goal_pose_deviation": np.array(DEFAULT_DEVIATION),
-        }
-        if d.has_async_motion_generator:
-            fields["use_async_motion_generator"] = False
-            fields["maximum_velocity"] = np.zeros(7)
+        request = MoveRequest(controller, generator, maximum_velocity=maximum_velocity)
+        try:
+            fields = request.fields(d)
+        except ValueError as exc:  # asynchronous on a robot older than v10
+            raise InvalidOperationException(f"libfranka: {exc}") from None
         self.move_id = conn.send_request(Command.MOVE, **fields)
         status, _ = conn.response(Command.MOVE, self.move_id)
         if status != MoveStatus.MOTION_STARTED:

@@ -126,6 +126,7 @@ class FciSession(ServerState):
             deviations,
             has_none=conn.dialect.has_motion_generator_none,
             use_async=bool(f.get("use_async_motion_generator", False)),
+            maximum_velocity=f.get("maximum_velocity"),
         )
         self._reply(conn, command, cid, status)
         if status == MoveStatus.MOTION_STARTED:
@@ -238,8 +239,9 @@ class FciSession(ServerState):
             if self.drop_commands > 0:
                 self.drop_commands -= 1
                 continue
-            if mid < conn.last_sent_id:
+            if mid < conn.last_sent_id and self.core.async_gen is None:
                 continue  # late: answers a state older than the newest one sent
+            # (an asynchronous motion's commands are targets, whatever state they answer)
             conn.command = wire.accept(mid)
 
     def _send_state(self, conn: RobotConnection) -> None:
@@ -258,7 +260,8 @@ class FciSession(ServerState):
         conn.last_sent_id = mid
         # libfranka answers states only once its control loop runs: it skips the state that
         # first shows the motion's modes. Await commands (lockstep) once one has arrived.
-        conn.awaiting = moving and not core.first_command
+        # An asynchronous motion's client sends targets at its own rate: nothing awaited.
+        conn.awaiting = moving and not core.first_command and core.async_gen is None
 
     def _spin_for_command(self, conn: RobotConnection) -> None:
         """Lockstep: poll the command socket for up to ``lockstep_spin`` (the client's

@@ -28,6 +28,7 @@ from panda_py.fci import (
 )
 from panda_py.kinematics import get_kinematics
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
+from panda_py.sim.async_motion import AsyncJointGenerator, async_refusal
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
     START_CARTESIAN_TOLERANCE,
@@ -141,6 +142,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.success_i = 0
         self.success_rate = 0.0
         self.pending_final: MoveStatus | None = None
+        self.async_gen: AsyncJointGenerator | None = None  # v10 robot-side generator
         self.finger_force = 0.0  # [N] set by the gripper each tick
         for name in CONTACT_FIELDS:
             self.state[name][:] = 0.0
@@ -160,6 +162,7 @@ class RobotCore(RobotSettings, StateAssembly):
         *,
         has_none: bool,
         use_async: bool = False,
+        maximum_velocity: np.ndarray | None = None,
     ) -> MoveStatus:
         """Handle a Move request; MOTION_STARTED means the motion runs from the next tick."""
         if self.robot_mode != RobotMode.IDLE:
@@ -183,8 +186,10 @@ class RobotCore(RobotSettings, StateAssembly):
             log.warning("Move rejected: maximum deviations %s out of range", dev.tolist())
             return MoveStatus.INVALID_ARGUMENT_REJECTED
         if use_async:
-            log.warning("Move rejected: the robot-side async motion generator is not simulated")
-            return MoveStatus.COMMAND_NOT_POSSIBLE_REJECTED
+            refusal = async_refusal(ctrl, mg, maximum_velocity)
+            if refusal:
+                log.warning("async Move rejected: %s", refusal)
+                return MoveStatus.INVALID_ARGUMENT_REJECTED
         q = self.physics.q.copy()
         self.robot_mode = RobotMode.MOVE
         self.mg_mode = fci.STATE_GENERATOR_OF_MOVE[mg]
@@ -201,6 +206,10 @@ class RobotCore(RobotSettings, StateAssembly):
         self.delbow_c[:] = 0.0
         self.ddelbow_c[:] = 0.0
         self.tau_J_d[:] = 0.0
+        self.async_gen = None
+        if use_async:
+            assert maximum_velocity is not None
+            self.async_gen = AsyncJointGenerator(self.spec, q, maximum_velocity)
         return MoveStatus.MOTION_STARTED
 
     def request_stop_move(self) -> StopMoveStatus:
@@ -284,6 +293,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.joint.reset(self.q_hold)
         self.tau_J_d[:] = 0.0
         self.pending_final = status
+        self.async_gen = None
 
     def tick(self, command: Command | None, *, excused: bool = False) -> None:
         """Advance one tick. ``command`` is the client's answer to the last state (None
@@ -306,9 +316,11 @@ class RobotCore(RobotSettings, StateAssembly):
 
     def _motion_tick(self, command: Command | None, excused: bool = False) -> np.ndarray:
         ph = self.physics
-        if command is None and self.first_command:
+        if self.async_gen is not None:
+            self._async_tick(command)
+        elif command is None and self.first_command:
             return self._hold_torque()  # the client's loop has not started yet
-        if command is None and excused:
+        elif command is None and excused:
             self._extrapolate()
         elif command is None:
             self.consecutive_lost += 1
@@ -433,6 +445,31 @@ class RobotCore(RobotSettings, StateAssembly):
             self._end_motion(MoveStatus.SUCCESS)
             return MoveStatus.SUCCESS
         return None
+
+    def _async_tick(self, c: Command | None) -> None:
+        """One tick of the robot-side generator: a received command is the newest target
+        (or, finished, the order to come to rest); the generator moves either way."""
+        gen = self.async_gen
+        assert gen is not None
+        if c is not None:
+            self.consecutive_lost = 0
+            self.received_total += 1
+            self._record_success(True)
+            self.first_command = False
+            if c.motion_generation_finished:
+                gen.stop()  # libfranka's stopControl sends zeros: not a target
+            elif not all_finite(c.q_c):
+                log.warning("motion aborted: non-finite target in command %d", c.message_id)
+                self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
+                return
+            else:
+                gen.set_target(np.asarray(c.q_c, dtype=float))
+        self.joint.push_position(gen.step())
+        flags = self.joint.violations(self.spec, cartesian=False)
+        if flags:  # the generator keeps the limits; this is the robot's own check
+            self._reflex(flags)
+        elif gen.stopping and gen.at_rest:
+            self._end_motion(MoveStatus.SUCCESS)
 
     def _accept_cartesian(self, c: Command) -> list[str]:
         flags: list[str] = []

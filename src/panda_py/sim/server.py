@@ -118,6 +118,7 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
                     self.config.lockstep
                     and conn is not None
                     and self.core.robot_mode == RobotMode.MOVE
+                    and self.core.async_gen is None  # its generator runs on the clock
                 )
                 now = time.monotonic()
                 if waiting and conn is not None and conn.command is None and conn.awaiting:
