@@ -11,7 +11,9 @@ Arm bodies do not collide with each other.
 
 Names (stable, used by the simulator and tests): joints ``joint1..joint7``,
 ``finger_joint1``/``finger_joint2``; bodies ``link0..link7``, ``hand``, ``left_finger``,
-``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geom ``table``.
+``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geoms ``table``, ``left_pad``,
+``right_pad``, ``cube_geom``; the fingers' tendon ``finger_width`` (their opening) and its
+actuator ``finger_motor`` (the force the fingers squeeze with, positive opens).
 """
 
 from __future__ import annotations
