@@ -71,8 +71,8 @@ def _inertial(mass: float, com: tuple[float, ...], inertia: tuple[float, ...]) -
 
 # The fingers' closed and open stops are hard: the stiffest constraint MuJoCo keeps stable
 # at 1 ms (time constant 2 steps, MuJoCo's "refsafe" floor; impedance 0.9999 once 0.1 mm
-# in), so 140 N on closed fingers sinks them < 1 um past their stop, where the default
-# (0.02 s, 0.95) let 60 N push them 5 mm through each other. The coupling of the two
+# in), so 140 N on closed fingers pushes them 0.04 mm each past their stop, where the
+# default (0.02 s, 0.95) let 60 N push them 5 mm through each other. The coupling of the two
 # fingers (one motor, a rack) is as stiff.
 _HARD = 'solref="0.002 1" solimp="0.99 0.9999 0.0001"'
 _STOP = 'solreflimit="0.002 1" solimplimit="0.99 0.9999 0.0001"'
