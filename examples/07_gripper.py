@@ -31,8 +31,8 @@ if __name__ == "__main__":
         panda.move_to_start()
         panda.move_to_pose(tcp_at(ABOVE))
         panda.move_to_pose(tcp_at(AT_CUBE))
-        # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 40 N
-        grasped = gripper.grasp(WIDTH, speed=0.05, force=40.0, epsilon_inner=0.005,
+        # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 20 N
+        grasped = gripper.grasp(WIDTH, speed=0.05, force=20.0, epsilon_inner=0.005,
                                 epsilon_outer=0.005)  # fmt: skip
         print(f"grasped: {grasped}")
         lifted = panda.move_to_pose(tcp_at(ABOVE))

@@ -32,10 +32,13 @@ from panda_py import constants, libfranka
 CUBE_POSITION = np.array([0.5, 0.0, 0.02])  # [m] its centre, in the robot's base frame
 CUBE_SIZE = 0.04  # [m] edge length
 HOVER = 0.15  # [m] approach height above the grasp
-# [m] the TCP this far above the cube's centre: the finger pads hold most of its side, so
-# it stays in the hand through the paper's fast moves (at its top edge it slipped out)
+# [m] the TCP this far above the cube's centre: the finger pads hold most of its side
 GRASP_HEIGHT = 0.005
-GRASP_FORCE = 60.0  # [N]
+GRASP_FORCE = 30.0  # [N]
+# [m] the cube is let go this far above where it was grasped: pressed onto the table by a
+# stiff arm through a firm grasp, a cube that slipped a millimetre would stop the arm with
+# a reflex
+RELEASE_HEIGHT = 0.003
 BAR_WIDTH = 30  # characters
 
 
@@ -219,7 +222,7 @@ def run(
     above = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, HOVER]))
     at_cube = _tcp_at(CUBE_POSITION + np.array([0.0, 0.0, GRASP_HEIGHT]))
 
-    print("1. Pick up the cube, lift it, put it back")
+    print("1. Pick up the cube")
     steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
     gripper.move(0.08, 0.1)
     steps.to_pose("above the cube", above)
@@ -230,13 +233,8 @@ def run(
     steps.to_pose("lift", above)
     if cube is not None:
         print(f"  the cube is {(cube()[2] - CUBE_POSITION[2]) * 100:.1f} cm above the table")
-    # Set down before the paper's moves: panda-sim's soft contacts let a held cube slide
-    # out of the fingers within some seconds.
-    steps.to_pose("down to the table", at_cube)
-    gripper.move(0.08, 0.1)
-    steps.to_pose("retreat", above)
 
-    print("2. The paper's two paths, logged (its code block 5)")
+    print("2. The paper's two paths, logged (its code block 5), the cube in the hand")
     T_0 = panda_py.fk(constants.JOINT_POSITION_START)
     T_0[1, 3] = 0.25
     T_1 = T_0.copy()
@@ -251,6 +249,16 @@ def run(
     steps.to_joints("move_to_joint_position(ik(T_1)), logged", panda_py.ik(T_1))
     panda.disable_logging()
     joint_log = panda.get_log()
+    if cube is not None:
+        height = (cube()[2] - CUBE_POSITION[2]) * 100
+        print(f"  the cube, still in the hand, is {height:.1f} cm above the table")
+
+    print("3. Put the cube back")
+    steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
+    steps.to_pose("above the cube", above)
+    steps.to_pose("down to the table", _tcp_at(at_cube[:3, 3] + [0.0, 0.0, RELEASE_HEIGHT]))
+    gripper.move(0.08, 0.1)
+    steps.to_pose("retreat", above)
     steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
     pose_xy = np.array(log["O_T_EE"])[:, 12:14]
     joint_xy = np.array(joint_log["O_T_EE"])[:, 12:14]

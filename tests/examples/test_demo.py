@@ -73,10 +73,12 @@ def test_demo_picks_the_cube_draws_the_paths_and_writes_the_figure(demo_run) -> 
     done, figure = demo_run
     assert done.returncode == 0, done.stdout + done.stderr
     out = done.stdout
-    for step in ("1. Pick up the cube", "grasped", "2. The paper's two paths"):
+    for step in ("1. Pick up the cube", "grasped", "2. The paper's two paths", "3. Put the cube"):
         assert step in out
-    assert out.count("100%") == 11  # every motion arrived
+    assert out.count("100%") == 13  # every motion arrived
     assert number_in(r"the cube is ([\d.]+) cm above the table", out) > 10.0  # lifted
+    # held through the paper's moves (it slid out of the simulated fingers once)
+    assert number_in(r"still in the hand, is ([\d.]+) cm above the table", out) > 30.0
     straight = float(re.search(r"at most ([\d.]+) mm from the straight line", out)[1])
     curve = float(re.search(r"up to ([\d.]+) mm away from it", out)[1])
     assert straight < 2.0 and curve > 10.0

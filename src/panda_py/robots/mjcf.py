@@ -11,7 +11,9 @@ Arm bodies do not collide with each other.
 
 Names (stable, used by the simulator and tests): joints ``joint1..joint7``,
 ``finger_joint1``/``finger_joint2``; bodies ``link0..link7``, ``hand``, ``left_finger``,
-``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geom ``table``.
+``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geoms ``table``, ``left_pad``,
+``right_pad``, ``cube_geom``; the fingers' tendon ``finger_width`` (their opening) and its
+actuator ``finger_motor`` (the force the fingers squeeze with, positive opens).
 """
 
 from __future__ import annotations
@@ -67,12 +69,32 @@ def _inertial(mass: float, com: tuple[float, ...], inertia: tuple[float, ...]) -
     return f'<inertial pos="{_vec(com)}" mass="{_f(mass)}" fullinertia="{_vec(inertia)}"/>'
 
 
+# The fingers' closed and open stops are hard: the stiffest constraint MuJoCo keeps stable
+# at 1 ms (time constant 2 steps, MuJoCo's "refsafe" floor; impedance 0.9999 once 0.1 mm
+# in), so 140 N on closed fingers pushes them 0.04 mm each past their stop, where the
+# default (0.02 s, 0.95) let 60 N push them 5 mm through each other. The coupling of the two
+# fingers (one motor, a rack) is as stiff.
+_HARD = 'solref="0.002 1" solimp="0.99 0.9999 0.0001"'
+_STOP = 'solreflimit="0.002 1" solimplimit="0.99 0.9999 0.0001"'
+# The pads' contacts: rubber on a stiff object, as hard as the stops (a soft contact let
+# the pads sink 1.6 mm each into the cube, and MuJoCo's friction is soft by the same
+# impedance: its creep speed falls with 1 - d, so a held cube slid out within seconds).
+# priority: the pad's friction and contact dimensions decide its contacts, whatever the
+# object's; condim 4 adds torsional friction about the pad's normal (a patch, not a
+# point), so an object held by one contact point cannot spin in the fingers. Measured
+# with the scene's cube (lift, move_to_start, 10 cm moves, 30 s): it stays within 1 mm of
+# the hand at 2-140 N, slides 14 mm at 0.6 N and drops at 0.3 N (friction 2 x 0.3 N <
+# its weight); condim 6 holds no better and costs more.
+_PAD = f'priority="1" condim="4" {_HARD}'
+
+
 def _hand_xml() -> str:
     h = FRANKA_HAND
     half = h.max_width / 2
     rot = h.tcp_rotz
     quat = (math.cos(rot / 2), 0.0, 0.0, math.sin(rot / 2))
     pad = _vec(_PAD_HALF)
+    friction = _vec(h.pad_friction)
     finger_inertia = _vec((1e-6, 1e-6, 1e-6, 0, 0, 0))
     return f"""
         <body name="hand" pos="0 0 0" gravcomp="1">
@@ -85,22 +107,37 @@ def _hand_xml() -> str:
               <inertial pos="0 0.01 {_f(_PAD_CENTER_Z)}" mass="{_f(h.finger_mass)}"
                         fullinertia="{finger_inertia}"/>
               <joint name="finger_joint1" type="slide" axis="0 1 0" range="0 {_f(half)}"
-                     damping="2" armature="0.1"/>
+                     damping="2" armature="0.1" {_STOP}/>
               <geom name="left_pad" type="box" size="{pad}" {_ROBOT}
-                    pos="0 {_f(_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="1.5 0.01 0.001"
-                    condim="4" rgba="0.2 0.2 0.2 1"/>
+                    pos="0 {_f(_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="{friction}"
+                    {_PAD} rgba="0.2 0.2 0.2 1"/>
             </body>
             <body name="right_finger" gravcomp="1">
               <inertial pos="0 -0.01 {_f(_PAD_CENTER_Z)}" mass="{_f(h.finger_mass)}"
                         fullinertia="{finger_inertia}"/>
               <joint name="finger_joint2" type="slide" axis="0 -1 0" range="0 {_f(half)}"
-                     damping="2" armature="0.1"/>
+                     damping="2" armature="0.1" {_STOP}/>
               <geom name="right_pad" type="box" size="{pad}" {_ROBOT}
-                    pos="0 {_f(-_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="1.5 0.01 0.001"
-                    condim="4" rgba="0.2 0.2 0.2 1"/>
+                    pos="0 {_f(-_PAD_HALF[1])} {_f(_PAD_CENTER_Z)}" friction="{friction}"
+                    {_PAD} rgba="0.2 0.2 0.2 1"/>
             </body>
           </body>
         </body>"""
+
+
+def _hand_actuation() -> str:
+    """The fingers' coupling and motor: one motor drives both fingers (a rack), pushing
+    each with the motor's force, so the force on the ``finger_width`` tendon (the width,
+    q1 + q2) is the force the fingers squeeze an object with (positive opens)."""
+    return f"""
+  <tendon>
+    <fixed name="finger_width">
+      <joint joint="finger_joint1" coef="1"/>
+      <joint joint="finger_joint2" coef="1"/>
+    </fixed>
+  </tendon>
+  <equality><joint joint1="finger_joint1" joint2="finger_joint2" {_HARD}/></equality>
+  <actuator><motor name="finger_motor" tendon="finger_width"/></actuator>"""
 
 
 def _arm_xml(spec: RobotSpec, hand: bool) -> str:
@@ -189,12 +226,7 @@ def model_xml(
     if extra is not None:
         extra_bodies, assets = _extra_worldbody(extra)
         world += extra_bodies
-    actuator = ""
-    equality = ""
-    if hand:
-        # The hand's fingers are coupled mechanically: one motor, the other finger follows.
-        equality = '<equality><joint joint1="finger_joint1" joint2="finger_joint2"/></equality>'
-        actuator = '<actuator><motor name="finger_motor" joint="finger_joint1"/></actuator>'
+    hand_actuation = _hand_actuation() if hand else ""
     return f"""<mujoco model="{spec.name}">
   <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>
   <option timestep="0.001" integrator="implicitfast" gravity="0 0 -9.81"/>
@@ -204,8 +236,7 @@ def model_xml(
     {_arm_xml(spec, hand)}
     {world}
   </worldbody>
-  {equality}
-  {actuator}
+  {hand_actuation}
 </mujoco>
 """
 

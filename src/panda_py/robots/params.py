@@ -92,6 +92,9 @@ class HandSpec:
     max_speed: float  # [m/s]
     max_force: float  # [N] continuous grasp force
     peak_force: float  # [N] the most a grasp may command
+    # the fingertips' rubber pads: sliding friction coefficient, torsional friction about
+    # the pad's normal [m] and rolling friction [m] (MuJoCo's three friction values)
+    pad_friction: tuple[float, float, float]
 
 
 @dataclass(frozen=True)
@@ -152,6 +155,12 @@ FRANKA_HAND = HandSpec(
     max_speed=0.1,  # [m/s] libfranka Gripper::move documentation (max 0.1 m/s)
     max_force=70.0,  # [N] Franka Hand data sheet: 70 N continuous, 140 N peak
     peak_force=140.0,  # [N] Franka Hand data sheet
+    # Rubber pads on the fingertips: sliding friction ~1 (rubber on dry wood, plastic or
+    # metal: 0.6-1.2, engineering tables), torsional friction of a ~2 cm patch under
+    # uniform pressure (2/3 of its radius times the coefficient: 2/3 * 0.01 m * 1), rolling
+    # friction MuJoCo's default (the pads' contacts do not use it). A judgement: Franka
+    # publishes no friction values for the pads.
+    pad_friction=(1.0, 0.0067, 0.0001),
 )
 
 _TAU_MAX = _t7(87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)  # [Nm] FCI docs, both robots

@@ -19,13 +19,19 @@ from panda_py.sim.physics import DT, Physics
 
 log = logging.getLogger("panda_py.sim")
 
-_KP = 3000.0  # [N/m] finger position gain (per finger, on half the width)
-_KD = 60.0  # [N s/m]
+# The motor's force acts on the width (the model's finger_width tendon): each finger
+# pushes with it, so it is the force an object between the fingers is squeezed with.
+_KP = 750.0  # [N/m] width position gain
+_KD = 15.0  # [N s/m]
 _STALL_SPEED = 0.002  # [m/s] below this the fingers count as stopped
 _STALL_TICKS = 60  # [ticks] stopped this long (after moving) ends a grasp
 _GOAL_TOLERANCE = 0.001  # [m] a move has arrived within this
 _MOVE_TIMEOUT = 1.0  # [s] after its profile ended, a blocked move gives up
 _MAX_FORCE = FRANKA_HAND.peak_force  # [N]
+# [N/s] how fast a grasp's force builds up once the fingers are blocked (70 N in 35 ms):
+# a step of the full force on fingers at rest would throw them into their stop (or the
+# object) within a tick, faster than any contact could answer
+_FORCE_RATE = 2000.0
 _TEMPERATURE = 31  # [deg C] reported hand temperature
 
 
@@ -58,7 +64,10 @@ class GripperCore:
 
     @property
     def width(self) -> float:
-        return self.physics.gripper_width()
+        """The fingers' opening [m] as the hand measures it: its motor's position, which the
+        mechanical stops keep within [0, max_width] (the physics' stops yield by < 0.1 mm
+        under the peak force; that does not reach the encoder reading)."""
+        return min(max(self.physics.gripper_width(), 0.0), self.max_width)
 
     @property
     def is_grasped(self) -> bool:
@@ -144,7 +153,8 @@ class GripperCore:
         a = self.action
         if a is None:
             if self.grasp is not None:
-                self.force = -self.grasp.force / 2  # keep squeezing (each finger half)
+                # keep squeezing, the force ramping up to the grasp's
+                self.force = max(-self.grasp.force, min(0.0, self.force) - _FORCE_RATE * DT)
             else:
                 self.force = self._servo(self.hold_width, 0.0, w, v, _MAX_FORCE)
             return
@@ -154,7 +164,7 @@ class GripperCore:
         along = min(travel, a.speed * a.t)
         target = a.start + direction * along
         target_v = direction * a.speed if along < travel else 0.0
-        limit = a.force / 2 if a.kind == "grasp" else _MAX_FORCE
+        limit = a.force if a.kind == "grasp" else _MAX_FORCE
         self.force = self._servo(target, target_v, w, v, limit)
         moving = abs(v) >= _STALL_SPEED
         a.stalled = 0 if moving else a.stalled + 1
@@ -185,6 +195,6 @@ class GripperCore:
 
     @staticmethod
     def _servo(target: float, target_v: float, w: float, v: float, limit: float) -> float:
-        """Force on one finger driving the width to ``target`` [m] (each finger = w/2)."""
-        f = _KP * (target - w) / 2 + _KD * (target_v - v) / 2
+        """The motor's force driving the width to ``target`` [m]."""
+        f = _KP * (target - w) + _KD * (target_v - v)
         return max(-limit, min(limit, f))
