@@ -193,3 +193,68 @@ def test_a_changed_certificate_is_refused_then_repinned(tmp_path: Path, tokens: 
         again = desk(sim2, tokens, repin=True)
         assert again.has_control() and again.token != first
         assert desk(sim2, tokens).has_control()  # pinned anew: accepted from now on
+
+
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_a_safety_error_ends_a_running_motion(
+    robot: str, tokens: str, request: pytest.FixtureRequest
+) -> None:
+    """A robot's safety error closes the brakes: the running motion ends there (libfranka's
+    ControlException, the arm held), not when the client gives up."""
+    sim: Simulator = request.getfixturevalue(robot)
+    fresh(sim)
+    d = desk(sim, tokens)
+    d.unlock()
+    d.activate_fci()
+    assert sim.desk is not None
+    ticks = 0
+
+    def loop(state: lf.RobotState, dt: lf.Duration) -> lf.Torques:
+        nonlocal ticks
+        ticks += 1
+        if ticks == 50:
+            sim.desk.inject_safety_error()  # type: ignore[union-attr]
+        if ticks > 2000:  # the motion would run on: finish so the test fails, not hangs
+            return lf.MotionFinished(lf.Torques(np.zeros(7)))
+        return lf.Torques(np.zeros(7))
+
+    with lf.Robot(sim.host) as robot_:
+        version = robot_.server_version()
+        with pytest.raises(lf.ControlException) as info:
+            robot_.control(loop)
+        assert 50 <= ticks < 100
+    # libfranka's MoveStatus from v6 on has a code for it; older robots abort
+    expected = "kPreemptedDueToActivatedSafetyFunctions" if version >= 6 else "kAborted"
+    assert info.value.status is not None and info.value.status.value == expected
+    # the FCI went off with the safety error: nobody connects until it is active again
+    with pytest.raises(lf.NetworkException):
+        lf.Robot(sim.host)
+    with pytest.raises(DeskHTTPError):
+        d.unlock()  # not before the safety error is confirmed
+    fresh(sim)  # power-cycled, as a person would recover here
+    d = desk(sim, tokens)
+    d.unlock()
+    d.activate_fci()
+    with lf.Robot(sim.host) as robot_:
+        assert robot_.read_once().robot_mode == lf.RobotMode.kIdle
+    d.release_control()
+
+
+def test_deactivating_the_fci_drops_the_connected_client(fer: Simulator, tokens: str) -> None:
+    fresh(fer)
+    d = desk(fer, tokens)
+    d.unlock()
+    d.activate_fci()
+    with lf.Robot(fer.host) as robot:
+        robot.read_once()
+        d.deactivate_fci()
+        with pytest.raises(lf.NetworkException):
+            for _ in range(100):  # the loop closes it on its next tick
+                robot.read_once()
+                time.sleep(0.01)
+    with pytest.raises(lf.NetworkException):
+        lf.Robot(fer.host)
+    d.activate_fci()
+    with lf.Robot(fer.host) as robot:
+        assert robot.read_once().robot_mode == lf.RobotMode.kIdle
+    d.release_control()

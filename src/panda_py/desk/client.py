@@ -26,6 +26,7 @@ from panda_py.desk.errors import (
     TakeControlTimeoutError,
 )
 from panda_py.desk.store import Token, TokenStore
+from panda_py.desk.tls_stream import shared_tls
 from panda_py.desk.transport import (
     DEFAULT_TIMEOUT,
     HTTPSTransport,
@@ -437,7 +438,7 @@ class Desk:
             # ws:// over a socket that is already TLS, its certificate checked against the pin.
             return connect(
                 f"ws://{self._hostname}{PILOT_EVENTS_PATH}",
-                sock=sock,
+                sock=shared_tls(sock),  # websockets reads and writes from two threads
                 additional_headers=headers,
                 open_timeout=self.timeout,
                 proxy=None,

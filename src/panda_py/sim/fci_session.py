@@ -23,7 +23,7 @@ from panda_py.fci import (
 )
 from panda_py.sim.config import DATAGRAMS_PER_PASS, LATE_THRESHOLD
 from panda_py.sim.connections import RobotConnection
-from panda_py.sim.desk.link import may_start_move
+from panda_py.sim.desk.link import accept_fci_connect, may_start_move
 from panda_py.sim.parts import ServerState
 from panda_py.sim.wire import CommandWire, StateWire
 
@@ -133,6 +133,33 @@ class FciSession(ServerState):
             conn.move_id = cid
             conn.awaiting = False
             conn.command = None
+
+    def _follow_desk(self) -> None:
+        """The Desk's switches act on a running session as on a robot: brakes that close
+        (a lock, a safety error) end a running motion, and an FCI switched off ends the
+        motion and, a tick later (once a state has told the client), closes the FCI
+        connection. Two loads a tick; the gripper's server is not the FCI's and keeps its client."""
+        desk, conn, core = self.desk, self.robot_conn, self.core
+        if desk is None:
+            return
+        fci_on = accept_fci_connect(desk)
+        if core.robot_mode == RobotMode.MOVE and not (fci_on and may_start_move(desk)):
+            version = conn.dialect.version if conn is not None and conn.dialect else 0
+            # v6 added the status for "preempted due to activated safety functions"
+            # (libfranka's MoveStatus); older robots answer a plain abort.
+            status = (
+                MoveStatus.PREEMPTED_DUE_TO_ACTIVATED_SAFETY_FUNCTIONS
+                if version >= 6
+                else MoveStatus.ABORTED
+            )
+            log.warning("motion stopped by an activated safety function (%s)", status.value)
+            core.safety_stop(status)
+            if conn is not None and core.pending_final is not None:
+                self._send_move_final(conn, core.pending_final)
+            return  # this tick's state shows the motion ended; the client reads why first
+        if conn is not None and not fci_on:
+            log.warning("the FCI was deactivated: closing the connection from %s:%d", *conn.addr)
+            self._close_conn(conn)
 
     def _send_move_final(self, conn: RobotConnection, status: MoveStatus) -> None:
         self.core.pending_final = None

@@ -261,6 +261,12 @@ class RobotCore(RobotSettings, StateAssembly):
             self.q_hold = self.physics.q.copy()
             self.joint.reset(self.q_hold)
 
+    def safety_stop(self, status: MoveStatus) -> None:
+        """An activated safety function (the brakes closing, the FCI switched off in Desk)
+        ends a running motion with ``status``; the arm holds where it is."""
+        if self.robot_mode == RobotMode.MOVE:
+            self._end_motion(status)
+
     def client_lost(self) -> None:
         """The FCI client vanished: a running motion stops as on a real robot."""
         if self.robot_mode == RobotMode.MOVE:

@@ -203,6 +203,8 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
                     self.stats.commands_excused += 1
                 else:
                     self.stats.commands_lost += 1
+        self._follow_desk()
+        conn = self.robot_conn  # the Desk may have closed it
         self.gripper.tick()
         self.core.finger_force = self.gripper.force
         moving = self.core.robot_mode == RobotMode.MOVE
