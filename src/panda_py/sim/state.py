@@ -188,8 +188,15 @@ class StateAssembly:
                 s[name][:] = 0.0
             return
         self.contact_active = True
-        tau = self.tau_ext
-        s["tau_ext_hat_filtered"][:] = tau
+        # libfranka's robot_state.h: tau_ext_hat_filtered is "the error between tau_J and
+        # the expected torques given by the robot model", and O_F_ext_hat_K / K_F_ext_hat_K
+        # are the external wrench with "forces applied by the robot to the environment
+        # positive, forces applied by the environment on the robot negative". self.tau_ext
+        # is what the contacts exert on the arm (the part of tau_J the model does not
+        # expect, with the opposite sign), so both publish its opposite: an arm pressing
+        # down on the table reads O_F_ext_hat_K[2] < 0 (franky's FORCE_Z < -5 reaction).
+        tau = s["tau_ext_hat_filtered"]
+        np.negative(self.tau_ext, out=tau)
         s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom
         s["joint_collision"][:] = np.abs(tau) > t.upper_torque_nom
         # Wrench at K that explains tau_ext: least squares on tau = J_K^T F.
