@@ -143,6 +143,7 @@ def _hand_actuation() -> str:
 def _arm_xml(spec: RobotSpec, hand: bool) -> str:
     dh = spec.dh
     lim = spec.joints
+    drv = spec.drives
     # Open the nested bodies link1..link7; each body frame is the DH frame J_i, so the
     # fixed part of the DH step (RotX(alpha) TransX(a) TransZ(d)) is the body's pose in
     # its parent and RotZ(q) is the hinge about the body's own z axis.
@@ -161,7 +162,8 @@ def _arm_xml(spec: RobotSpec, hand: bool) -> str:
             f'<body name="link{i + 1}" pos="{_vec(pos)}" quat="{_vec(quat)}" gravcomp="1">'
             f"{_inertial(link.mass, link.com, link.inertia)}"
             f'<joint name="joint{i + 1}" axis="0 0 1"'
-            f' range="{_f(lim.q_min[i])} {_f(lim.q_max[i])}"/>'
+            f' range="{_f(lim.q_min[i])} {_f(lim.q_max[i])}"'
+            f' armature="{_f(drv.armature[i])}" damping="{_f(drv.viscous[i])}"/>'
             f"{geoms}"
         )
     inner = f'<site name="flange" pos="0 0 {_f(dh.flange_d)}" size="0.005"/>'

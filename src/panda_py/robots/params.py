@@ -98,6 +98,23 @@ class HandSpec:
 
 
 @dataclass(frozen=True)
+class JointDrives:
+    """What the joints' drives add to the links' rigid-body dynamics: the reflected rotor
+    inertia (``armature``) and the joint friction, viscous and Coulomb. The simulated plant
+    has them; the robot's own model does not (libfranka's ``Model.mass``, the URDF and
+    the model library hold the links' inertias only, as on a real robot), so our
+    ``dynamics`` and ``libfranka.Model`` leave them out too."""
+
+    armature: Vec7  # [kg m^2] reflected rotor inertia, added to the mass matrix's diagonal
+    viscous: Vec7  # [Nm s/rad]
+    # [Nm] identified, not yet in the simulated plant: as a MuJoCo friction constraint it
+    # left the robot's own motion generators (and our torque-controlled moves) a
+    # millimetre short, so it waits for the robot-side friction compensation that a
+    # real robot's joint controllers have.
+    coulomb: Vec7
+
+
+@dataclass(frozen=True)
 class RobotSpec:
     """Everything the library knows about one kind of arm."""
 
@@ -110,6 +127,7 @@ class RobotSpec:
     elbow_flip_q: float  # [rad] q_elbow-flip of the control parameters page
     default_K_theta: Vec7  # [Nm/rad] joint impedance after power-up
     default_K_x: tuple[float, float, float, float, float, float]  # [N/m, Nm/rad]
+    drives: JointDrives  # the simulated plant's armature and friction
 
 
 def _t7(*values: float) -> Vec7:
@@ -222,6 +240,28 @@ _ELBOW_FLIP_Q = -0.467002423653011
 _DEFAULT_K_THETA = _t7(3000.0, 3000.0, 3000.0, 2500.0, 2500.0, 2000.0, 2000.0)
 _DEFAULT_K_X = (3000.0, 3000.0, 3000.0, 300.0, 300.0, 300.0)
 
+# The FR3's drives, identified in torque control: MuJoCo Menagerie's franka_fr3/fr3.xml
+# (google-deepmind/mujoco_menagerie, "update armature, damping, friction parameters,
+# identified in torque control", 2025-04-25): armature 0.195 kg m^2 on joints 1-4 and
+# 0.074 on 5-7, viscous 0.21 Nm s/rad, Coulomb 1.137 Nm on joints 1-4, then 0.763, 0.44,
+# 0.248 Nm. Without them joint 7's inertia at the start pose is 0.0067 kg m^2, and
+# pylibfranka's joint impedance example (damping 2 sqrt(k) at 1 ms) diverges on the wrist.
+_FR3_DRIVES = JointDrives(
+    armature=_t7(0.195, 0.195, 0.195, 0.195, 0.074, 0.074, 0.074),
+    viscous=_t7(0.21, 0.21, 0.21, 0.21, 0.21, 0.21, 0.21),
+    coulomb=_t7(1.137, 1.137, 1.137, 1.137, 0.763, 0.44, 0.248),
+)
+# The FER's Coulomb friction from the same identification as its link parameters above
+# (Gaz et al., RA-L 2019): their sigmoid model phi1 / (1 + exp(-phi2 (dq + phi3))) - const
+# saturates at about phi1 / 2 either way, phi1 = 0.54615, 0.87224, 0.64068, 1.2794,
+# 0.83904, 0.30301, 0.56489 Nm. Its rotor inertia and viscous friction are not published:
+# the FR3's identified values stand in for them (the same family of drives).
+_FER_DRIVES = JointDrives(
+    armature=_FR3_DRIVES.armature,
+    viscous=_FR3_DRIVES.viscous,
+    coulomb=_t7(0.273, 0.436, 0.320, 0.640, 0.420, 0.152, 0.282),
+)
+
 FER = RobotSpec(
     kind=RobotKind.FER,
     name="fer",
@@ -232,6 +272,7 @@ FER = RobotSpec(
     elbow_flip_q=_ELBOW_FLIP_Q,
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
+    drives=_FER_DRIVES,
 )
 
 # The FR3 carries the same published link inertial parameters: Franka publishes no
@@ -246,6 +287,7 @@ FR3 = RobotSpec(
     elbow_flip_q=_ELBOW_FLIP_Q,
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
+    drives=_FR3_DRIVES,
 )
 
 FR3_PRE_5_9 = RobotSpec(
@@ -258,6 +300,7 @@ FR3_PRE_5_9 = RobotSpec(
     elbow_flip_q=_ELBOW_FLIP_Q,
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
+    drives=_FR3_DRIVES,
 )
 
 ROBOTS: dict[str, RobotSpec] = {

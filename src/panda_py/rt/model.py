@@ -36,6 +36,7 @@ class ControlModel(Model):
         self._mass: tuple[Any, FloatArray] | None = None
         self._arm_key: tuple[Any, ...] | None = None
         self._arm_cached: dynamics.LoadedArm | None = None
+        self._rotors = np.diag(self.spec.drives.armature)
 
     def _kinematics(self, F_T_EE: FloatArray) -> Any:
         key = F_T_EE.tobytes()
@@ -80,6 +81,13 @@ class ControlModel(Model):
         M = self._arm(state).mass_matrix(state.q.tolist())
         self._mass = (state, M)
         return M
+
+    def driven_mass_of(self, state: Any) -> FloatArray:
+        """The inertia the joint torques accelerate (7, 7) [kg m^2]: the links'
+        (:meth:`mass_of`, libfranka's model) plus the drives' reflected rotor inertia
+        (``robots.params.JointDrives``), which libfranka's model leaves out; a move's
+        inertial feed-forward needs both."""
+        return self.mass_of(state) + self._rotors
 
     def gravity_of(self, state: Any) -> FloatArray:
         """Gravity torques (7,) [Nm] with the state's total load."""

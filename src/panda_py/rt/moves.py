@@ -82,7 +82,7 @@ class JointMove:
         if self.t > self.duration:
             self.integral += self.dt * (self.goal - state.q)
             tau += SETTLE_INTEGRAL * self.K * self.integral
-        return tau + model.mass_of(state) @ self.ddq[k] + model.coriolis_of(state)
+        return tau + model.driven_mass_of(state) @ self.ddq[k] + model.coriolis_of(state)
 
     def finished(self, state: Any) -> bool:
         over = self.t - self.duration
@@ -152,7 +152,7 @@ class PoseMove:
         if self._J_prev is not None and self.dt > 0.0:
             a = a - ((J - self._J_prev) @ dq) / self.dt
         self._J_prev = J
-        tau += model.mass_of(state) @ laws.damped_pinv(J) @ a
+        tau += model.driven_mass_of(state) @ laws.damped_pinv(J) @ a
         kn = self.kn
         tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
         return tau + model.coriolis_of(state)

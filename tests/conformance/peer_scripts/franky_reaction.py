@@ -22,7 +22,7 @@ from franky import (
 from peer_io import Scenarios, floats
 
 robot = Robot(sys.argv[1], realtime_config=RealtimeConfig.Ignore)
-robot.relative_dynamics_factor = 0.02
+robot.relative_dynamics_factor = 0.01
 # The simulated contact is stiffer than a robot's (the impact's first millisecond reads tens
 # of newtons): thresholds high enough that the reaction, not the reflex, ends the motion.
 robot.set_collision_behavior(100.0, 100.0)
