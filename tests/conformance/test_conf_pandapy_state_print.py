@@ -13,7 +13,9 @@ from panda_py import libfranka
 from panda_py.sim import Simulator, free_loopback_host
 
 pytestmark = [pytest.mark.peer, pytest.mark.timeout(PEER_TEST_TIMEOUT)]
-PRINT = "import sys; from panda_py import libfranka; print(libfranka.Robot(sys.argv[1]).read_once())"
+PRINT = (
+    "import sys; from panda_py import libfranka; print(libfranka.Robot(sys.argv[1]).read_once())"
+)
 
 
 def _untimed(text: str) -> str:
