@@ -267,6 +267,46 @@ class RobotState:
             f"q={np.round(self.q, 4).tolist()})"
         )
 
+    def __str__(self) -> str:
+        """Every field, as libfranka's ``operator<<`` prints a ``RobotState`` (and so
+        ``print(panda.get_state())`` in panda-python): ``{"O_T_EE": [1,0,...], ...,
+        "robot_mode": "Idle", "time": 106}``, numbers as C++ streams them (6 digits)."""
+        parts = []
+        for name in PRINTED_FIELDS:
+            try:
+                value = getattr(self, name)
+            except (AttributeError, KeyError):
+                continue  # a field this protocol version does not carry
+            parts.append(f'"{name}": {_streamed(value)}')
+        parts.append(f'"current_errors": {self.current_errors}')
+        parts.append(f'"last_motion_errors": {self.last_motion_errors}')
+        parts.append(
+            f'"control_command_success_rate": {_streamed(self.control_command_success_rate)}'
+        )
+        parts.append(f'"robot_mode": "{self.robot_mode.name[1:]}"')
+        parts.append(f'"time": {self.message_id}')
+        return "{" + ", ".join(parts) + "}"
+
+
+# The fields libfranka's operator<< prints, in its order (src/robot_state.cpp).
+PRINTED_FIELDS = (
+    "O_T_EE", "O_T_EE_d", "F_T_NE", "NE_T_EE", "F_T_EE", "EE_T_K", "m_ee", "F_x_Cee", "I_ee",
+    "m_load", "F_x_Cload", "I_load", "m_total", "F_x_Ctotal", "I_total", "elbow", "elbow_d",
+    "elbow_c", "delbow_c", "ddelbow_c", "tau_J", "tau_J_d", "dtau_J", "q", "dq", "q_d",
+    "dq_d", "ddq_d", "joint_contact", "cartesian_contact", "joint_collision",
+    "cartesian_collision", "tau_ext_hat_filtered", "O_F_ext_hat_K", "K_F_ext_hat_K",
+    "O_dP_EE_d", "O_ddP_O", "O_T_EE_c", "O_dP_EE_c", "O_ddP_EE_c", "theta", "dtheta",
+)  # fmt: skip
+
+
+def _streamed(value: Any) -> str:
+    """A number or an array as C++'s ``ostream`` writes doubles (``%g``, 6 digits),
+    arrays as ``[a,b,c]``."""
+    a = np.asarray(value, dtype=float)
+    if a.ndim == 0:
+        return f"{float(a):g}"
+    return "[" + ",".join(f"{x:g}" for x in a.ravel(order="F")) + "]"
+
 
 def _state_from_version(version: int, data: bytes) -> RobotState:
     from panda_py.fci import dialect
