@@ -55,7 +55,8 @@ def test_blocks_2_3_4_and_the_inline_examples(sim: Simulator, capsys) -> None:
         gripper.move(0.08, 0.2)
 
         out = capsys.readouterr().out
-        assert "RobotState(" in out and "Model(" in out
+        assert '"O_T_EE": [' in out and '"robot_mode": "Idle"' in out  # every field
+        assert "Model(" in out
         assert gripper.read_once().width == pytest.approx(0.08, abs=2e-3)
     finally:
         panda.close()
