@@ -458,7 +458,8 @@ def main() -> None:
     if libfranka_workload_available():
         lock_clients.append("panda_py.libfranka")
     for client in lock_clients:
-        run("lockstep", panda_sim(args.robot, True), client, lock_duration)
+        robot = "fer" if client == "fci-v5" else args.robot  # a FER's systems speak v5
+        run("lockstep", panda_sim(robot, True), client, lock_duration)
     if franky:
         run("free-run", franky_sim(free_running=True), "fci-v10", lock_duration)
 

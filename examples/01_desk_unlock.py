@@ -38,7 +38,7 @@ if __name__ == "__main__":
 
         panda = connect(hostname)
         panda.move_to_start()
-        print("at the start pose:", np.round(panda.q, 3))
+        print("at the start pose:", np.round(panda.q, 3) + 0.0)  # + 0.0: no "-0."
         panda.close()
         desk.lock()  # closes the brakes again
         desk.release_control()

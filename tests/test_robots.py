@@ -39,3 +39,19 @@ def test_fr3_position_based_velocity_limit_at_upper_limit_is_zero():
     upper, _ = position_based_velocity_limits(FR3, [0, 0, 0, -1.5, 0, 2.0, 0])
     assert upper[0] == pytest.approx(2.62)
     assert math.isclose(upper[5], min(4.18, -0.4878 + math.sqrt(2 * 5.5 * (4.6216 - 2.0))))
+
+
+def test_each_protocol_version_belongs_to_one_robot_system() -> None:
+    """libfranka's compatibility matrix: FER systems speak 3-5, FR3 systems before 5.9
+    speak 6-9, from 5.9 on 10; every version the client speaks belongs to exactly one."""
+    from panda_py import fci
+    from panda_py.robots import FER, FR3, FR3_PRE_5_9, robot_for_protocol
+
+    assert FER.protocol_versions == (3, 4, 5)
+    assert FR3_PRE_5_9.protocol_versions == (6, 7, 8, 9)
+    assert FR3.protocol_versions == (10,)
+    for version in fci.SUPPORTED_VERSIONS:
+        owners = [s for s in (FER, FR3_PRE_5_9, FR3) if version in s.protocol_versions]
+        assert owners == [robot_for_protocol(version)]
+    with pytest.raises(ValueError, match=r"version: expected an FCI protocol version in"):
+        robot_for_protocol(11)

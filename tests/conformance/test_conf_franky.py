@@ -21,7 +21,7 @@ Q_GOAL = [0.1, -0.7, 0.05, -2.3, 0.05, 1.6, 0.8]  # [rad]
 @pytest.fixture(scope="module")
 def run() -> dict[str, Any]:
     python = peer_or_skip("franky")
-    with Simulator(host=free_loopback_host(), robot="fer", lockstep=True, versions=(10,)) as sim:
+    with Simulator(host=free_loopback_host(), robot="fr3", lockstep=True, versions=(10,)) as sim:
         sim.set_joint_positions(START_POSE)
         q_initial = sim.state()["q"]
         result = run_peer(python, "franky_basic.py", [sim.host, json.dumps(Q_GOAL)], timeout=90)

@@ -53,7 +53,7 @@ def test_01_desk_unlock_then_connect(tmp_path: Path) -> None:
     env = {"PANDA_PY_DESK_DIR": str(tmp_path / "desk")}  # the token store, not the user's
     out = run_example("01", cwd=tmp_path, env=env)
     assert "brakes open, FCI active" in out
-    assert "at the start pose: [-0.    -0.785 -0.    -2.356  0.     1.571  0.785]" in out
+    assert "at the start pose: [ 0.    -0.785  0.    -2.356  0.     1.571  0.785]" in out
     assert "brakes locked, control released" in out
 
 

@@ -101,8 +101,8 @@ def test_configure_reports_what_it_cannot_start(robot, velocity, tolerance, why)
     assert robot.read_once().robot_mode == lf.RobotMode.kIdle  # nothing started
 
 
-def test_protocol_before_v10_has_no_asynchronous_generator(sim):
-    with lf.Robot(sim.host, version=9, robot="fr3") as robot:
+def test_protocol_before_v10_has_no_asynchronous_generator(sim_for_version):
+    with lf.Robot(sim_for_version(9).host, version=9, robot="fr3") as robot:
         result = H.configure(robot, H.Configuration(VELOCITY, None))
         assert result.handler is None
         assert "v10 or later, got v9" in result.error_message

@@ -9,22 +9,21 @@ import pytest
 from panda_py import fci
 from panda_py import libfranka as lf
 from panda_py.robots import START_POSE
-from panda_py.sim import Simulator, free_loopback_host
 
 pytestmark = pytest.mark.timeout(90)
 
 TICKS = 300  # [ms] of each motion
 
 
-@pytest.fixture(scope="module")
-def sim():
-    with Simulator(free_loopback_host(), robot="fer", lockstep=True) as s:
-        yield s
-
-
 @pytest.fixture(params=[5, 10])
-def robot(sim, request):
-    with lf.Robot(sim.host, version=request.param, robot="fer") as r:
+def sim(sim_for_version, request):
+    """A FER speaking v5 and an FR3 speaking v10."""
+    return sim_for_version(request.param)
+
+
+@pytest.fixture
+def robot(sim):
+    with lf.Robot(sim.host) as r:
         yield r
     with lf.Robot(sim.host) as cleanup:
         cleanup.automatic_error_recovery()
@@ -44,7 +43,8 @@ def _settle(robot: lf.Robot) -> lf.RobotState:
 
 
 @pytest.mark.parametrize("version", fci.SUPPORTED_VERSIONS)
-def test_torque_and_joint_position_loops_in_every_version(sim, version):
+def test_torque_and_joint_position_loops_in_every_version(sim_for_version, version):
+    sim = sim_for_version(version)
     with lf.Robot(sim.host, version=version) as robot:
         q0 = robot.read_once().q
         calls = []

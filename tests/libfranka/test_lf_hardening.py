@@ -39,7 +39,8 @@ def _spoof(robot: lf.Robot, source: str, message_id: int) -> None:
 
 
 @pytest.mark.parametrize("version", [5, 10])
-def test_spoofed_states_are_dropped_from_any_address_but_the_robots(sim, version):
+def test_spoofed_states_are_dropped_from_any_address_but_the_robots(sim_for_version, version):
+    sim = sim_for_version(version)
     with lf.Robot(sim.host, version=version) as robot:
         before = robot.read_once().time.to_msec()
         # from another address, and from the robot's own address but another port

@@ -8,13 +8,15 @@ import numpy as np
 import pytest
 
 from panda_py import libfranka as lf
+from panda_py.robots import robot_for_protocol
 from panda_py.sim import Simulator, free_loopback_host
 
 
 @pytest.mark.timeout(30)
 @pytest.mark.parametrize("version", [5, 10])
 def test_simulator_killed_mid_motion_raises_network_exception_within_1_s(version):
-    with Simulator(free_loopback_host(), robot="fer", lockstep=True) as sim:
+    robot_kind = robot_for_protocol(version).name
+    with Simulator(free_loopback_host(), robot=robot_kind, lockstep=True) as sim:
         robot = lf.Robot(sim.host, version=version)
         killed_at = [0.0]
         n = [0]

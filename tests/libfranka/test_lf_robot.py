@@ -21,13 +21,13 @@ STATE_SIZE = {5: 2373, 10: 1377}
 
 @pytest.fixture(scope="module")
 def sim():
-    with Simulator(free_loopback_host(), robot="fer", lockstep=True) as s:
+    with Simulator(free_loopback_host(), robot="fr3", lockstep=True) as s:
         yield s
 
 
 @pytest.fixture
 def robot(sim):
-    r = lf.Robot(sim.host, version=10, robot="fer")
+    r = lf.Robot(sim.host, version=10)
     yield r
     r.close()
     with lf.Robot(sim.host) as cleanup:  # leave the robot idle and error-free
@@ -92,7 +92,8 @@ def _capture(robot: lf.Robot) -> list[bytes]:
 
 
 @pytest.mark.parametrize("version", fci.SUPPORTED_VERSIONS)
-def test_every_state_field_decodes_to_what_the_simulator_sent(sim, version):
+def test_every_state_field_decodes_to_what_the_simulator_sent(sim_for_version, version):
+    sim = sim_for_version(version)
     with lf.Robot(sim.host, version=version) as robot:
         assert robot.server_version() == version
         robot.set_load(0.4, [0.01, -0.02, 0.05], np.diag([1e-3, 2e-3, 3e-3]))
@@ -160,8 +161,8 @@ def test_setters_are_visible_in_the_state(robot):
         robot.set_collision_behavior([1.0] * 7)
 
 
-def test_set_filters_exists_up_to_protocol_v5(sim):
-    with lf.Robot(sim.host, version=5) as robot:
+def test_set_filters_exists_up_to_protocol_v5(sim_for_version):
+    with lf.Robot(sim_for_version(5).host, version=5) as robot:
         robot.set_filters(1000, 1000, 1000, 1000, 1000)
 
 
@@ -279,10 +280,10 @@ def test_read_calls_back_until_false(robot):
 
 
 @pytest.mark.parametrize("version", [5, 10])
-def test_read_once_after_a_setter_shows_the_new_value(sim, version):
+def test_read_once_after_a_setter_shows_the_new_value(sim_for_version, version):
     """read_once discards queued states first (libfranka's readOnce), so a setter's effect
     is visible in the very next read_once, as panda-python sees it."""
-    with lf.Robot(sim.host, version=version) as robot:
+    with lf.Robot(sim_for_version(version).host, version=version) as robot:
         for mass in (0.25, 0.5, 0.0):
             robot.set_load(mass, [0.0, 0.0, 0.05], np.eye(3) * 1e-3)
             assert robot.read_once().m_load == pytest.approx(mass)

@@ -18,8 +18,8 @@ TAIL = ["current_errors", "last_motion_errors", "control_command_success_rate", 
 
 
 @pytest.mark.parametrize("version", [5, 10])
-def test_every_field_in_libfrankas_order_and_format(panda_sim, version: int) -> None:
-    with lf.Robot(panda_sim.host, version=version) as robot:
+def test_every_field_in_libfrankas_order_and_format(sim_for_version, version: int) -> None:
+    with lf.Robot(sim_for_version(version).host, version=version) as robot:
         state = robot.read_once()
     text = str(state)
     printed = json.loads(text)  # libfranka's format is JSON

@@ -24,14 +24,14 @@ pytestmark = pytest.mark.timeout(60)
 @pytest.fixture(scope="module")
 def sim6():
     """A robot that speaks protocol v6 only (libfranka 0.10-0.13.2)."""
-    with Simulator(free_loopback_host(), robot="fr3", lockstep=True, versions=(6,)) as s:
+    with Simulator(free_loopback_host(), "fr3-pre-5.9", lockstep=True, versions=(6,)) as s:
         yield s
 
 
 def test_a_robot_speaking_an_older_version_gets_that_version(sim6):
     with lf.Robot(sim6.host) as robot:  # offers v10, is told 6, reconnects with 6
         assert robot.server_version() == 6
-        assert robot.robot_spec.kind is RobotKind.FR3  # v6+ means an FR3 unless told
+        assert robot.robot_spec.kind is RobotKind.FR3_PRE_5_9  # v6-9: an FR3 before 5.9
         n = [0]
 
         def torque(state, dt):  # v6 has no "no generator": joint velocity with dq = 0

@@ -18,7 +18,7 @@ pytestmark = pytest.mark.timeout(120)
     ("robot", "version", "lower", "upper"),
     [
         ("fer", 5, constants.JOINT_LIMITS_LOWER, constants.JOINT_LIMITS_UPPER),
-        ("fr3", 8, constants.JOINT_LIMITS_LOWER_FR3, constants.JOINT_LIMITS_UPPER_FR3),
+        ("fr3-pre-5.9", 8, constants.JOINT_LIMITS_LOWER_FR3, constants.JOINT_LIMITS_UPPER_FR3),
         ("fr3", 10, constants.JOINT_LIMITS_LOWER_FR3_5_9, constants.JOINT_LIMITS_UPPER_FR3_5_9),
     ],
 )

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.timeout(120)
 
 @pytest.fixture(scope="module")
 def sim():
-    with Simulator(free_loopback_host(), robot="fer") as s:  # realtime
+    with Simulator(free_loopback_host(), robot="fr3") as s:  # realtime
         yield s
 
 

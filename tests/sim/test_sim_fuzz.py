@@ -95,7 +95,8 @@ def _still_serving(host: str) -> None:
 
 @FUZZ
 @given(version=st.sampled_from([5, 10]), connect=st.booleans(), data=_messages(_robot_message, 40))
-def test_fci_port_survives_any_stream(sim, version, connect, data):
+def test_fci_port_survives_any_stream(sim_for_version, version, connect, data):
+    sim = sim_for_version(version, connect_timeout=1.0)
     hello = fci.encode_connect_request(version, 9) if connect else None
     _exchange(sim.host, fci.COMMAND_PORT, hello, data)
     _still_serving(sim.host)
@@ -124,10 +125,11 @@ def test_gripper_port_survives_any_stream(sim, connect, data):
     ),
     right_size=st.lists(st.binary(min_size=64, max_size=64), max_size=3),
 )
-def test_udp_command_socket_survives_any_datagram(sim, version, datagrams, right_size):
+def test_udp_command_socket_survives_any_datagram(sim_for_version, version, datagrams, right_size):
     """Garbage and right-sized random commands from the client's own UDP socket during a
     joint position motion: the robot keeps streaming states and ends the motion (normally or by
     a reflex), and recovers."""
+    sim = sim_for_version(version, connect_timeout=1.0)
     c = RawClient(sim.host, version)
     try:
         _, status = c.move(

@@ -31,7 +31,7 @@ JP = MoveMotionGeneratorMode.JOINT_POSITION
 
 @pytest.fixture(scope="module")
 def sim():
-    with Simulator(free_loopback_host(), lockstep=True, lockstep_timeout=0.2) as s:
+    with Simulator(free_loopback_host(), "fr3", lockstep=True, lockstep_timeout=0.2) as s:
         yield s
 
 
@@ -48,8 +48,8 @@ def client(sim):
 
 
 @pytest.mark.parametrize("version", fci.SUPPORTED_VERSIONS)
-def test_every_version_connects_and_streams_its_layout(sim, version):
-    c = RawClient(sim.host, version)
+def test_every_version_connects_and_streams_its_layout(sim_for_version, version):
+    c = RawClient(sim_for_version(version).host, version)
     try:
         assert c.status == fci.ConnectStatus.SUCCESS and c.server_version == version
         s1 = c.state()
@@ -72,7 +72,7 @@ def test_every_version_connects_and_streams_its_layout(sim, version):
 
 
 def test_pinned_version_refuses_others_and_names_its_own():
-    with Simulator(free_loopback_host(), versions=(9,), lockstep=True) as sim:
+    with Simulator(free_loopback_host(), "fr3-pre-5.9", versions=(9,), lockstep=True) as sim:
         c = RawClient(sim.host, 10)
         assert c.status == fci.ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION
         assert c.server_version == 9
@@ -80,6 +80,33 @@ def test_pinned_version_refuses_others_and_names_its_own():
         c = RawClient(sim.host, 9)
         assert c.status == fci.ConnectStatus.SUCCESS
         c.close()
+
+
+@pytest.mark.parametrize(
+    ("robot", "spoken", "refused"),
+    [("fer", (3, 4, 5), (6, 10)), ("fr3-pre-5.9", (6, 7, 8, 9), (5, 10)), ("fr3", (10,), (5, 9))],
+)
+def test_each_robot_speaks_its_systems_versions(robot, spoken, refused):
+    """A FER's systems speak protocols 3-5, an FR3's 6-9 before system 5.9 and 10 from it
+    (libfranka's compatibility matrix): a client of another version is refused with the
+    robot's newest, as a robot answers it."""
+    with Simulator(free_loopback_host(), robot, lockstep=True) as sim:
+        for version in spoken:
+            c = RawClient(sim.host, version)
+            assert c.status == fci.ConnectStatus.SUCCESS and c.server_version == version
+            c.close()
+        for version in refused:
+            c = RawClient(sim.host, version)
+            assert c.status == fci.ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION
+            assert c.server_version == spoken[-1]
+            c.close()
+
+
+def test_a_version_the_robot_never_spoke_cannot_be_pinned():
+    with pytest.raises(ValueError, match=r"versions: expected a non-empty subset of \(3, 4, 5\)"):
+        Simulator(robot="fer", versions=(10,))
+    with pytest.raises(ValueError, match=r"subset of \(10,\)"):
+        Simulator(robot="fr3", versions=(5, 10))
 
 
 def run_joint_motion(c: RawClient, dq0: float, ticks: int) -> tuple[list[np.void], MoveStatus]:
@@ -116,7 +143,8 @@ def test_joint_position_motion_reaches_goal_and_echoes_desired(client, sim):
 
 
 @pytest.mark.parametrize("version", [5, 10])
-def test_torque_control_is_gravity_compensated(sim, version):
+def test_torque_control_is_gravity_compensated(sim_for_version, version):
+    sim = sim_for_version(version, lockstep_timeout=0.2)
     c = RawClient(sim.host, version)
     try:
         mg = (
@@ -147,7 +175,7 @@ def test_torque_control_is_gravity_compensated(sim, version):
         assert abs(s["q"][1] - q0[1]) < 0.005 and abs(s["q"][3] - q0[3]) < 0.005
     finally:
         c.close()
-        c2 = RawClient(sim.host, 10)
+        c2 = RawClient(sim.host, version)
         c2.close()
         sim.set_joint_positions(START_POSE)
 
@@ -259,14 +287,14 @@ def test_setter_during_motion_is_rejected(client):
     assert final == MoveStatus.PREEMPTED
 
 
-def test_robot_model_delivery(sim):
+def test_robot_model_delivery(sim, sim_for_version):
     c = RawClient(sim.host, 10)
     status, f = c.request(Command.GET_ROBOT_MODEL)
     c.close()
     assert status.name == "SUCCESS"
     urdf = f["urdf"].decode()
     assert "link8" in urdf and "position_based_velocity_limits" in urdf
-    c = RawClient(sim.host, 5)
+    c = RawClient(sim_for_version(5).host, 5)
     status, f = c.request(Command.LOAD_MODEL_LIBRARY, architecture=0, system=0)
     assert status == fci.LoadModelLibraryStatus.SUCCESS
     assert f["library"][:4] == b"\x7fELF"
@@ -306,7 +334,7 @@ def test_garbage_and_unknown_commands_keep_the_server_serving(sim):
     assert s.recv(100) == b""
     s.close()
     c.close()
-    c = RawClient(sim.host, 5)
+    c = RawClient(sim.host, 10)
     assert c.status == fci.ConnectStatus.SUCCESS
     c.close()
 
@@ -340,7 +368,7 @@ def test_lockstep_without_polling_loses_nothing():
     """``lockstep_spin=0`` (sleep on every answer) is slower, never lossy."""
     with pytest.raises(ValueError, match=r"lockstep_spin: expected 0\.\.0\.01 s"):
         Simulator(lockstep=True, lockstep_spin=-1e-6)
-    with Simulator(free_loopback_host(), lockstep=True, lockstep_spin=0.0) as s:
+    with Simulator(free_loopback_host(), "fr3", lockstep=True, lockstep_spin=0.0) as s:
         c = RawClient(s.host, 10)
         try:
             _, final = run_joint_motion(c, 0.05, 300)

@@ -16,7 +16,7 @@ REJECTED = "command rejected: invalid argument"
 
 @pytest.fixture(scope="module")
 def sim():
-    with Simulator(free_loopback_host(), robot="fer", lockstep=True) as s:
+    with Simulator(free_loopback_host(), robot="fr3", lockstep=True) as s:
         yield s
 
 

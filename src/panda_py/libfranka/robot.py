@@ -35,7 +35,7 @@ from panda_py.libfranka.limits import RateLimits
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
-from panda_py.robots.params import RobotKind, RobotSpec, get_robot
+from panda_py.robots.params import RobotKind, RobotSpec, get_robot, robot_for_protocol
 
 __all__ = ["Robot"]
 
@@ -103,7 +103,7 @@ class Robot(NamedControlMixin):
         self._session: MotionSession | None = None
         self._conn = self._negotiate(hostname, version, timeout)
         if spec is None:
-            spec = get_robot("fer" if self._conn.server_version <= 5 else "fr3")
+            spec = robot_for_protocol(self._conn.server_version)
         self._spec = spec
         self._limits = RateLimits.for_robot(spec)
 

@@ -16,6 +16,7 @@ from panda_py.robots.params import (
     RobotSpec,
     get_robot,
     position_based_velocity_limits,
+    robot_for_protocol,
 )
 
 __all__ = [
@@ -34,4 +35,5 @@ __all__ = [
     "RobotSpec",
     "get_robot",
     "position_based_velocity_limits",
+    "robot_for_protocol",
 ]

@@ -128,6 +128,9 @@ class RobotSpec:
     default_K_theta: Vec7  # [Nm/rad] joint impedance after power-up
     default_K_x: tuple[float, float, float, float, float, float]  # [N/m, Nm/rad]
     drives: JointDrives  # the simulated plant's armature and friction
+    # The FCI protocol versions its robot systems speak (a robot speaks one; a simulated
+    # robot accepts any of these). Source: libfranka's compatibility matrix.
+    protocol_versions: tuple[int, ...]
 
 
 def _t7(*values: float) -> Vec7:
@@ -262,6 +265,14 @@ _FER_DRIVES = JointDrives(
     coulomb=_t7(0.273, 0.436, 0.320, 0.640, 0.420, 0.152, 0.282),
 )
 
+# Which FCI protocol each robot system speaks. Source: libfranka docs/compatibility_matrix.rst
+# (robot/gripper server versions): FER systems 3.0-4.1 speak 3 and 4, 4.2.x speaks 5 (the
+# FER's last); FR3 systems 5.2-5.7 speak 6-9; 5.9 and later speak 10 (with the wider joint
+# limits above).
+_FER_PROTOCOLS = (3, 4, 5)
+_FR3_PRE_5_9_PROTOCOLS = (6, 7, 8, 9)
+_FR3_PROTOCOLS = (10,)
+
 FER = RobotSpec(
     kind=RobotKind.FER,
     name="fer",
@@ -273,6 +284,7 @@ FER = RobotSpec(
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
     drives=_FER_DRIVES,
+    protocol_versions=_FER_PROTOCOLS,
 )
 
 # The FR3 carries the same published link inertial parameters: Franka publishes no
@@ -288,6 +300,7 @@ FR3 = RobotSpec(
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
     drives=_FR3_DRIVES,
+    protocol_versions=_FR3_PROTOCOLS,
 )
 
 FR3_PRE_5_9 = RobotSpec(
@@ -301,6 +314,7 @@ FR3_PRE_5_9 = RobotSpec(
     default_K_theta=_DEFAULT_K_THETA,
     default_K_x=_DEFAULT_K_X,
     drives=_FR3_DRIVES,
+    protocol_versions=_FR3_PRE_5_9_PROTOCOLS,
 )
 
 ROBOTS: dict[str, RobotSpec] = {
@@ -329,6 +343,16 @@ def get_robot(robot: str | RobotKind | RobotSpec = "fer") -> RobotSpec:
     if spec is None:
         raise ValueError(f"robot: expected one of {sorted(ROBOTS)}, got {robot!r}")
     return spec
+
+
+def robot_for_protocol(version: int) -> RobotSpec:
+    """The robot whose systems speak FCI protocol ``version`` (as panda-py picks its joint
+    limits): 3-5 the FER, 6-9 an FR3 before system 5.9, 10 an FR3 on 5.9 or later."""
+    for spec in (FER, FR3_PRE_5_9, FR3):
+        if version in spec.protocol_versions:
+            return spec
+    known = sorted({v for spec in ROBOTS.values() for v in spec.protocol_versions})
+    raise ValueError(f"version: expected an FCI protocol version in {known}, got {version!r}")
 
 
 def position_based_velocity_limits(spec: RobotSpec, q: object) -> tuple[list[float], list[float]]:

@@ -45,7 +45,7 @@ from panda_py.libfranka import (
 )
 from panda_py.libfranka._realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.types import RealtimeConfig
-from panda_py.robots.params import get_robot
+from panda_py.robots.params import get_robot, robot_for_protocol
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.model import ControlModel
 from panda_py.rt.moves import JointMove, MoveResult, PoseMove
@@ -68,9 +68,7 @@ ROBOT_METHODS = frozenset({
 def limits_spec_for_version(server_version: int) -> str:
     """Whose joint limits apply, from the robot's protocol version (as panda-py):
     <= 5 FER; 6-9 FR3 before robot system 5.9; >= 10 FR3 with 5.9's wider limits."""
-    if server_version <= 5:
-        return "fer"
-    return "fr3-pre-5.9" if server_version < 10 else "fr3"
+    return robot_for_protocol(server_version).name
 
 
 def _transferable(exc: BaseException, where: str) -> BaseException:

@@ -53,8 +53,8 @@ def _parser() -> argparse.ArgumentParser:
         dest="versions",
         choices=fci.SUPPORTED_VERSIONS,
         metavar="N",
-        help="accept only this FCI protocol version (repeatable; default: any of "
-        f"{', '.join(map(str, fci.SUPPORTED_VERSIONS))})",
+        help="accept only this FCI protocol version (repeatable; default: those the robot's "
+        "systems speak: fer 3-5, fr3 10, fr3-pre-5.9 6-9)",
     )
     p.add_argument("--no-scene", action="store_true", help="no table and cube")
     p.add_argument("--scene", metavar="MJCF", help="add the bodies of this MJCF file")

@@ -28,7 +28,8 @@ class SimConfig:
     # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never).
     # A sleeping simulator wakes on cold caches: its next tick takes about twice as long.
     lockstep_spin: float = 300e-6
-    versions: tuple[int, ...] | None = None  # accept only these protocol versions
+    # Accept only these protocol versions (None: every version the robot's systems speak).
+    versions: tuple[int, ...] | None = None
     robot_port: int = fci.COMMAND_PORT
     gripper_port: int = fci.GRIPPER_COMMAND_PORT
     scene: bool = True
@@ -39,14 +40,19 @@ class SimConfig:
     # would hold the robot from every other client).
     connect_timeout: float = 5.0
 
+    @property
+    def accepted_versions(self) -> tuple[int, ...]:
+        """The protocol versions this robot answers Connect with success."""
+        return self.versions or get_robot(self.robot).protocol_versions
+
     def __post_init__(self) -> None:
-        get_robot(self.robot)  # validates the name
+        spoken = get_robot(self.robot).protocol_versions  # validates the name too
         if self.versions is not None:
-            bad = [v for v in self.versions if v not in fci.SUPPORTED_VERSIONS]
+            bad = [v for v in self.versions if v not in spoken]
             if bad or not self.versions:
                 raise ValueError(
-                    f"versions: expected a non-empty subset of {fci.SUPPORTED_VERSIONS}, "
-                    f"got {self.versions}"
+                    f"versions: expected a non-empty subset of {spoken} (the protocol "
+                    f"versions a {self.robot!r}'s robot systems speak), got {self.versions}"
                 )
         if not self.lockstep_timeout > 0:
             raise ValueError(f"lockstep_timeout: expected > 0 s, got {self.lockstep_timeout}")

@@ -76,11 +76,10 @@ class FciSession(ServerState):
         """Whether the robot takes a client speaking protocol ``version``: the one place
         where a Connect is accepted or refused -> (status, the version to answer with).
         (A second client never gets here: it hears ROBOT_BUSY from the sockets part.)"""
-        accepted = self.config.versions or fci.SUPPORTED_VERSIONS
+        accepted = self.config.accepted_versions
         if version not in accepted:
             log.warning("client speaks protocol v%d; this robot speaks %s", version, list(accepted))
-            answer = self.config.versions[-1] if self.config.versions else fci.NEWEST_VERSION
-            return ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION, answer
+            return ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION, accepted[-1]
         return ConnectStatus.SUCCESS, version
 
     def _handle_connect(self, conn: RobotConnection, msg: fci.Message) -> None:

@@ -100,7 +100,7 @@ class Sockets(ServerState):
             return
         cid = messages[0].command_id
         if isinstance(conn, RobotConnection):
-            version = self.config.versions[-1] if self.config.versions else fci.NEWEST_VERSION
+            version = self.config.accepted_versions[-1]
             answer = fci.encode_connect_response(cid, ConnectStatus.ROBOT_BUSY, version)
         else:
             answer = fci.encode_gripper_connect_response(cid, fci.GripperConnectStatus.ROBOT_BUSY)
