@@ -222,7 +222,9 @@ class Simulator:
 
     def state(self) -> dict[str, Any]:
         """The robot's current state: libfranka's field names (transforms as column-major
-        16-vectors), modes, error flags, and ``gripper_width``, ``cube_position``."""
+        16-vectors), modes, error flags, ``cube_position`` and ``end_effector``; with the
+        hand ``gripper_width``, ``gripper_is_grasped``; with the Cobot Pump ``vacuum``
+        [mbar], ``vacuum_sealed`` and ``vacuum_held`` (the name of the body it holds)."""
         return dict(self._request("state"))
 
     def q(self) -> np.ndarray:

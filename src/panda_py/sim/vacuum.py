@@ -202,12 +202,15 @@ class VacuumCore:
         """The body the cup is sealed on (-1 for one it cannot hold, e.g. the table's),
         or None if the cup is open."""
         m, d = self.physics.model, self.physics.data
+        if d.ncon == 0:
+            return None
+        touching = np.flatnonzero((d.contact.geom == self._cup).any(axis=1))
+        if touching.size == 0:  # most ticks: look no further
+            return None
         axis = d.xmat[self._pump].reshape(3, 3)[:, 2]
-        for i in range(d.ncon):
+        for i in touching.tolist():
             c = d.contact[i]
             g1, g2 = int(c.geom1), int(c.geom2)
-            if self._cup not in (g1, g2):
-                continue
             other = g2 if g1 == self._cup else g1
             if self._robot_geom[other]:
                 continue
