@@ -130,7 +130,7 @@ class VacuumSession(ServerState):
         rec["part_present"] = pump.part_present
         rec["device_status"] = int(vp.VacuumDeviceStatus.GREEN)
         rec["actual_power"] = pump.actual_power
-        rec["vacuum"] = round(pump.vacuum)
+        rec["vacuum"] = int(pump.vacuum)  # whole mbar, as the pump reads it
         try:
             conn.udp.sendto(vp.encode_vacuum_state(rec), conn.udp_target)
         except OSError:
