@@ -25,14 +25,26 @@ ANSWERS = {
 
 
 class _FakePump:
-    """Connect, one state datagram, then answers Vacuum/DropOff/Stop with fixed statuses."""
+    """Connect, a state datagram every 10 ms, and answers to Vacuum/DropOff/Stop with
+    fixed statuses."""
 
     def __init__(self) -> None:
         self.host = free_loopback_host()
         self.listener = socket.create_server((self.host, vp.VACUUM_COMMAND_PORT))
         self.requests: list[tuple[vp.VacuumCommand, dict]] = []
+        self.done = threading.Event()
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
+
+    def _stream(self, udp: socket.socket, to: tuple[str, int]) -> None:
+        state = np.zeros((), vp.VACUUM_STATE_DTYPE)
+        state["message_id"], state["part_present"] = 7, True
+        state["device_status"], state["vacuum"] = 1, 750
+        while not self.done.wait(0.01):
+            try:
+                udp.sendto(vp.encode_vacuum_state(state), to)
+            except OSError:
+                return
 
     def _serve(self) -> None:
         conn, addr = self.listener.accept()
@@ -50,10 +62,9 @@ class _FakePump:
                         assert version == vp.VACUUM_VERSION
                         conn.sendall(fci.encode_gripper_connect_response(
                             cid, fci.GripperConnectStatus.SUCCESS, version=1))  # fmt: skip
-                        state = np.zeros((), vp.VACUUM_STATE_DTYPE)
-                        state["message_id"], state["part_present"] = 7, True
-                        state["device_status"], state["vacuum"] = 1, 750
-                        udp.sendto(vp.encode_vacuum_state(state), (addr[0], port))
+                        threading.Thread(
+                            target=self._stream, args=(udp, (addr[0], port)), daemon=True
+                        ).start()
                         continue
                     command = vp.VacuumCommand(msg.command)
                     self.requests.append((command, vp.VACUUM_REQUESTS[command].decode(msg.payload)))
@@ -61,6 +72,7 @@ class _FakePump:
                     conn.sendall(vp.encode_vacuum_message(command, msg.command_id, payload))
 
     def close(self) -> None:
+        self.done.set()
         self.listener.close()
 
 
@@ -90,6 +102,56 @@ def test_vacuum_gripper_commands_state_and_statuses(pump):
     )
     assert pump.requests[1] == (vp.VacuumCommand.DROP_OFF, {"timeout": 200})
     assert len(pump.requests) == 3  # the bad setpoint was never sent
+
+
+class _StreamingPump:
+    """Connect, then a state every 10 ms, numbered 1, 2, ... (``sent``: how many went out,
+    counted after each send)."""
+
+    def __init__(self) -> None:
+        self.host = free_loopback_host()
+        self.listener = socket.create_server((self.host, vp.VACUUM_COMMAND_PORT))
+        self.sent = 0
+        self.three_sent = threading.Event()
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._serve, daemon=True)
+        self.thread.start()
+
+    def _serve(self) -> None:
+        conn, addr = self.listener.accept()
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.bind((self.host, 0))
+        with conn, udp:
+            msg = fci.GripperMessageReader().feed(conn.recv(64))[0]
+            cid, _, port = fci.decode_gripper_connect_request(msg.raw)
+            conn.sendall(fci.encode_gripper_connect_response(
+                cid, fci.GripperConnectStatus.SUCCESS, version=1))  # fmt: skip
+            state = np.zeros((), vp.VACUUM_STATE_DTYPE)
+            while not self.done.wait(0.01):
+                state["message_id"] = self.sent + 1
+                udp.sendto(vp.encode_vacuum_state(state), (addr[0], port))
+                self.sent += 1
+                if self.sent == 3:
+                    self.three_sent.set()
+
+    def close(self) -> None:
+        self.done.set()
+        self.listener.close()
+
+
+def test_read_once_waits_for_a_state_sent_after_the_call():
+    """libfranka's readOnce "waits for a vacuum gripper state update": the states queued
+    before the call are not it."""
+    pump = _StreamingPump()
+    try:
+        with lf.VacuumGripper(pump.host) as g:
+            assert pump.three_sent.wait(5)
+            before = pump.sent  # these are queued (loopback delivers as it sends)
+            state = g.read_once()
+            assert state.time.to_msec() > before
+            assert g.readOnce().time.to_msec() > state.time.to_msec()
+    finally:
+        pump.close()
 
 
 @pytest.mark.parametrize("cls", [lf.Gripper, lf.VacuumGripper])

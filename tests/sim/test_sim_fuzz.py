@@ -1,5 +1,6 @@
-"""Property-based fuzzing of the simulator's three inputs: the FCI port (TCP 1337), the
-gripper port (TCP 1338) and the robot's UDP command socket. Whatever arrives, the
+"""Property-based fuzzing of the simulator's inputs: the FCI port (TCP 1337), the
+gripper port (TCP 1338), the Cobot Pump's port (TCP 1339, a robot with the pump) and the
+robot's UDP command socket. Whatever arrives, the
 simulator keeps serving: an honest client connects and reads a state afterwards, and a
 robot that took garbage for a command recovers with automatic error recovery.
 
@@ -111,6 +112,34 @@ def test_gripper_port_survives_any_stream(sim, connect, data):
     _exchange(sim.host, fci.GRIPPER_COMMAND_PORT, hello, data)
     with lf.Gripper(sim.host) as gripper:
         assert gripper.read_once().max_width > 0.0
+
+
+@pytest.fixture(scope="module")
+def pump_sim():
+    with Simulator(
+        free_loopback_host(), lockstep=True, connect_timeout=1.0, end_effector="cobot_pump"
+    ) as s:
+        yield s
+
+
+@FUZZ
+@given(connect=st.booleans(), data=_messages(_gripper_message, 5))
+def test_vacuum_port_survives_any_stream(pump_sim, connect, data):
+    from panda_py.fci import gripper as g
+
+    hello = g.encode_gripper_connect_request(9, version=1) if connect else None
+    _exchange(pump_sim.host, 1339, hello, data)
+    deadline = time.monotonic() + 5.0
+    while True:  # the fuzzer's connection may not have been seen closed yet
+        try:
+            with lf.VacuumGripper(pump_sim.host) as pump:
+                assert pump.read_once().device_status == lf.VacuumGripperDeviceStatus.kGreen
+                assert pump.stop() is True
+                return
+        except lf.NetworkException as exc:
+            if "busy" not in str(exc) or time.monotonic() > deadline:
+                raise
+            time.sleep(0.01)
 
 
 @FUZZ

@@ -17,13 +17,15 @@ from typing import Any
 import numpy as np
 
 from .codec import PayloadCodec, ProtocolError, packed_dtype
-from .gripper import GRIPPER_HEADER, _encode_small_message
+from .gripper import GRIPPER_CONNECT_REQUEST, GRIPPER_HEADER, _encode_small_message
 
 __all__ = [
     "VACUUM_COMMAND_PORT",
     "VACUUM_HEADER",
+    "VACUUM_MAX_REQUEST_SIZE",
     "VACUUM_REQUESTS",
     "VACUUM_RESPONSE",
+    "VACUUM_SETPOINT_UNIT",
     "VACUUM_STATE_DTYPE",
     "VACUUM_VERSION",
     "VacuumCommand",
@@ -70,9 +72,14 @@ class VacuumDeviceStatus(enum.IntEnum):
     RED = 3
 
 
+#: What one unit of the Vacuum request's setpoint means [mbar]: libfranka's
+#: ``vacuum_gripper.h`` documents ``vacuum(vacuum, ...)``'s setpoint as "Unit: [10*mbar]";
+#: the state's ``vacuum`` is in mbar (``vacuum_gripper_state.h``).
+VACUUM_SETPOINT_UNIT = 10.0
+
 #: Request payload codecs (after the 10-byte header): ``vacuum`` is the u8 setpoint that
-#: libfranka's ``VacuumGripper::vacuum(vacuum, timeout, profile)`` passes through,
-#: ``profile`` a :class:`VacuumProfile`, ``timeout`` [ms].
+#: libfranka's ``VacuumGripper::vacuum(vacuum, timeout, profile)`` passes through (in
+#: :data:`VACUUM_SETPOINT_UNIT`), ``profile`` a :class:`VacuumProfile`, ``timeout`` [ms].
 VACUUM_REQUESTS: Mapping[VacuumCommand, PayloadCodec] = MappingProxyType(
     {
         VacuumCommand.CONNECT: PayloadCodec(
@@ -89,7 +96,14 @@ VACUUM_REQUESTS: Mapping[VacuumCommand, PayloadCodec] = MappingProxyType(
 #: Response payload of Vacuum/DropOff/Stop: ``status`` u16 (a :class:`VacuumStatus`).
 VACUUM_RESPONSE = PayloadCodec("vacuum response", [("status", "<u2")])
 
-#: VacuumGripperState UDP datagram (16 B).
+#: The longest vacuum request, header included [bytes] (every request is fixed-size).
+VACUUM_MAX_REQUEST_SIZE: int = max(
+    VACUUM_HEADER.size + max(c.size for c in VACUUM_REQUESTS.values()),
+    GRIPPER_CONNECT_REQUEST.size,
+)
+
+#: VacuumGripperState UDP datagram (16 B): ``vacuum`` [mbar below ambient],
+#: ``actual_power`` [%] (libfranka's ``vacuum_gripper_state.h``).
 VACUUM_STATE_DTYPE: np.dtype[Any] = packed_dtype(
     [
         ("message_id", "<u4"),

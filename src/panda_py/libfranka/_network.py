@@ -318,18 +318,6 @@ class Network:
                     best, best_id = data, unpack(data)[0]
         return best
 
-    def receive_any(self) -> bytes:
-        """Drain the UDP socket and return the last datagram, waiting if there is none."""
-        last: bytes | None = None
-        while True:
-            data = self._recv_udp(block=False)
-            if data is None:
-                break
-            last = data
-        while last is None:
-            last = self._recv_udp(block=True)
-        return last
-
     def discard_queued(self) -> None:
         """Drop every datagram already queued on the UDP socket (libfranka's ``readOnce``
         does this first, so what follows was sent after everything the caller did)."""

@@ -113,5 +113,8 @@ class VacuumGripper(HandClient):
         return self._execute(vp.VacuumCommand.STOP, "Stop")
 
     def read_once(self) -> VacuumGripperState:
-        """The newest pump state (waits up to 1 s)."""
-        return VacuumGripperState(vp.decode_vacuum_state(self._net.receive_any()))
+        """A fresh pump state: queued ones are discarded and the next awaited (up to 1 s),
+        as libfranka's ``readOnce`` ("Waits for a vacuum gripper state update")."""
+        return VacuumGripperState(vp.decode_vacuum_state(self._net.receive_fresh()))
+
+    readOnce = read_once

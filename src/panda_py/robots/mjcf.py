@@ -14,6 +14,12 @@ Names (stable, used by the simulator and tests): joints ``joint1..joint7``,
 ``right_finger``, ``cube``; sites ``flange`` and ``tcp``; geoms ``table``, ``left_pad``,
 ``right_pad``, ``cube_geom``; the fingers' tendon ``finger_width`` (their opening) and its
 actuator ``finger_motor`` (the force the fingers squeeze with, positive opens).
+
+With the Cobot Pump instead of the hand (``end_effector="cobot_pump"``): the body
+``cobot_pump`` with the geoms ``pump_housing``, ``pump_stem`` and ``cup_geom`` (the suction
+cup, its face at the TCP), and for every free body of the scene (the cube, and the named
+free bodies of ``extra``) an inactive weld ``hold_<body>`` between the pump and that body,
+which the simulated pump activates while its vacuum holds the body.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from panda_py.robots.end_effectors import COBOT_PUMP, EndEffector, get_end_effector
 from panda_py.robots.params import FRANKA_HAND, RobotSpec, get_robot
 
 if TYPE_CHECKING:
@@ -140,7 +147,7 @@ def _hand_actuation() -> str:
   <actuator><motor name="finger_motor" tendon="finger_width"/></actuator>"""
 
 
-def _arm_xml(spec: RobotSpec, hand: bool) -> str:
+def _arm_xml(spec: RobotSpec, tool: str) -> str:
     dh = spec.dh
     lim = spec.joints
     drv = spec.drives
@@ -167,8 +174,8 @@ def _arm_xml(spec: RobotSpec, hand: bool) -> str:
             f"{geoms}"
         )
     inner = f'<site name="flange" pos="0 0 {_f(dh.flange_d)}" size="0.005"/>'
-    if hand:
-        inner += f'<body name="flange_body" pos="0 0 {_f(dh.flange_d)}">{_hand_xml()}</body>'
+    if tool:
+        inner += f'<body name="flange_body" pos="0 0 {_f(dh.flange_d)}">{tool}</body>'
     base = spec.links[0]
     return (
         f'<body name="link0">{_inertial(base.mass, base.com, base.inertia)}'
@@ -178,6 +185,40 @@ def _arm_xml(spec: RobotSpec, hand: bool) -> str:
         + "</body>" * 7
         + "</body>"
     )
+
+
+# The weld that holds a sucked part: as stiff as MuJoCo keeps stable at 1 ms (a part of
+# 100 g sags 0.1 mm under its weight; the default 20 ms time constant let it sag 1 mm).
+_WELD = 'solref="0.004 1" solimp="0.95 0.99 0.001"'
+
+
+def _pump_xml() -> str:
+    """The Cobot Pump: its housing, a stem and the suction cup, whose face is the TCP."""
+    p = COBOT_PUMP
+    stem_top = p.housing_z + p.housing_half[2]
+    cup_top = p.tcp_offset - p.cup_height
+    stem_half = (cup_top - stem_top) / 2
+    return f"""
+        <body name="cobot_pump" pos="0 0 0" gravcomp="1">
+          {_inertial(p.inertial.mass, p.inertial.com, p.inertial.inertia)}
+          <geom name="pump_housing" type="box" size="{_vec(p.housing_half)}"
+                pos="0 0 {_f(p.housing_z)}" {_ROBOT} rgba="0.2 0.3 0.6 1"/>
+          <geom name="pump_stem" type="cylinder" size="0.008 {_f(stem_half)}"
+                pos="0 0 {_f(stem_top + stem_half)}" {_ROBOT} rgba="0.7 0.7 0.7 1"/>
+          <geom name="cup_geom" type="cylinder" size="{_f(p.cup_radius)} {_f(p.cup_height / 2)}"
+                pos="0 0 {_f(p.tcp_offset - p.cup_height / 2)}" {_ROBOT} friction="1 0.005 0.0001"
+                rgba="0.1 0.1 0.1 1"/>
+          <site name="tcp" pos="0 0 {_f(p.tcp_offset)}" size="0.005"/>
+        </body>"""
+
+
+def _pump_welds(bodies: list[str]) -> str:
+    """Inactive welds between the pump and each body it may hold."""
+    welds = "".join(
+        f'<weld name="hold_{b}" body1="cobot_pump" body2="{b}" active="false" {_WELD}/>'
+        for b in bodies
+    )
+    return f"<equality>{welds}</equality>" if welds else ""
 
 
 def _scene_xml() -> str:
@@ -194,8 +235,9 @@ def _scene_xml() -> str:
     </body>"""
 
 
-def _extra_worldbody(extra: str | Path) -> tuple[str, str]:
-    """Children of ``<worldbody>`` and ``<asset>`` from a user MJCF file, as XML text."""
+def _extra_worldbody(extra: str | Path) -> tuple[str, str, list[str]]:
+    """Children of ``<worldbody>`` and ``<asset>`` from a user MJCF file, as XML text, and
+    the names of its free bodies (top-level bodies with a free joint)."""
     path = Path(extra)
     try:
         root = ET.parse(path).getroot()
@@ -207,7 +249,15 @@ def _extra_worldbody(extra: str | Path) -> tuple[str, str]:
         ET.tostring(el, encoding="unicode") for wb in root.iter("worldbody") for el in wb
     )
     assets = "".join(ET.tostring(el, encoding="unicode") for a in root.iter("asset") for el in a)
-    return bodies, assets
+    free = [
+        str(el.get("name"))
+        for wb in root.iter("worldbody")
+        for el in wb
+        if el.tag == "body"
+        and el.get("name")
+        and any(j.tag == "freejoint" or (j.tag == "joint" and j.get("type") == "free") for j in el)
+    ]
+    return bodies, assets, free
 
 
 def model_xml(
@@ -216,29 +266,38 @@ def model_xml(
     hand: bool = True,
     scene: bool = True,
     extra: str | Path | None = None,
+    end_effector: EndEffector | str = EndEffector.HAND,
 ) -> str:
     """The MJCF text of the robot (and, with ``scene``, a table and a graspable cube).
 
     ``extra`` names an MJCF file whose ``<worldbody>`` children (and ``<asset>`` entries)
-    are added to the scene.
+    are added to the scene. ``end_effector`` is what the flange carries (``hand=False``:
+    nothing).
     """
     spec = get_robot(robot)
+    ee = get_end_effector(end_effector)
     world = _scene_xml() if scene else ""
     assets = ""
+    free = ["cube"] if scene else []
     if extra is not None:
-        extra_bodies, assets = _extra_worldbody(extra)
+        extra_bodies, assets, extra_free = _extra_worldbody(extra)
         world += extra_bodies
-    hand_actuation = _hand_actuation() if hand else ""
+        free += extra_free
+    tool, tool_parts = "", ""
+    if hand and ee is EndEffector.HAND:
+        tool, tool_parts = _hand_xml(), _hand_actuation()
+    elif hand:
+        tool, tool_parts = _pump_xml(), _pump_welds(free)
     return f"""<mujoco model="{spec.name}">
   <compiler angle="radian" autolimits="true" inertiafromgeom="false"/>
   <option timestep="0.001" integrator="implicitfast" gravity="0 0 -9.81"/>
   <asset>{assets}</asset>
   <worldbody>
     <light pos="0 0 3" dir="0 0 -1" directional="true"/>
-    {_arm_xml(spec, hand)}
+    {_arm_xml(spec, tool)}
     {world}
   </worldbody>
-  {hand_actuation}
+  {tool_parts}
 </mujoco>
 """
 
@@ -249,8 +308,11 @@ def build_model(
     hand: bool = True,
     scene: bool = False,
     extra: str | Path | None = None,
+    end_effector: EndEffector | str = EndEffector.HAND,
 ) -> mujoco.MjModel:
     """Compile :func:`model_xml` into a ``mujoco.MjModel`` (imports MuJoCo on first use)."""
     import mujoco
 
-    return mujoco.MjModel.from_xml_string(model_xml(robot, hand=hand, scene=scene, extra=extra))
+    return mujoco.MjModel.from_xml_string(
+        model_xml(robot, hand=hand, scene=scene, extra=extra, end_effector=end_effector)
+    )

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.children import stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
@@ -53,13 +54,13 @@ def _child_main(config: SimConfig, conn: Any, log_level: str) -> None:
 
 
 def free_loopback_host(rng: random.Random | None = None) -> str:
-    """A loopback address (127.x.y.z) whose robot and gripper ports are free, so that
-    several simulators (and test runs) can work side by side."""
+    """A loopback address (127.x.y.z) whose robot, gripper and vacuum gripper ports are
+    free, so that several simulators (and test runs) can work side by side."""
     rng = rng or random.Random()
     for _ in range(200):
         host = f"127.{rng.randint(1, 254)}.{rng.randint(1, 254)}.{rng.randint(2, 254)}"
         try:
-            for port in (1337, 1338):
+            for port in (1337, 1338, 1339):
                 with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
                     s.bind((host, port))
         except OSError:
@@ -70,6 +71,11 @@ def free_loopback_host(rng: random.Random | None = None) -> str:
 
 class Simulator:
     """A simulated Franka (FCI on ``host``:1337, gripper on ``host``:1338).
+
+    ``end_effector`` is what its flange carries: ``"hand"`` (the Franka Hand, on 1338) or
+    ``"cobot_pump"`` (Franka's Cobot Pump, its vacuum gripper protocol on 1339; 1338 is
+    then closed, as on a robot without a hand). The robot's state reports the mounted
+    one's TCP and load.
 
     ``lockstep`` makes simulated time advance one tick per command during motions (tests);
     otherwise it runs at 1 kHz on the wall clock like a real robot; in lockstep it polls
@@ -100,6 +106,7 @@ class Simulator:
         start_timeout: float = 60.0,
         desk: DeskConfig | None = None,
         connect_timeout: float = 5.0,
+        end_effector: EndEffector | str = EndEffector.HAND,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -112,6 +119,7 @@ class Simulator:
             extra=str(extra) if extra is not None else None,
             q_start=tuple(float(x) for x in q_start),
             connect_timeout=connect_timeout,
+            end_effector=end_effector,
         )
         self.log_level = log_level
         self.start_timeout = start_timeout
@@ -215,7 +223,9 @@ class Simulator:
 
     def state(self) -> dict[str, Any]:
         """The robot's current state: libfranka's field names (transforms as column-major
-        16-vectors), modes, error flags, and ``gripper_width``, ``cube_position``."""
+        16-vectors), modes, error flags, ``cube_position`` and ``end_effector``; with the
+        hand ``gripper_width``, ``gripper_is_grasped``; with the Cobot Pump ``vacuum``
+        [mbar], ``vacuum_sealed`` and ``vacuum_held`` (the name of the body it holds)."""
         return dict(self._request("state"))
 
     def q(self) -> np.ndarray:

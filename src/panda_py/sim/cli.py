@@ -1,8 +1,10 @@
 """``panda-sim``: run a simulated Franka until interrupted.
 
     panda-sim --host 127.0.0.1 --robot fer --lockstep
+    panda-sim --end-effector cobot-pump
 
-Clients connect to HOST (FCI on 1337, the gripper on 1338) as to a real robot.
+Clients connect to HOST (FCI on 1337, the gripper on 1338, or with the Cobot Pump the
+vacuum gripper on 1339) as to a real robot.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from collections.abc import Sequence
 from types import FrameType
 
 from panda_py import fci
+from panda_py.robots.end_effectors import END_EFFECTOR_CHOICES
 from panda_py.robots.params import ROBOTS
 from panda_py.sim.desk.launch import add_desk_arguments, start_desk
 
@@ -27,6 +30,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--host", default="127.0.0.1", help="address to serve on (default %(default)s)")
     p.add_argument("--robot", default="fer", choices=sorted(ROBOTS), help="arm (default fer)")
+    p.add_argument(
+        "--end-effector",
+        default="hand",
+        choices=END_EFFECTOR_CHOICES,
+        metavar="EE",
+        help="what the flange carries: hand (the Franka Hand, TCP 1338) or cobot-pump "
+        "(Franka's Cobot Pump, TCP 1339) (default hand)",
+    )
     p.add_argument(
         "--lockstep",
         action="store_true",
@@ -80,6 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             versions=tuple(args.versions) if args.versions else None,
             scene=not args.no_scene,
             extra=args.scene,
+            end_effector=args.end_effector,
         )
         desk, config.desk_link = start_desk(args, config.host, config.robot)
         server = SimServer(config)
@@ -101,10 +113,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.viewer:
         _start_viewer(server)
     mode = "lockstep" if args.lockstep else "realtime"
+    tool = "gripper 1338" if server.pump is None else "cobot pump 1339"
     logging.getLogger("panda_py.sim").info(
-        "simulated %s on %s (FCI 1337, gripper 1338), %s; Ctrl-C to stop",
+        "simulated %s on %s (FCI 1337, %s), %s; Ctrl-C to stop",
         server.spec.name,
         args.host,
+        tool,
         mode,
     )
     try:

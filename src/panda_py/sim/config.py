@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from panda_py import fci
+from panda_py.fci.vacuum import VACUUM_COMMAND_PORT
+from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE, get_robot
 
 # Realtime: a tick that starts, or a state that goes out, this long after the tick was
@@ -32,6 +34,10 @@ class SimConfig:
     versions: tuple[int, ...] | None = None
     robot_port: int = fci.COMMAND_PORT
     gripper_port: int = fci.GRIPPER_COMMAND_PORT
+    vacuum_port: int = VACUUM_COMMAND_PORT
+    # What the flange carries: "hand" (the Franka Hand, served on gripper_port) or
+    # "cobot_pump" (Franka's Cobot Pump, served on vacuum_port); an EndEffector after init.
+    end_effector: EndEffector | str = EndEffector.HAND
     scene: bool = True
     extra: str | None = None  # MJCF file with extra bodies
     q_start: tuple[float, ...] = START_POSE
@@ -47,6 +53,7 @@ class SimConfig:
 
     def __post_init__(self) -> None:
         spoken = get_robot(self.robot).protocol_versions  # validates the name too
+        self.end_effector = get_end_effector(self.end_effector)
         if self.versions is not None:
             bad = [v for v in self.versions if v not in spoken]
             if bad or not self.versions:

@@ -1,5 +1,6 @@
 """The simulator's view of its TCP clients: the socket, the unread answers, the parsed
-but unhandled requests and, for the FCI and gripper sessions, their UDP side."""
+but unhandled requests and, for the FCI, gripper and vacuum gripper sessions, their UDP
+side."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from collections import deque
 from typing import Any
 
 from panda_py import fci
+from panda_py.fci import vacuum as vp
 from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.wire import CommandWire, StateWire
 
@@ -55,4 +57,12 @@ class GripperConnection(Client):
         self.udp_target: tuple[str, int] | None = None
 
 
-__all__ = ["Client", "GripperConnection", "RobotConnection"]
+class VacuumConnection(GripperConnection):
+    """A Cobot Pump client: the hand's framing, the pump's requests."""
+
+    def __init__(self, sock: socket.socket, addr: tuple[str, int]) -> None:
+        super().__init__(sock, addr)
+        self.reader = fci.GripperMessageReader(max_size=vp.VACUUM_MAX_REQUEST_SIZE)
+
+
+__all__ = ["Client", "GripperConnection", "RobotConnection", "VacuumConnection"]

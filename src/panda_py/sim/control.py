@@ -58,10 +58,18 @@ class ControlRpc(ServerState):
             out.update(
                 motion_generator_mode=mg, controller_mode=ctrl, robot_mode=mode,
                 errors=core.errors.copy(), reflex_reason=core.reflex_reason.copy(),
-                time=self.tick_count * DT, gripper_width=self.gripper.width,
-                gripper_is_grasped=self.gripper.is_grasped,
-                cube_position=self._body_position("cube"),
+                time=self.tick_count * DT, cube_position=self._body_position("cube"),
+                end_effector=self.physics.end_effector.value,
             )  # fmt: skip
+            if self.gripper is not None:
+                out.update(gripper_width=self.gripper.width,
+                           gripper_is_grasped=self.gripper.is_grasped)  # fmt: skip
+            if self.pump is not None:
+                held = self.pump.held_body
+                out.update(
+                    vacuum=self.pump.vacuum, vacuum_sealed=self.pump.sealed,
+                    vacuum_held=None if held is None else self.physics.model.body(held).name,
+                )  # fmt: skip
             return out
         if op == "inject_reflex":
             core.inject_reflex(list(args[0]))

@@ -34,6 +34,9 @@ class GripperSession(ServerState):
         self._send_tcp(conn, fci.encode_gripper_message(GripperCommand(command), cid, payload))
 
     def _handle_gripper_message(self, conn: GripperConnection, msg: fci.Message) -> None:
+        g = self.gripper
+        if g is None:
+            return
         if not conn.connected:
             try:
                 _, version, udp_port = fci.decode_gripper_connect_request(msg.raw)
@@ -78,7 +81,6 @@ class GripperSession(ServerState):
                 + int(GripperStatus.FAIL).to_bytes(2, "little"),
             )
             return
-        g = self.gripper
         self._gripper_pending[msg.command_id] = int(command)
         status: GripperStatus | None
         if command is GripperCommand.HOMING:
@@ -105,8 +107,10 @@ class GripperSession(ServerState):
             self._gripper_reply(conn, int(command), msg.command_id, status)
 
     def _flush_gripper(self) -> None:
-        conn = self.gripper_conn
-        done, self.gripper.completed = self.gripper.completed, []
+        conn, g = self.gripper_conn, self.gripper
+        if g is None:
+            return
+        done, g.completed = g.completed, []
         if conn is None:
             return
         for cid, status in done:
@@ -116,14 +120,15 @@ class GripperSession(ServerState):
             self._send_gripper_state(conn)
 
     def _send_gripper_state(self, conn: GripperConnection) -> None:
-        if conn.udp is None or conn.udp_target is None:
+        g = self.gripper
+        if g is None or conn.udp is None or conn.udp_target is None:
             return
         rec = np.zeros((), fci.GRIPPER_STATE_DTYPE)
         rec["message_id"] = self.tick_count & 0xFFFFFFFF
-        rec["width"] = self.gripper.width
-        rec["max_width"] = self.gripper.max_width
-        rec["is_grasped"] = self.gripper.is_grasped
-        rec["temperature"] = self.gripper.temperature
+        rec["width"] = g.width
+        rec["max_width"] = g.max_width
+        rec["is_grasped"] = g.is_grasped
+        rec["temperature"] = g.temperature
         try:
             conn.udp.sendto(rec.tobytes(), conn.udp_target)
         except OSError:

@@ -12,7 +12,8 @@ import mujoco
 import numpy as np
 
 from panda_py.fci import PERIOD
-from panda_py.kinematics import get_kinematics, hand_F_T_EE, warmup
+from panda_py.kinematics import get_kinematics, warmup
+from panda_py.robots.end_effectors import EndEffector, end_effector_F_T_NE, get_end_effector
 from panda_py.robots.mjcf import model_xml
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
 
@@ -28,14 +29,21 @@ _ELBOW_HELD = np.array([0, 1, 3, 4, 5, 6])  # the joints IK moves when joint 3 i
 
 
 class Physics:
-    """One MuJoCo world: the arm, the hand and the scene, stepped at 1 kHz."""
+    """One MuJoCo world: the arm, its end effector (the hand or the Cobot Pump) and the
+    scene, stepped at 1 kHz."""
 
     def __init__(
-        self, spec: RobotSpec, *, scene: bool = True, extra: str | Path | None = None
+        self,
+        spec: RobotSpec,
+        *,
+        scene: bool = True,
+        extra: str | Path | None = None,
+        end_effector: EndEffector | str = EndEffector.HAND,
     ) -> None:
         self.spec = spec
+        self.end_effector = get_end_effector(end_effector)
         self.model = mujoco.MjModel.from_xml_string(
-            model_xml(spec, hand=True, scene=scene, extra=extra)
+            model_xml(spec, hand=True, scene=scene, extra=extra, end_effector=self.end_effector)
         )
         self.model.opt.timestep = DT
         self.data = mujoco.MjData(self.model)
@@ -48,16 +56,14 @@ class Physics:
             raise RuntimeError("arm joints must be consecutive in the model")
         self.q0, self.v0 = int(self.qadr[0]), int(self.vadr[0])
         self.flange_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "flange")
-        self.finger_q = int(
-            m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint1")]
-        )
-        self.finger_q2 = int(
-            m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint2")]
-        )
-        self.finger_v = int(
-            m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint1")]
-        )
-        self.finger_act = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "finger_motor")
+        # The hand's fingers (-1 with the pump: no fingers, no finger motor).
+        self.finger_q = self.finger_q2 = self.finger_v = self.finger_act = -1
+        if self.end_effector is EndEffector.HAND:
+            j1 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint1")
+            j2 = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "finger_joint2")
+            self.finger_q, self.finger_q2 = int(m.jnt_qposadr[j1]), int(m.jnt_qposadr[j2])
+            self.finger_v = int(m.jnt_dofadr[j1])
+            self.finger_act = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, "finger_motor")
         # Bodies of the robot (for telling robot contacts from others).
         root = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "link0")
         self.robot_bodies = {b for b in range(m.nbody) if self._descends(b, root)}
@@ -94,7 +100,7 @@ class Physics:
         warmup()
         # Contact pairs last seen without the robot in them (most ticks: cube on table).
         self._quiet_contacts = b""
-        self.F_T_NE = hand_F_T_EE()  # flange -> the hand's TCP
+        self.F_T_NE = end_effector_F_T_NE(self.end_effector)  # flange -> the tool's TCP
 
     def _descends(self, body: int, root: int) -> bool:
         while body > 0:
@@ -123,18 +129,22 @@ class Physics:
         """Place the arm at ``q`` [rad] at rest (and the fingers at ``gripper_width`` [m])."""
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self.q0 : self.q0 + 7] = q
-        width = FRANKA_HAND.max_width if gripper_width is None else gripper_width
-        self.data.qpos[self.finger_q] = width / 2
-        self.data.qpos[self.finger_q2] = width / 2
+        if self.finger_q >= 0:
+            width = FRANKA_HAND.max_width if gripper_width is None else gripper_width
+            self.data.qpos[self.finger_q] = width / 2
+            self.data.qpos[self.finger_q2] = width / 2
         mujoco.mj_forward(self.model, self.data)
         self.tau_applied[:] = 0.0
 
     def gripper_width(self) -> float:
+        """The fingers' opening [m] (0 without the hand)."""
+        if self.finger_q < 0:
+            return 0.0
         qpos = self._qpos
         return float(qpos[self.finger_q] + qpos[self.finger_q2])
 
     def gripper_speed(self) -> float:
-        return 2.0 * float(self._qvel[self.finger_v])
+        return 2.0 * float(self._qvel[self.finger_v]) if self.finger_v >= 0 else 0.0
 
     def gravity_torque(self) -> np.ndarray:
         """Torque the robot spends holding the arm and hand against gravity [Nm]."""
@@ -206,7 +216,8 @@ class Physics:
         """Advance one tick with gravity-free arm torques ``tau`` [Nm] and the hand's motor
         force ``finger_force`` [N] (positive opens)."""
         self._applied_arm[:] = tau
-        self._ctrl[self.finger_act] = finger_force
+        if self.finger_act >= 0:
+            self._ctrl[self.finger_act] = finger_force
         self.tau_applied[:] = tau
         mujoco.mj_step(self.model, self.data)
 

@@ -27,7 +27,8 @@ from panda_py.fci import (
     StopMoveStatus,
 )
 from panda_py.kinematics import get_kinematics
-from panda_py.robots.params import FRANKA_HAND, RobotSpec
+from panda_py.robots.end_effectors import end_effector_load
+from panda_py.robots.params import RobotSpec
 from panda_py.sim.async_motion import AsyncJointGenerator, async_refusal
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
@@ -109,14 +110,15 @@ class RobotCore(RobotSettings, StateAssembly):
         self.guiding_axes = np.ones(6, dtype=bool)
         self.guiding_elbow = False
         self.filters = np.full(5, 1000.0)
-        hand = FRANKA_HAND
+        # The mounted end effector as Desk configures it: its TCP and its load.
+        load = end_effector_load(self.physics.end_effector)
         self.F_T_NE = self.physics.F_T_NE.copy()
         self.NE_T_EE = np.eye(4)
         self.EE_T_K = np.eye(4)
-        self.m_ee = hand.inertial.mass
-        ixx, iyy, izz, ixy, ixz, iyz = hand.inertial.inertia
+        self.m_ee = load.mass
+        ixx, iyy, izz, ixy, ixz, iyz = load.inertia
         self.I_ee = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-        self.F_x_Cee = np.array(hand.inertial.com)
+        self.F_x_Cee = np.array(load.com)
         self.m_load = 0.0
         self.I_load = np.zeros((3, 3))
         self.F_x_Cload = np.zeros(3)

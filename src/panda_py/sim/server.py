@@ -8,7 +8,8 @@ with the client's commands) and the tick; each concern is a part in its own modu
   per-tick request budget, idle and misbehaving connections;
 * :mod:`.fci_session`: Connect (accepting a client: ``FciSession._handle_connect``), the
   TCP commands, the UDP states and commands;
-* :mod:`.gripper_session`: the Franka Hand's protocol;
+* :mod:`.gripper_session`: the Franka Hand's protocol (TCP 1338), or
+  :mod:`.vacuum_session`: the Cobot Pump's (TCP 1339), whichever is mounted;
 * :mod:`.models`: URDF and model-library delivery off the loop;
 * :mod:`.control`: the Python API's requests;
 * the robot itself is :class:`~panda_py.sim.robot.RobotCore` (a Move starts in
@@ -30,6 +31,7 @@ from panda_py.fci import (
     Command,
     RobotMode,
 )
+from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import get_robot
 from panda_py.sim.config import LATE_THRESHOLD, SimConfig, Stats
 from panda_py.sim.connections import Client, GripperConnection, RobotConnection
@@ -42,6 +44,8 @@ from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import RobotCore
 from panda_py.sim.sockets import REQUEST_BUDGET, Sockets
+from panda_py.sim.vacuum import VacuumCore
+from panda_py.sim.vacuum_session import VacuumSession
 
 log = logging.getLogger("panda_py.sim")
 
@@ -54,7 +58,7 @@ ENGAGE_WAIT = 0.02
 IDLE_CHECK_PERIOD = 0.1
 
 
-class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
+class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDelivery, ControlRpc):
     """A simulated Franka. ``serve_forever`` runs until :meth:`shutdown` (or a control
     message ``("stop",)`` on the optional control connection)."""
 
@@ -62,9 +66,15 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
         self.config = config
         self.spec = get_robot(config.robot)
         extra = config.extra
-        self.physics = Physics(self.spec, scene=config.scene, extra=extra)
+        self.physics = Physics(
+            self.spec, scene=config.scene, extra=extra, end_effector=config.end_effector
+        )
         self.core = RobotCore(self.spec, self.physics, np.asarray(config.q_start, dtype=float))
-        self.gripper = GripperCore(self.physics)
+        # What the flange carries, and the port its device serves (a robot with the pump
+        # has no hand: 1338 is closed, as on hardware).
+        hand = self.physics.end_effector is EndEffector.HAND
+        self.gripper = GripperCore(self.physics) if hand else None
+        self.pump = None if hand else VacuumCore(self.physics)
         self.stats = Stats()
         # the simulated Desk's view of this robot (brakes, FCI), read without waiting
         self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
@@ -73,14 +83,14 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
         self._running = True
         self._sel = selectors.SelectSelector()  # select(): microsecond timeouts, unlike epoll
         self._robot_listener = self._listen(config.robot_port)
-        self._gripper_listener = self._listen(config.gripper_port)
+        self._gripper_listener = self._listen(config.gripper_port if hand else config.vacuum_port)
         self._sel.register(self._robot_listener, selectors.EVENT_READ, ("accept-robot", None))
         self._sel.register(self._gripper_listener, selectors.EVENT_READ, ("accept-gripper", None))
         self.robot_conn: RobotConnection | None = None
         self.gripper_conn: GripperConnection | None = None
         self._refusing: list[Client] = []  # second clients awaiting "robot busy"
         self._control: Any = None
-        self._gripper_pending: dict[int, int] = {}  # command_id -> GripperCommand
+        self._gripper_pending: dict[int, int] = {}  # command_id -> Gripper/VacuumCommand
         self._budget = REQUEST_BUDGET  # [s] left for requests until the next tick
         self._tick_deadline = 0.0  # monotonic: when the current tick was due
         self._next_check = 0.0  # monotonic: next look for idle connections
@@ -205,8 +215,11 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
                     self.stats.commands_lost += 1
         self._follow_desk()
         conn = self.robot_conn  # the Desk may have closed it
-        self.gripper.tick()
-        self.core.finger_force = self.gripper.force
+        if self.gripper is not None:
+            self.gripper.tick()
+            self.core.finger_force = self.gripper.force
+        if self.pump is not None:
+            self.pump.tick()
         moving = self.core.robot_mode == RobotMode.MOVE
         self.core.tick(command if moving else None, excused=excused)
         self.tick_count += 1
@@ -220,6 +233,7 @@ class SimServer(Sockets, FciSession, GripperSession, ModelDelivery, ControlRpc):
         elif self.core.pending_final is not None:
             self.core.pending_final = None
         self._flush_gripper()
+        self._flush_vacuum()
 
     def _dispatch(self, data: tuple[str, Any], mask: int = selectors.EVENT_READ) -> None:
         kind, conn = data

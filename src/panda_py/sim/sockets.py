@@ -1,7 +1,7 @@
-"""The simulator's sockets: accepting clients (one robot and one gripper client at a
-time; a second one hears "robot busy"), non-blocking TCP with bounded output queues and
-a per-tick request budget, and closing idle or misbehaving connections. Nothing here
-ever waits."""
+"""The simulator's sockets: accepting clients (one robot and one end-effector client,
+the hand's or the pump's, at a time; a second one hears "robot busy"), non-blocking TCP
+with bounded output queues and a per-tick request budget, and closing idle or
+misbehaving connections. Nothing here ever waits."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ from panda_py.fci import (
     ConnectStatus,
     ProtocolError,
 )
+from panda_py.fci import vacuum as vp
 from panda_py.sim.config import DATAGRAMS_PER_PASS
-from panda_py.sim.connections import Client, GripperConnection, RobotConnection
+from panda_py.sim.connections import Client, GripperConnection, RobotConnection, VacuumConnection
 from panda_py.sim.desk.link import accept_fci_connect
 from panda_py.sim.parts import ServerState
 
@@ -48,9 +49,10 @@ class Sockets(ServerState):
         return s
 
     def _accept(self, robot: bool) -> None:
-        """Accept an FCI (``robot``) or gripper client; one of each at a time."""
+        """Accept an FCI (``robot``) or end-effector client; one of each at a time."""
         listener = self._robot_listener if robot else self._gripper_listener
-        what = "FCI" if robot else "gripper"
+        tool: type[GripperConnection] = GripperConnection if self.pump is None else VacuumConnection
+        what = "FCI" if robot else ("gripper" if self.pump is None else "vacuum gripper")
         try:
             sock, addr = listener.accept()
         except OSError:
@@ -75,14 +77,14 @@ class Sockets(ServerState):
             if len(self._refusing) >= MAX_REFUSING:
                 sock.close()
                 return
-            conn = RobotConnection(sock, addr) if robot else GripperConnection(sock, addr)
+            conn = RobotConnection(sock, addr) if robot else tool(sock, addr)
             self._refusing.append(conn)
             self._sel.register(sock, selectors.EVENT_READ, ("busy", conn))
             return
         if robot:
             conn = self.robot_conn = RobotConnection(sock, addr)
         else:
-            conn = self.gripper_conn = GripperConnection(sock, addr)
+            conn = self.gripper_conn = tool(sock, addr)
         self._sel.register(sock, selectors.EVENT_READ, ("tcp", conn))
         log.info("%s client connected from %s:%d", what, *addr)
 
@@ -103,7 +105,12 @@ class Sockets(ServerState):
             version = self.config.accepted_versions[-1]
             answer = fci.encode_connect_response(cid, ConnectStatus.ROBOT_BUSY, version)
         else:
-            answer = fci.encode_gripper_connect_response(cid, fci.GripperConnectStatus.ROBOT_BUSY)
+            version = (
+                vp.VACUUM_VERSION if isinstance(conn, VacuumConnection) else fci.GRIPPER_VERSION
+            )
+            answer = fci.encode_gripper_connect_response(
+                cid, fci.GripperConnectStatus.ROBOT_BUSY, version=version
+            )
         try:
             conn.sock.send(answer)  # 14-15 bytes into an empty socket buffer
         except OSError:
@@ -140,8 +147,10 @@ class Sockets(ServerState):
             log.info("FCI client %s:%d disconnected", *conn.addr)
         elif conn is self.gripper_conn:
             self.gripper_conn = None
-            self.gripper.client_lost()
-            log.info("gripper client %s:%d disconnected", *conn.addr)
+            for tool in (self.gripper, self.pump):
+                if tool is not None:
+                    tool.client_lost()
+            log.info("end-effector client %s:%d disconnected", *conn.addr)
 
     @staticmethod
     def _alive(conn: RobotConnection | GripperConnection) -> bool:
@@ -250,6 +259,8 @@ class Sockets(ServerState):
             msg = conn.backlog.popleft()
             if conn is self.robot_conn and isinstance(conn, RobotConnection):
                 self._handle_robot_message(conn, msg)
+            elif conn is self.gripper_conn and isinstance(conn, VacuumConnection):
+                self._handle_vacuum_message(conn, msg)
             elif conn is self.gripper_conn and isinstance(conn, GripperConnection):
                 self._handle_gripper_message(conn, msg)
             else:
