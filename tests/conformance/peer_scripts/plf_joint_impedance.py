@@ -52,7 +52,7 @@ def example() -> dict:
                 ticks += 1
                 t = time.monotonic() - t0
                 s = smooth(t / SEGMENT)
-                q_eq = [a + s * (b - a) for a, b in zip(start, goal)]
+                q_eq = [a + s * (b - a) for a, b in zip(start, goal, strict=True)]
                 q, dq = floats(state.q), floats(state.dq)
                 coriolis = floats(model.coriolis(state))
                 tau = [
@@ -64,10 +64,11 @@ def example() -> dict:
                 command.motion_finished = last
                 control.writeOnce(command)
                 peak_speed = max(peak_speed, max(abs(v) for v in dq))
+                off = max(abs(a - b) for a, b in zip(q, goal, strict=True))
                 if t >= SEGMENT:
-                    worst_error[i] = max(worst_error[i], max(abs(a - b) for a, b in zip(q, goal)))
+                    worst_error[i] = max(worst_error[i], off)
                 if t >= SEGMENT + WAIT:
-                    final_error.append(max(abs(a - b) for a, b in zip(q, goal)))
+                    final_error.append(off)
                     start = list(goal)
                     break
     except Exception as exc:  # the example prints it and stops the robot
