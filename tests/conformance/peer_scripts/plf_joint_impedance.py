@@ -56,8 +56,7 @@ def example() -> dict:
                 q, dq = floats(state.q), floats(state.dq)
                 coriolis = floats(model.coriolis(state))
                 tau = [
-                    -STIFFNESS * (q[j] - q_eq[j]) - DAMPING * dq[j] + coriolis[j]
-                    for j in range(7)
+                    -STIFFNESS * (q[j] - q_eq[j]) - DAMPING * dq[j] + coriolis[j] for j in range(7)
                 ]
                 command = plf.Torques(tau)
                 last = t >= SEGMENT + WAIT and i == len(TARGETS) - 1
