@@ -55,3 +55,9 @@ def peer_python(name: str) -> Path:
             raise PeerUnavailable(f"could not create the {name} environment: {exc}") from exc
         marker.write_text(" ".join(PEERS[name]))
     return python
+
+
+def peer_environ() -> dict[str, str]:
+    """This process's environment for a peer's interpreter, less PYTHONPATH/PYTHONHOME:
+    the peer must import its own ``panda_py``, never this repository's."""
+    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}

@@ -7,7 +7,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from peer_envs import PeerUnavailable, peer_python
+from peer_envs import PeerUnavailable, peer_environ, peer_python
 
 from panda_py import kinematics as kin_mod
 from panda_py.robots.params import DH_FRANKA, FER, FRANKA_HAND
@@ -39,6 +39,7 @@ def _run_peer(payload: dict) -> dict:
         pytest.skip(str(exc))
     out = subprocess.run(
         [str(python), "-c", _SCRIPT],
+        env=peer_environ(),
         input=json.dumps(payload),
         capture_output=True,
         text=True,

@@ -19,7 +19,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from peer_envs import PeerUnavailable, peer_python
+from peer_envs import PeerUnavailable, peer_environ, peer_python
 
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.robots.params import FER, START_POSE
@@ -57,6 +57,7 @@ def peer() -> object:
     def run(cases: list[dict[str, object]]) -> list[dict[str, object]]:
         proc = subprocess.run(
             [str(python), "-c", PEER_SCRIPT],
+            env=peer_environ(),
             input=json.dumps(cases),
             capture_output=True,
             text=True,
