@@ -227,14 +227,17 @@ def check_joint_position(r: Mapping[str, Any], idle: str) -> None:
 
 
 def check_torque(r: Mapping[str, Any], idle: str) -> None:
-    """1 s PD hold (the arm stays), then 1 s of a +0.5 Nm sine pulse on joint 1."""
+    """1 s PD hold (the arm stays), then 1 s of a sine pulse on joint 1 above its dry
+    friction (2 Nm on a FER, 4 Nm on an FR3)."""
     assert 995 <= r["hold"]["callbacks"] <= 1010
     assert r["hold"]["max_dev"] < 1e-3
     np.testing.assert_allclose(r["q_hold_end"], r["q0"], atol=1e-3)
     assert 995 <= r["push_callbacks"] <= 1010
     push = np.array(r["q_push_end"]) - np.array(r["q_hold_end"])
     assert push[0] > 0.02, f"joint 1 did not follow the positive torque: {push[0]} rad"
-    assert np.abs(push[1:]).max() < 0.02, push
+    # the others' PD (60 Nm/rad) holds them, short of their dry friction's reach
+    # (1.1 Nm / 60 Nm/rad = 19 mrad on an FR3)
+    assert np.abs(push[1:]).max() < 0.03, push
     # After the torque motion ends the robot holds the arm where it is.
     np.testing.assert_allclose(r["q_settled"], r["q_push_end"], atol=5e-3)
     assert r["robot_mode"] == idle

@@ -1,11 +1,15 @@
 """Conformance: ``print(state)`` of ours is panda-python 1.1.1's (libfranka 0.9.2's
-``operator<<``) character for character, on the same simulated robot (the tick aside)."""
+``operator<<``) on the same simulated robot: character for character with the numbers
+masked, and every number the same to 1e-5 (a held arm's joints wander by 1e-14 rad between
+the two reads, its torques by 1e-9 Nm and so their rate dtau_J by 1e-6 Nm/s, which changes
+the digits of values near zero; the tick aside)."""
 
 from __future__ import annotations
 
 import re
 import subprocess
 
+import numpy as np
 import pytest
 from conf_support import PEER_TEST_TIMEOUT, peer_or_skip
 
@@ -30,4 +34,8 @@ def test_state_prints_as_panda_pythons() -> None:
         theirs = subprocess.run(
             [str(python), "-c", PRINT, sim.host], capture_output=True, text=True, timeout=60
         ).stdout
-    assert _untimed(ours) == _untimed(theirs)
+    number = r"-?\d+(?:\.\d+)?(?:e[+-]\d+)?"
+    ours, theirs = _untimed(ours), _untimed(theirs)
+    assert re.sub(number, "N", ours) == re.sub(number, "N", theirs)
+    values = [np.array(re.findall(number, text), dtype=float) for text in (ours, theirs)]
+    np.testing.assert_allclose(values[0], values[1], rtol=1e-5, atol=1e-5)

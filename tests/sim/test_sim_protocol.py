@@ -159,7 +159,7 @@ def test_torque_control_is_gravity_compensated(sim_for_version, version):
             if q0 is None:
                 q0 = np.array(s["q"], dtype=float)
             tau = np.zeros(7)
-            tau[0] = min(k * 0.005, 1.5)  # above joint 1's Coulomb friction; ramped
+            tau[0] = min(k * 0.01, 2.5)  # above joint 1's dry friction (FR3: 1.1 Nm); ramped
             done = k == 399
             fields = {"tau_J_d": tau}
             if version >= 7:

@@ -39,7 +39,9 @@ def test_absurd_joint_stiffness_is_refused_and_nothing_changes(sim, robot, K):
         robot.set_joint_impedance(K)
     robot.set_joint_impedance([10000.0] * 7)  # the top of the range is fine
     robot.set_joint_impedance([3000, 3000, 3000, 2500, 2500, 2000, 2000])
-    np.testing.assert_array_equal(sim.state()["q"], before["q"])
+    # the arm held where it was (to the 1e-14 rad that MuJoCo's friction constraint lets
+    # a held joint wander between ticks)
+    np.testing.assert_allclose(sim.state()["q"], before["q"], rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("K", [[5.0, 3000, 3000, 300, 300, 300], [3000, 3000, 3001, 300, 300, 300],

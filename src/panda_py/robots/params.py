@@ -107,10 +107,10 @@ class JointDrives:
 
     armature: Vec7  # [kg m^2] reflected rotor inertia, added to the mass matrix's diagonal
     viscous: Vec7  # [Nm s/rad]
-    # [Nm] identified, not yet in the simulated plant: as a MuJoCo friction constraint it
-    # left the robot's own motion generators (and our torque-controlled moves) a
-    # millimetre short, so it waits for the robot-side friction compensation that a
-    # real robot's joint controllers have.
+    # [Nm] dry friction as a torque-controlling client feels it: a robot compensates its
+    # joints' friction in its own controllers and, in part, under torque commands
+    # ("torques without gravity and friction", libfranka's Torques); the identification
+    # below was made through FCI torque commands, so this is what is left of it there.
     coulomb: Vec7
 
 

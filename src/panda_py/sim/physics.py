@@ -26,6 +26,11 @@ _OMEGA = 60.0  # [rad/s]
 _IK_ITERATIONS = 3
 _IK_DAMPING = 1e-6
 _ELBOW_HELD = np.array([0, 1, 3, 4, 5, 6])  # the joints IK moves when joint 3 is commanded
+# The robot's joint controllers compensate the drives' dry friction: on a joint moving
+# faster than _FRICTION_SPEED, all of it, along its velocity; on a joint at rest, in the
+# direction the controller pushes, as much again as it pushes (up to the Coulomb level), so
+# a joint breaks free at half the torque and its controller's gain at most doubles.
+_FRICTION_SPEED = 1e-3  # [rad/s]
 
 
 class Physics:
@@ -83,6 +88,7 @@ class Physics:
         self._jacr = np.zeros((3, m.nv))
         self._M = np.zeros((m.nv, m.nv))
         self.tau_applied = np.zeros(7)  # last gravity-free torque applied [Nm]
+        self._coulomb = np.array(spec.drives.coulomb)  # [Nm] the plant's dry friction
         # Views onto MjData's arrays (MuJoCo never reallocates them).
         sl = slice(self.v0, self.v0 + 7)
         self._qpos_arm = self.data.qpos[self.q0 : self.q0 + 7]
@@ -235,7 +241,16 @@ class Physics:
         kp = _OMEGA * _OMEGA * stiffness_scale
         kd = 2.0 * _OMEGA * np.sqrt(stiffness_scale)
         acc = ddq_d + kp * (q_d - self.q) + kd * (dq_d - self.dq)
-        return self.mass_matrix() @ acc + self.coriolis()
+        tau = self.mass_matrix() @ acc + self.coriolis()
+        return tau + self.friction_compensation(tau)
+
+    def friction_compensation(self, push: np.ndarray) -> np.ndarray:
+        """The torque [Nm] with which the robot's joint controllers cancel the joints' dry
+        friction, for a controller pushing with ``push`` [Nm] (see ``_FRICTION_SPEED``)."""
+        c = self._coulomb
+        moving = np.tanh(self.dq * (1.0 / _FRICTION_SPEED))
+        still = np.clip(push, -c, c)
+        return c * moving + (1.0 - np.abs(moving)) * still
 
     def solve_ik(self, O_T_F: np.ndarray, q_seed: np.ndarray, elbow_q3: float | None) -> np.ndarray:
         """Joint positions placing the flange at ``O_T_F``: a few damped Newton steps from

@@ -93,8 +93,9 @@ def torque_phase(q0, push: bool):
         n += 1
         q, dq = state.q, state.dq
         tau = [-kp[i] * (q[i] - q0[i]) - kd[i] * dq[i] for i in range(7)]
-        if push:  # joint 1 free, pushed by a gentle full-period sine (net impulse zero)
-            tau[0] = 0.5 * math.sin(2.0 * math.pi * min(t, 1.0))
+        if push:  # joint 1 free, pushed by a full-period sine (net impulse zero) of more
+            # than its dry friction (an FR3: 1.1 Nm)
+            tau[0] = 4.0 * math.sin(2.0 * math.pi * min(t, 1.0))
         else:
             max_dev = max(max_dev, max(abs(q[i] - q0[i]) for i in range(7)))
         cmd = plf.Torques(tau)

@@ -97,8 +97,9 @@ def torque():
         tau = [-kp[i] * (q[i] - q0[i]) - kd[i] * dq[i] for i in range(7)]
         if phase["name"] == "hold":
             phase["max_dev"] = max(phase["max_dev"], max(abs(q[i] - q0[i]) for i in range(7)))
-        else:  # joint 1 free, pushed by a gentle full-period sine (net impulse zero)
-            tau[0] = 0.5 * math.sin(2.0 * math.pi * min(phase["t"], 1.0))
+        else:  # joint 1 free, pushed by a full-period sine (net impulse zero) of more
+            # than its dry friction (a FER: 0.27 Nm)
+            tau[0] = 2.0 * math.sin(2.0 * math.pi * min(phase["t"], 1.0))
         out = libfranka.Torques(tau)
         if phase["t"] >= 1.0:
             out.motion_finished = True
