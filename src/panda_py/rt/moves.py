@@ -24,7 +24,11 @@ __all__ = ["JointMove", "MoveResult", "PoseMove"]
 FloatArray = NDArray[np.float64]
 
 SETTLE_JOINT = 5e-5  # [rad] at goal: every joint within this
-SETTLE_INTEGRAL = 2.0  # [1/s] integral gain per unit stiffness once the trajectory ended
+# [1/s] integral gain per unit stiffness once the trajectory ended: fast enough that a
+# joint at panda-py's wrist stiffness (50 Nm/rad) breaks free of the wrist's dry friction
+# within the settle time; a pose's lower, as its Cartesian damping is lighter.
+SETTLE_INTEGRAL = 10.0
+SETTLE_INTEGRAL_POSE = 2.0
 SETTLE_POSITION = 2e-3  # [m]
 SETTLE_ORIENTATION = 2e-3  # [rad]
 SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
@@ -52,8 +56,8 @@ def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
 
 class JointMove:
     """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
-    ``dq_d``, ``ddq_d`` (the inertial feed-forward keeps the arm on the planned path
-    instead of lagging behind it). Once the trajectory has ended, an integral of the error
+    ``dq_d``, ``ddq_d`` (the inertial and friction feed-forward keep the arm on the planned
+    path instead of lagging behind it). Once the trajectory has ended, an integral of the error
     to the goal removes what friction and model errors leave (panda-py stops there)."""
 
     def __init__(
@@ -82,7 +86,8 @@ class JointMove:
         if self.t > self.duration:
             self.integral += self.dt * (self.goal - state.q)
             tau += SETTLE_INTEGRAL * self.K * self.integral
-        return tau + model.driven_mass_of(state) @ self.ddq[k] + model.coriolis_of(state)
+        tau += model.driven_mass_of(state) @ self.ddq[k] + model.friction_for(self.dq[k])
+        return tau + model.coriolis_of(state)
 
     def finished(self, state: Any) -> bool:
         over = self.t - self.duration
@@ -112,7 +117,9 @@ class PoseMove:
     derivatives, with a joint impedance toward the start configuration in the task's
     nullspace and an inertial feed-forward of the planned acceleration:
     ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
-    + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``."""
+    + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``, plus the drives' dry friction along
+    the planned joint velocity ``J^+ v_d`` and, once the trajectory has ended, an integral
+    of the error to the goal (as :class:`JointMove`)."""
 
     def __init__(
         self,
@@ -141,6 +148,7 @@ class PoseMove:
         self.duration = (len(position) - 1) * 1e-3
         self.t = 0.0
         self.dt = 0.0
+        self.integral = np.zeros(6)
 
     def step(self, state: Any, model: Any) -> FloatArray:
         k = min(round(self.t * 1e3), len(self.p) - 1)
@@ -152,7 +160,11 @@ class PoseMove:
         if self._J_prev is not None and self.dt > 0.0:
             a = a - ((J - self._J_prev) @ dq) / self.dt
         self._J_prev = J
-        tau += model.driven_mass_of(state) @ laws.damped_pinv(J) @ a
+        J_pinv = laws.damped_pinv(J)
+        tau += model.driven_mass_of(state) @ J_pinv @ a + model.friction_for(J_pinv @ self.v[k])
+        if self.t > self.duration:  # remove what friction and model errors leave
+            self.integral += self.dt * err
+            tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
         kn = self.kn
         tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
         return tau + model.coriolis_of(state)
