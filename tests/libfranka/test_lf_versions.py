@@ -60,6 +60,7 @@ class _FakeRobot:
         self.host = free_loopback_host()
         self.listener = socket.create_server((self.host, fci.COMMAND_PORT))
         self.status, self.version = status, version
+        self.closed = threading.Event()
         self.thread = threading.Thread(target=self._serve, daemon=True)
         self.thread.start()
 
@@ -78,9 +79,10 @@ class _FakeRobot:
                 data += chunk
             cid, _, _ = fci.decode_connect_request(data)
             conn.sendall(fci.CONNECT_RESPONSE.pack(0, cid, 15, self.status, self.version))
-            time.sleep(3)
+            self.closed.wait(10.0)  # holds the connection open until the test is done
 
     def close(self) -> None:
+        self.closed.set()
         self.listener.close()
         self.thread.join(5)
 
