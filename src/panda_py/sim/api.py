@@ -25,7 +25,7 @@ import numpy as np
 
 from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import START_POSE
-from panda_py.sim.children import stop_child
+from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
 from panda_py.sim.server import SimConfig
 
@@ -150,7 +150,7 @@ class Simulator:
         proc = ctx.Process(
             target=_child_main, args=(self.config, child, self.log_level), daemon=True
         )
-        proc.start()
+        start_child(proc)
         child.close()
         if not parent.poll(self.start_timeout):
             proc.kill()

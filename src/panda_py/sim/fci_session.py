@@ -78,7 +78,8 @@ class FciSession(ServerState):
         (A second client never gets here: it hears ROBOT_BUSY from the sockets part.)"""
         accepted = self.config.accepted_versions
         if version not in accepted:
-            log.warning("client speaks protocol v%d; this robot speaks %s", version, list(accepted))
+            # negotiation, not a fault: our client (and panda-py) then reconnect with it
+            log.info("client speaks protocol v%d; this robot speaks %s", version, list(accepted))
             return ConnectStatus.INCOMPATIBLE_LIBRARY_VERSION, accepted[-1]
         return ConnectStatus.SUCCESS, version
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from panda_py.sim.children import stop_child
+from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk.link import DeskLink
 
 log = logging.getLogger("panda_py.sim.desk")
@@ -231,7 +231,7 @@ class DeskProcess:
             daemon=True,
             name="panda-sim-desk",
         )
-        proc.start()
+        start_child(proc)
         child.close()
         if not parent.poll(timeout):
             proc.kill()
