@@ -135,13 +135,9 @@ class TorqueController:
                     offset = layout[name][0]
                     self._values[offset : offset + len(vals)] = vals
                 return
-            h = block.header
-            h[5] += 1  # HEADER.IN_SEQ: odd while writing
-            try:
-                for name, vals in checked.items():
-                    packer(len(vals)).pack_into(block._in, 8 * layout[name][0], *vals)
-            finally:
-                h[5] += 1
+            block.write_packed_many(
+                (packer(len(vals)), layout[name][0], vals) for name, vals in checked.items()
+            )
 
     def _send(self, offset: int, values: list[float]) -> None:
         """The fast path of ``set_control``: checked, contiguous values at ``offset``.
@@ -154,11 +150,7 @@ class TorqueController:
             with self._lock:
                 self._values[offset : offset + len(values)] = values
             return
-        pack = _PACKERS.get(len(values)) or packer(len(values))
-        h = block.header
-        h[5] += 1  # HEADER.IN_SEQ: odd while writing
-        pack.pack_into(block._in, 8 * offset, *values)
-        h[5] += 1
+        block.write_packed(_PACKERS.get(len(values)) or packer(len(values)), offset, values)
 
     def _sync_from(self, block: SharedBlock) -> None:
         """Take the inputs as the running controller last had them (before unbinding)."""

@@ -11,9 +11,11 @@ dies) holds, at fixed offsets:
 * the controller's outputs (its time and declared outputs), a latch written by the loop.
 
 A seqlock's writer makes the sequence number odd, writes, and makes it even again;
-aligned 8-byte stores are atomic and x86-64 keeps stores in order, so a reader that sees
-the same even number before and after its copy has a consistent copy. No side ever waits
-for the other, so the 1 kHz loop never takes a lock the user's process can hold.
+aligned 8-byte stores are atomic, and a memory fence (:mod:`.fence`: a no-op on x86-64,
+which keeps stores and loads in order by itself; a hardware fence on aarch64, which does
+not) stands between the number and the data on both sides, so a reader that sees the same
+even number before and after its copy has a consistent copy. No side ever waits for the
+other, so the 1 kHz loop never takes a lock the user's process can hold.
 
 The log ring buffer lives in its own file (:class:`LogRing`), made when logging is enabled.
 """
@@ -27,6 +29,8 @@ import tempfile
 from typing import Any
 
 import numpy as np
+
+from panda_py.rt.fence import memory_fence
 
 __all__ = [
     "HEADER",
@@ -113,6 +117,7 @@ class SharedBlock:
         self.signals = np.frombuffer(self._mm, np.float64, SIGNALS_MAX, _IN_OFF)
         self._outputs = tuple(np.frombuffer(self._mm, np.float64, OUTPUTS_MAX, o) for o in _OUT_OFF)
         self._in = self._mv[_IN_OFF : _IN_OFF + 8 * SIGNALS_MAX]
+        self._fence = memory_fence()
 
     @classmethod
     def create(cls) -> tuple[SharedBlock, int]:
@@ -133,14 +138,18 @@ class SharedBlock:
     # --- the state slot (writer: control process) ---------------------------------------
 
     def publish_state(self, data: bytes) -> None:
-        h = self.header
+        h, fence = self.header, self._fence
         n = len(data)
         first, second = self._states
         h[HEADER.STATE_SEQ] += 1  # odd: readers take copy 1 while copy 0 is written
+        fence()
         first[:n] = data
         h[HEADER.STATE_LEN] = n
+        fence()
         h[HEADER.STATE_SEQ] += 1  # even: readers take copy 0
+        fence()
         second[:n] = data
+        fence()
         h[HEADER.TICKS] += 1
 
     def field_views(self, state_dtype: np.dtype, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -154,21 +163,25 @@ class SharedBlock:
 
     def read_field(self, views: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """A consistent float64 copy of a state field (``views`` from :meth:`field_views`)."""
-        h = self.header
+        h, fence = self.header, self._fence
         while True:
             seq = h[0]  # HEADER.STATE_SEQ
+            fence()
             out = views[seq & 1].astype(np.float64)
+            fence()
             if seq == h[0]:
                 return out
 
     def read_state(self) -> bytes | None:
         """A consistent copy of the newest state datagram (None before the first)."""
-        h = self.header
+        h, fence = self.header, self._fence
         states = self._states
         while True:
             seq = h[HEADER.STATE_SEQ]
+            fence()
             n = h[HEADER.STATE_LEN]
             data = bytes(states[seq & 1][:n])
+            fence()
             if h[HEADER.STATE_SEQ] == seq:
                 return data if n else None
 
@@ -177,27 +190,45 @@ class SharedBlock:
     def write_packed(self, packer: struct.Struct, offset: int, values: Any) -> None:
         """Write ``values`` (a sequence of floats, packed by ``packer``) at float64 index
         ``offset`` of the inputs, as one seqlock write."""
-        h = self.header
+        h, fence = self.header, self._fence
         h[5] += 1  # HEADER.IN_SEQ: odd while writing
+        fence()
         packer.pack_into(self._in, 8 * offset, *values)
+        fence()
         h[5] += 1
 
-    def write_signal_array(self, values: np.ndarray, offset: int = 0) -> None:
-        h = self.header
+    def write_packed_many(self, pieces: Any) -> None:
+        """Write several ``(packer, offset, values)`` pieces as one seqlock write."""
+        h, fence = self.header, self._fence
         h[HEADER.IN_SEQ] += 1
+        fence()
+        try:
+            for packer, offset, values in pieces:
+                packer.pack_into(self._in, 8 * offset, *values)
+        finally:
+            fence()
+            h[HEADER.IN_SEQ] += 1
+
+    def write_signal_array(self, values: np.ndarray, offset: int = 0) -> None:
+        h, fence = self.header, self._fence
+        h[HEADER.IN_SEQ] += 1
+        fence()
         self.signals[offset : offset + len(values)] = values
+        fence()
         h[HEADER.IN_SEQ] += 1
 
     def read_signals(self, out: np.ndarray, last_seq: int) -> int:
         """Copy the inputs into ``out`` if they changed since ``last_seq`` and are
         consistent; returns the sequence number ``out`` now holds (``last_seq`` if the
         copy was skipped or torn: the caller keeps its previous values, never waits)."""
-        h = self.header
+        h, fence = self.header, self._fence
         seq = h[HEADER.IN_SEQ]
         if seq == last_seq or seq & 1:
             return last_seq
+        fence()
         n = len(out)
         scratch = self.signals[:n].copy()
+        fence()
         if h[HEADER.IN_SEQ] != seq:
             return last_seq
         out[:] = scratch
@@ -206,20 +237,25 @@ class SharedBlock:
     # --- controller outputs (writer: control process) -----------------------------------
 
     def write_outputs(self, values: np.ndarray) -> None:
-        h = self.header
+        h, fence = self.header, self._fence
         n = len(values)
         first, second = self._outputs
         h[HEADER.OUT_SEQ] += 1
+        fence()
         first[:n] = values
+        fence()
         h[HEADER.OUT_SEQ] += 1
+        fence()
         second[:n] = values
 
     def read_outputs(self, n: int) -> np.ndarray:
-        h = self.header
+        h, fence = self.header, self._fence
         outputs = self._outputs
         while True:
             seq = h[HEADER.OUT_SEQ]
+            fence()
             out = outputs[seq & 1][:n].copy()
+            fence()
             if h[HEADER.OUT_SEQ] == seq:
                 return out
 
@@ -242,6 +278,7 @@ class LogRing:
         self.spans = spans  # (source offset, record offset, length) in bytes
         self._mm = mmap.mmap(fd, LogRing.nbytes(size, record))
         self._mv = memoryview(self._mm)
+        self._fence = memory_fence()
 
     @staticmethod
     def layout(state_dtype: np.dtype, names: tuple[str, ...]) -> tuple[np.dtype, list]:
@@ -287,12 +324,15 @@ class LogRing:
         mv = self._mv
         for src, dst, n in self.spans:
             mv[base + dst : base + dst + n] = data[src : src + n]
+        self._fence()  # the record before the count that publishes it
         header[HEADER.LOG_COUNT] = count + 1
 
     def snapshot(self, header: Any) -> np.ndarray:
         """The logged records, oldest first (user's process)."""
         before = header[HEADER.LOG_COUNT]
+        self._fence()
         raw = np.frombuffer(self._mm, self.record, self.slots).copy()
+        self._fence()
         after = header[HEADER.LOG_COUNT]
         # a record is intact if the writer has not reached its slot again: logical index
         # i with i >= after + 1 - slots (the writer may be inside slot ``after``'s now)
