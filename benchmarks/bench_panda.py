@@ -5,6 +5,7 @@ on the same simulator, in the same run. Run by hand:
     python benchmarks/bench_panda.py latency [--seconds 10]     # set_control -> command
     python benchmarks/bench_panda.py lost    [--seconds 60]     # lost commands under load
     python benchmarks/bench_panda.py moves                      # move accuracy
+    python benchmarks/bench_panda.py cpu     [--seconds 20]     # loop CPU, laws' cost/tick
     python benchmarks/bench_panda.py all
 
 ``lost``: a controller runs on a simulator on the wall clock (SCHED_FIFO when permitted),
@@ -27,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import panda_py
-from panda_py import constants, controllers
+from panda_py import constants, controllers, libfranka
 from panda_py.sim import Simulator, free_loopback_host
 
 sys.path.append(str(Path(__file__).resolve().parents[1] / "tests"))
@@ -250,9 +251,76 @@ def moves() -> None:
               f"ours {ours[label]['deviation']:.2e}, panda-python {dev:.2e}")  # fmt: skip
 
 
+def _cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far [s] (Linux /proc)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _law_costs(n: int) -> dict[str, list[float]]:
+    """Per-call cost [us] of the laws' step on a recorded state, in this process."""
+    from panda_py.rt.model import ControlModel
+    from panda_py.rt.moves import JointMove, PoseMove
+
+    with Simulator(free_loopback_host(), robot="fr3", lockstep=True) as sim:
+        with libfranka.Robot(sim.host) as robot:
+            state = robot.read_once()
+    model = ControlModel("fr3")
+
+    def fresh() -> Any:  # a new RobotState each tick, as the loop has
+        return libfranka.RobotState(state._dialect, state._data)
+
+    ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
+    ctrl.start(state, model)
+    k = 2000
+    p = np.tile(np.asarray(state.O_T_EE)[12:15], (k, 1))
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
+    pose = PoseMove(p, quat, np.zeros((k, 6)), np.zeros((k, 6)), np.asarray(state.q),
+                    np.diag([600.0] * 3 + [30.0] * 3), 1.0, 10.0, 0.01, 0.01, 0.05)  # fmt: skip
+    joint = JointMove(np.tile(np.asarray(state.q), (k, 1)), np.zeros((k, 7)), np.zeros((k, 7)),
+                      np.full(7, 600.0), np.full(7, 50.0), 0.01, 0.01)  # fmt: skip
+    pose.t = joint.t = 0.5
+    pose.dt = joint.dt = 1e-3
+    out = {}
+    for label, law in (("CartesianImpedance", ctrl), ("move_to_pose", pose),
+                       ("move_to_joint_position", joint)):  # fmt: skip
+        for _ in range(300):
+            law.step(fresh(), model)
+        out[label] = _per_call(lambda law=law: law.step(fresh(), model), n)
+    return out
+
+
+def cpu(seconds: float, n: int) -> None:
+    """The control loop's CPU share with CartesianImpedance running, ours and
+    panda-python's on the same (realtime) simulated FER, and the laws' cost per tick."""
+    print(f"control loop CPU with CartesianImpedance, {seconds:g} s, realtime simulator (FER, v5)")
+    with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+        with panda_py.Panda(sim.host) as panda:
+            panda.move_to_start()
+            ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
+            x0, q0 = panda.get_position(), panda.get_orientation()
+            panda.start_controller(ctrl)
+            pid = panda._proc.proc.pid
+            time.sleep(0.5)
+            c0, t0 = _cpu_seconds(pid), time.monotonic()
+            while time.monotonic() - t0 < seconds:
+                ctrl.set_control(x0, q0)
+                time.sleep(0.01)
+            ours = (_cpu_seconds(pid) - c0) / (time.monotonic() - t0)
+            panda.stop_controller()
+        theirs = _peer("cpu", sim.host, str(seconds))["cpu"]
+    print(f"  ours (control process) {100 * ours:5.1f} % of a core; panda-python (its process) "
+          f"{100 * theirs:5.1f} %; ratio {ours / theirs:.2f}x")  # fmt: skip
+    print(f"the laws' step per tick, in process, {n} calls [us]")
+    for label, values in _law_costs(n).items():
+        med, p99, worst = _stats(values)
+        print(f"  {label:<24} median {med:6.1f}  p99 {p99:6.1f}  worst {worst:7.1f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "all"))
+    p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "cpu", "all"))
     p.add_argument("--n", type=int, default=20000)
     p.add_argument("--seconds", type=float, default=None)
     a = p.parse_args()
@@ -264,6 +332,8 @@ def main() -> None:
         moves()
     if a.mode in ("lost", "all"):
         lost(a.seconds or 60.0)
+    if a.mode in ("cpu", "all"):
+        cpu(a.seconds or 20.0, min(a.n, 5000))
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@
     python peer_panda.py calls HOST N
     python peer_panda.py lost HOST SECONDS
     python peer_panda.py moves HOST
+    python peer_panda.py cpu HOST SECONDS
 """
 
 from __future__ import annotations
@@ -99,8 +100,29 @@ def moves(host: str) -> dict:
     return out
 
 
+def cpu(host: str, seconds: float) -> dict:
+    """CPU share of this process (panda-python runs its 1 kHz loop in a thread of it)
+    with CartesianImpedance running, the main thread setting its target at 100 Hz."""
+    panda = panda_py.Panda(host)
+    panda.move_to_start()
+    ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
+    x0, q0 = panda.get_position(), panda.get_orientation()
+    panda.start_controller(ctrl)
+    time.sleep(0.5)
+    c0, t0 = time.process_time(), time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        ctrl.set_control(x0, q0)
+        time.sleep(0.01)
+    share = (time.process_time() - c0) / (time.monotonic() - t0)
+    panda.stop_controller()
+    return {"cpu": share}
+
+
 if __name__ == "__main__":
     mode, host = sys.argv[1], sys.argv[2]
+    if mode == "cpu":
+        print("RESULT " + json.dumps(cpu(host, float(sys.argv[3]))), flush=True)
+        sys.exit(0)
     if mode == "calls":
         res = calls(host, int(sys.argv[3]))
     elif mode == "lost":

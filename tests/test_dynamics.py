@@ -185,12 +185,44 @@ def test_loaded_arm_equals_the_checked_functions() -> None:
         for _ in range(5):
             q, dq = rng.uniform(-1, 1, 7), rng.normal(size=7)
             np.testing.assert_allclose(
-                arm.coriolis(q.tolist(), dq.tolist()), coriolis(q, dq, robot=robot, **load)
+                arm.coriolis(q.tolist(), dq.tolist()),
+                coriolis(q, dq, robot=robot, **load),
+                atol=1e-12,
             )
             np.testing.assert_allclose(
                 arm.gravity(q.tolist()),
                 gravity(q, m_load=0.9, F_x_Cload=load["F_x_Cload"], robot=robot),
+                atol=1e-12,
             )
             np.testing.assert_allclose(
-                arm.mass_matrix(q.tolist()), mass_matrix(q, robot=robot, **load)
+                arm.mass_matrix(q.tolist()), mass_matrix(q, robot=robot, **load), atol=1e-12
+            )
+
+
+@pytest.mark.parametrize("robot", ["fer", "fr3"])
+def test_the_loaded_arm_compiled_equals_the_plain_recursion(robot, monkeypatch) -> None:
+    """LoadedArm (the control loop's model terms) on numba's kernels gives the plain
+    recursion's numbers, loaded or not; with the JIT off it runs the plain recursion."""
+    from panda_py import dynamics
+
+    rng = np.random.default_rng(7)
+    load = {
+        "m_load": 0.73,
+        "F_x_Cload": [-0.01, 0.0, 0.03],
+        "I_load": np.diag([1e-3, 2.5e-3, 1.7e-3]),
+    }
+    for kwargs in ({}, load):
+        arm = dynamics.LoadedArm(robot, **kwargs)
+        assert arm._kernels is not None  # numba is installed with the package here
+        monkeypatch.setattr(dynamics, "_JIT", None)
+        plain = dynamics.LoadedArm(robot, **kwargs)
+        monkeypatch.undo()
+        assert plain._kernels is None
+        for _ in range(20):
+            q, dq = rng.uniform(-2.0, 2.0, 7), rng.uniform(-2.0, 2.0, 7)
+            np.testing.assert_allclose(arm.coriolis(q, dq), plain.coriolis(q, dq), atol=1e-12)
+            np.testing.assert_allclose(arm.gravity(q), plain.gravity(q), atol=1e-12)
+            np.testing.assert_allclose(arm.mass_matrix(q), plain.mass_matrix(q), atol=1e-12)
+            np.testing.assert_allclose(
+                arm.coriolis(q, dq), dynamics.coriolis(q, dq, robot=robot, **kwargs), atol=1e-12
             )

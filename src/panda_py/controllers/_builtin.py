@@ -429,8 +429,15 @@ class CartesianImpedance(TorqueController):
         self._quat = laws.slerp(self._quat, self._quat_t, a)
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
+        kn = self._kn
+        kernels = laws.compiled()
+        if kernels is not None:  # the same law, compiled
+            tau = np.empty(7)
+            kernels.cartesian_impedance_torque(
+                state.O_T_EE, J, q, dq, self._p, self._quat, self._K, self._Kd, self._qn, kn, tau
+            )
+            return tau + model.coriolis_of(state)
         err = laws.cartesian_error(state.O_T_EE, self._p, self._quat)
         tau = J.T @ (-(self._K @ err) - self._Kd @ (J @ dq))
-        kn = self._kn
         tau += laws.nullspace_projector(J) @ (kn * (self._qn - q) - 2.0 * math.sqrt(kn) * dq)
         return tau + model.coriolis_of(state)

@@ -9,6 +9,7 @@ Conventions: quaternions (x, y, z, w); ``O_T_EE`` flat column-major (16,) as in
 from __future__ import annotations
 
 import math
+import os
 from typing import Any
 
 import numpy as np
@@ -21,12 +22,14 @@ __all__ = [
     "JointWalls",
     "cartesian_error",
     "clip_torques",
+    "compiled",
     "damped_pinv",
     "ema",
     "nullspace_projector",
     "quat_from_matrix",
     "saturate_torque_rate",
     "slerp",
+    "warmup",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -39,6 +42,39 @@ DTAU_MAX_PER_TICK = 1.0  # [Nm]
 # a 14 cm move_to_pose with nullspace stiffness 15); 0.01 leaks nothing measurable and
 # still bounds the inverse near singular configurations.
 PINV_DAMPING = 0.01
+
+
+_UNSET: Any = object()
+_KERNELS: Any = _UNSET
+
+
+def compiled() -> Any:
+    """The laws compiled by numba (:mod:`._kernels`), or None (numba missing, or
+    ``PANDA_PY_NO_JIT=1``): imported on first use."""
+    global _KERNELS
+    if _KERNELS is _UNSET:
+        _KERNELS = None
+        if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
+            try:
+                from panda_py.controllers import _kernels
+            except ImportError:
+                pass
+            else:
+                _KERNELS = _kernels
+    return _KERNELS
+
+
+def warmup() -> None:
+    """Compile (or load from numba's cache) the compiled laws now: the control process
+    calls this before its loop, whose first tick must not wait for a compiler."""
+    k = compiled()
+    if k is not None:
+        J = np.zeros((6, 7))
+        J[:6, :6] = np.eye(6)
+        z7, K = np.zeros(7), np.eye(6)
+        T = np.eye(4).reshape(16)
+        k.cartesian_impedance_torque(T, J, z7, z7, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]),
+                                     K, K, z7, 1.0, np.empty(7))  # fmt: skip
 
 
 def ema(filtered: FloatArray, target: FloatArray, alpha: float) -> None:

@@ -148,6 +148,22 @@ class Robot(NamedControlMixin):
 
     # --- information --------------------------------------------------------------------
 
+    @property
+    def spin_wait(self) -> bool:
+        """How control loops wait for the next state (an extension of ours, not
+        libfranka's): True (the default), sleep until shortly before it is due and then
+        poll for it, which catches it sooner on a machine whose threads wake slowly;
+        False, sleep until it arrives, which costs no CPU while waiting. Measured in
+        ``Panda``'s control process (``benchmarks/bench_panda.py``), polling bought
+        nothing there: it is off."""
+        return bool(self._conn.net.spin)
+
+    @spin_wait.setter
+    def spin_wait(self, on: bool) -> None:
+        if not isinstance(on, bool):
+            raise ValueError(f"spin_wait: expected True or False, got {on!r}")
+        self._conn.net.spin = on
+
     def server_version(self) -> int:
         """The robot's protocol version."""
         return int(self._conn.server_version)

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from panda_py import dynamics, kinematics
 from panda_py.libfranka.model import Model
-from panda_py.libfranka.state import RobotState
+from panda_py.libfranka.state import RobotState, combine_load
 from panda_py.libfranka.types import Frame
 
 __all__ = ["ControlModel"]
@@ -42,6 +42,8 @@ class ControlModel(Model):
         self._arm_cached: dynamics.LoadedArm | None = None
         self._rotors = np.diag(self.spec.drives.armature)
         self._coulomb = np.array(self.spec.drives.coulomb)
+        # compile (or load) the model's kernels now, not in the loop's first tick
+        dynamics.LoadedArm(self.spec).coriolis(np.zeros(7), np.zeros(7))
 
     def _kinematics(self, F_T_EE: FloatArray) -> Any:
         key = F_T_EE.tobytes()
@@ -60,10 +62,14 @@ class ControlModel(Model):
         return J
 
     def _arm(self, state: Any) -> dynamics.LoadedArm:
-        """The arm with the state's total load, prepared once per load."""
-        m, c, inertia = state.m_total, state.F_x_Ctotal, state.I_total
-        key = (m, c.tobytes(), inertia.tobytes())
+        """The arm with the state's total load, prepared once per load: keyed on the raw
+        end-effector and payload fields, combined (``combine_load``) only when they
+        change."""
+        I_ee, c_ee, I_load, c_load = state.I_ee, state.F_x_Cee, state.I_load, state.F_x_Cload
+        key = (state.m_ee, state.m_load, I_ee.tobytes(), c_ee.tobytes(), I_load.tobytes(),
+               c_load.tobytes())  # fmt: skip
         if key != self._arm_key:
+            m, c, inertia = combine_load(key[0], c_ee, I_ee, key[1], c_load, I_load)
             self._arm_cached = dynamics.LoadedArm(self.spec, m_load=m, F_x_Cload=c, I_load=inertia)
             self._arm_key = key
         assert self._arm_cached is not None
@@ -74,7 +80,7 @@ class ControlModel(Model):
         cached = self._cor
         if cached is not None and cached[0] is state:
             return cached[1]
-        tau = self._arm(state).coriolis(state.q.tolist(), state.dq.tolist())
+        tau = self._arm(state).coriolis(state.q, state.dq)
         self._cor = (state, tau)
         return tau
 
@@ -83,7 +89,7 @@ class ControlModel(Model):
         cached = self._mass
         if cached is not None and cached[0] is state:
             return cached[1]
-        M = self._arm(state).mass_matrix(state.q.tolist())
+        M = self._arm(state).mass_matrix(state.q)
         self._mass = (state, M)
         return M
 
@@ -106,7 +112,7 @@ class ControlModel(Model):
         cached = self._grav
         if cached is not None and cached[0] is state:
             return cached[1]
-        tau = self._arm(state).gravity(state.q.tolist())
+        tau = self._arm(state).gravity(state.q)
         self._grav = (state, tau)
         return tau
 

@@ -149,24 +149,33 @@ class PoseMove:
         self.t = 0.0
         self.dt = 0.0
         self.integral = np.zeros(6)
+        self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
 
     def step(self, state: Any, model: Any) -> FloatArray:
         k = min(round(self.t * 1e3), len(self.p) - 1)
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
-        err = laws.cartesian_error(state.O_T_EE, self.p[k], self.quat[k])
-        tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
+        kn = self.kn
+        kernels = laws.compiled()
+        if kernels is not None:  # the same terms, compiled
+            tau, err, J_pinv = np.empty(7), self._err, self._J_pinv
+            kernels.impedance_torque(
+                state.O_T_EE, J, q, dq, self.p[k], self.quat[k], self.v[k], self.K, self.D,
+                self.qn, kn, tau, err, J_pinv,
+            )  # fmt: skip
+        else:
+            err = laws.cartesian_error(state.O_T_EE, self.p[k], self.quat[k])
+            tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
+            tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
+            J_pinv = laws.damped_pinv(J)
         a = self.a[k]
         if self._J_prev is not None and self.dt > 0.0:
             a = a - ((J - self._J_prev) @ dq) / self.dt
         self._J_prev = J
-        J_pinv = laws.damped_pinv(J)
-        tau += model.driven_mass_of(state) @ J_pinv @ a + model.friction_for(J_pinv @ self.v[k])
+        tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(J_pinv @ self.v[k])
         if self.t > self.duration:  # remove what friction and model errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
-        kn = self.kn
-        tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
         return tau + model.coriolis_of(state)
 
     def _errors(self, state: Any) -> tuple[float, float]:

@@ -1,0 +1,143 @@
+"""The recursive Newton-Euler and composite-rigid-body algorithms of :mod:`.dynamics`,
+compiled by numba on float64 arrays (the same recursion, term for term), for the control
+loop's model terms: about 3 us a call where the plain-Python recursion takes 40-110 us.
+
+Imported by :mod:`.dynamics` on first use unless ``PANDA_PY_NO_JIT=1`` or numba is
+missing; compiled once per machine and cached by numba (next to this file, or in its
+per-user cache where that is not writable).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["crba", "rnea"]
+
+_N = 7
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
+    """R_{i-1,i} = RotX(alpha_i) RotZ(q_i), i = 1..7, as (7, 3, 3)."""
+    R = np.empty((_N, 3, 3))
+    for i in range(_N):
+        cq, sq = math.cos(q[i]), math.sin(q[i])
+        R[i, 0, 0], R[i, 0, 1], R[i, 0, 2] = cq, -sq, 0.0
+        R[i, 1, 0], R[i, 1, 1], R[i, 1, 2] = ca[i] * sq, ca[i] * cq, -sa[i]
+        R[i, 2, 0], R[i, 2, 1], R[i, 2, 2] = sa[i] * sq, sa[i] * cq, ca[i]
+    return R
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _cross(a, b, out):  # type: ignore[no-untyped-def,unused-ignore]
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """Joint torques into ``tau`` (7,) for (q, dq, ddq) with base acceleration
+    ``a_base`` (``-gravity``); links' ``mass`` (7,), first moments ``h`` (7, 3) and
+    inertias about their frame origins (7, 3, 3); frame origins ``origin`` (7, 3)."""
+    R = _rotations(ca, sa, q)
+    w = np.zeros(3)
+    wd = np.zeros(3)
+    a = a_base.copy()
+    f = np.empty((_N, 3))
+    n = np.empty((_N, 3))
+    t1 = np.empty(3)
+    t2 = np.empty(3)
+    t3 = np.empty(3)
+    tmp = np.empty(3)
+    for i in range(_N):
+        p = origin[i]
+        _cross(wd, p, t1)  # a_par
+        _cross(w, p, t2)
+        _cross(w, t2, t3)  # w x (w x p)
+        for k in range(3):
+            tmp[k] = a[k] + t1[k] + t3[k]
+        Ri = R[i]
+        w_par = Ri.T @ w
+        wd_par = Ri.T @ wd
+        a = Ri.T @ tmp
+        w[0], w[1], w[2] = w_par[0], w_par[1], w_par[2] + dq[i]
+        wd[0] = wd_par[0] + w_par[1] * dq[i]
+        wd[1] = wd_par[1] - w_par[0] * dq[i]
+        wd[2] = wd_par[2] + ddq[i]
+        hi = h[i]
+        I = inertia[i]
+        _cross(w, hi, t1)
+        _cross(w, t1, t2)  # w x (w x h)
+        _cross(wd, hi, t3)  # wd x h
+        for k in range(3):
+            f[i, k] = mass[i] * a[k] + t3[k] + t2[k]
+        Iwd = I @ wd
+        Iw = I @ w
+        _cross(w, Iw, t1)
+        _cross(hi, a, t2)
+        for k in range(3):
+            n[i, k] = Iwd[k] + t1[k] + t2[k]
+    fo = f[_N - 1].copy()
+    no = n[_N - 1].copy()
+    tau[_N - 1] = no[2]
+    for i in range(_N - 2, -1, -1):
+        Rn = R[i + 1]
+        fc = Rn @ fo
+        nc = Rn @ no
+        _cross(origin[i + 1], fc, t1)
+        for k in range(3):
+            fo[k] = f[i, k] + fc[k]
+            no[k] = n[i, k] + nc[k] + t1[k]
+        tau[i] = no[2]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def,unused-ignore]
+    """The joint-space mass matrix into ``M`` (7, 7) (arguments as :func:`rnea`)."""
+    R = _rotations(ca, sa, q)
+    cm = np.empty(_N)
+    ch = np.empty((_N, 3))
+    cI = np.empty((_N, 3, 3))
+    cm[_N - 1] = mass[_N - 1]
+    ch[_N - 1] = h[_N - 1]
+    cI[_N - 1] = inertia[_N - 1]
+    for i in range(_N - 2, -1, -1):
+        Rn, p = R[i + 1], origin[i + 1]
+        m = cm[i + 1]
+        h_r = Rn @ ch[i + 1]
+        I_r = Rn @ cI[i + 1] @ Rn.T
+        p2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+        ph = 2.0 * (p[0] * h_r[0] + p[1] * h_r[1] + p[2] * h_r[2])
+        for r in range(3):
+            for k in range(3):
+                d = 1.0 if r == k else 0.0
+                cI[i, r, k] = (
+                    inertia[i, r, k]
+                    + I_r[r, k]
+                    + m * (d * p2 - p[r] * p[k])
+                    + (d * ph - p[r] * h_r[k] - h_r[r] * p[k])
+                )
+        for k in range(3):
+            ch[i, k] = h[i, k] + h_r[k] + m * p[k]
+        cm[i] = mass[i] + m
+    fo = np.empty(3)
+    no = np.empty(3)
+    t1 = np.empty(3)
+    for j in range(_N):
+        fo[0], fo[1], fo[2] = -ch[j, 1], ch[j, 0], 0.0  # z x h
+        no[0], no[1], no[2] = cI[j, 0, 2], cI[j, 1, 2], cI[j, 2, 2]  # I z
+        M[j, j] = no[2]
+        for i in range(j - 1, -1, -1):
+            Rn = R[i + 1]
+            fc = Rn @ fo
+            nc = Rn @ no
+            _cross(origin[i + 1], fc, t1)
+            for k in range(3):
+                fo[k] = fc[k]
+                no[k] = nc[k] + t1[k]
+            M[i, j] = no[2]
+            M[j, i] = no[2]

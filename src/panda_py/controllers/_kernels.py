@@ -1,0 +1,135 @@
+"""The Cartesian impedance law compiled by numba, on the loop's arrays (no temporaries
+the caller sees): panda-py's ``CartesianImpedance`` torque in one call of a few
+microseconds, where the same NumPy expressions take 50-60 us. The plain version in
+:mod:`.laws` stays the reference (tests hold them together).
+
+Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
+per machine and cached by numba.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["cartesian_impedance_torque", "impedance_torque"]
+
+PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """Unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
+    tr = R[0, 0] + R[1, 1] + R[2, 2]
+    if tr > 0.0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        out[3] = 0.25 * s
+        out[0] = (R[2, 1] - R[1, 2]) / s
+        out[1] = (R[0, 2] - R[2, 0]) / s
+        out[2] = (R[1, 0] - R[0, 1]) / s
+    elif R[0, 0] > R[1, 1] and R[0, 0] > R[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + R[0, 0] - R[1, 1] - R[2, 2])
+        out[3] = (R[2, 1] - R[1, 2]) / s
+        out[0] = 0.25 * s
+        out[1] = (R[0, 1] + R[1, 0]) / s
+        out[2] = (R[0, 2] + R[2, 0]) / s
+    elif R[1, 1] > R[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + R[1, 1] - R[0, 0] - R[2, 2])
+        out[3] = (R[0, 2] - R[2, 0]) / s
+        out[0] = (R[0, 1] + R[1, 0]) / s
+        out[1] = 0.25 * s
+        out[2] = (R[1, 2] + R[2, 1]) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + R[2, 2] - R[0, 0] - R[1, 1])
+        out[3] = (R[1, 0] - R[0, 1]) / s
+        out[0] = (R[0, 2] + R[2, 0]) / s
+        out[1] = (R[1, 2] + R[2, 1]) / s
+        out[2] = 0.25 * s
+    n = math.sqrt(out[0] ** 2 + out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
+    for k in range(4):
+        out[k] /= n
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
+    definite): the damped pseudo-inverse of J^T."""
+    A = J @ J.T
+    for i in range(6):
+        A[i, i] += PINV_DAMPING * PINV_DAMPING
+    L = np.zeros((6, 6))
+    for i in range(6):
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+    for c in range(J.shape[1]):  # solve L L^T x = J[:, c]
+        y = np.empty(6)
+        for i in range(6):
+            s = J[i, c]
+            for k in range(i):
+                s -= L[i, k] * y[k]
+            y[i] = s / L[i, i]
+        for i in range(5, -1, -1):
+            s = y[i]
+            for k in range(i + 1, 6):
+                s -= L[k, i] * out[k, c]
+            out[i, c] = s / L[i, i]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
+    """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
+    ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
+    (6,) and the damped pseudo-inverse of J (laws.damped_pinv) into ``J_pinv`` (7, 6); ``N``
+    is the damped nullspace projector (laws.nullspace_projector). No Coriolis term (the
+    caller adds it). ``O_T_EE`` flat column-major (16,)."""
+    R = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            R[r, c] = O_T_EE[4 * c + r]
+    quat = np.empty(4)
+    _quat_from_rotation(R, quat)
+    if quat_d[0] * quat[0] + quat_d[1] * quat[1] + quat_d[2] * quat[2] + quat_d[3] * quat[3] < 0.0:
+        for k in range(4):
+            quat[k] = -quat[k]
+    x, y, z, w = quat[0], quat[1], quat[2], quat[3]
+    xd, yd, zd, wd = quat_d[0], quat_d[1], quat_d[2], quat_d[3]
+    ex = w * xd - x * wd - (y * zd - z * yd)
+    ey = w * yd - y * wd - (z * xd - x * zd)
+    ez = w * zd - z * wd - (x * yd - y * xd)
+    err[0] = O_T_EE[12] - p_d[0]
+    err[1] = O_T_EE[13] - p_d[1]
+    err[2] = O_T_EE[14] - p_d[2]
+    for r in range(3):
+        err[3 + r] = -(R[r, 0] * ex + R[r, 1] * ey + R[r, 2] * ez)
+    v = J @ dq
+    for k in range(6):
+        v[k] -= v_d[k]
+    F = -(K @ err) - (D @ v)
+    task = J.T @ F
+    P = np.empty((6, 7))
+    _damped_pinv_T(J, P)
+    for i in range(7):
+        for k in range(6):
+            J_pinv[i, k] = P[k, i]
+    s = 2.0 * math.sqrt(k_n)
+    u = np.empty(7)
+    for i in range(7):
+        u[i] = k_n * (q_n[i] - q[i]) - s * dq[i]
+    JPu = J.T @ (P @ u)  # (J^T pinv(J^T)) u
+    for i in range(7):
+        tau[i] = task[i] + u[i] - JPu[i]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
+    impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, np.zeros(6), K, Kd, q_n, k_n, tau,
+                     np.empty(6), np.empty((7, 6)))  # fmt: skip
