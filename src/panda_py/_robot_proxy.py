@@ -109,8 +109,16 @@ class RobotProxy:
                        "[kg m^2]")  # fmt: skip
         self._call("set_load", m, c, inertia)
 
-    def set_filters(self, *frequencies: float) -> None:
-        values = _vec("filter frequencies", list(frequencies), 5, "[Hz]")
+    def set_filters(self, joint_position_filter_frequency: float,
+                    joint_velocity_filter_frequency: float,
+                    cartesian_position_filter_frequency: float,
+                    cartesian_velocity_filter_frequency: float,
+                    controller_filter_frequency: float) -> None:  # fmt: skip
+        """Robot-side low-pass cut-offs [Hz] (1..1000; protocol v3-v5 only)."""
+        frequencies = [joint_position_filter_frequency, joint_velocity_filter_frequency,
+                       cartesian_position_filter_frequency, cartesian_velocity_filter_frequency,
+                       controller_filter_frequency]  # fmt: skip
+        values = _vec("filter frequencies", frequencies, 5, "[Hz]")
         if ((values < 1.0) | (values > 1000.0)).any():
             raise ValueError(f"filter frequencies: expected 1..1000 Hz, got {values.tolist()}")
         self._call("set_filters", *values.tolist())

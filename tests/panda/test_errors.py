@@ -158,3 +158,32 @@ def test_bad_constructor_arguments_start_no_process(kwargs: dict, match: str) ->
     args = {"hostname": "127.0.0.1", **kwargs}
     with pytest.raises(ValueError, match=match):
         panda_py.Panda(**args)
+
+
+def test_the_robot_proxy_binds_arguments_as_robot_does() -> None:
+    """``panda.get_robot()`` has ``libfranka.Robot``'s signature for every method they
+    share, so named arguments work through it (``set_filters`` lost them once)."""
+    import inspect
+
+    from panda_py._robot_proxy import RobotProxy
+    from panda_py.libfranka import Robot
+
+    shared = [n for n in dir(RobotProxy) if not n.startswith("_") and hasattr(Robot, n)]
+    assert "set_filters" in shared and "set_load" in shared
+    for name in shared:
+        ours = inspect.signature(getattr(RobotProxy, name)).parameters
+        theirs = inspect.signature(getattr(Robot, name)).parameters
+        assert list(ours) == list(theirs), name
+
+
+def test_named_filter_frequencies_reach_the_robot(panda: panda_py.Panda) -> None:
+    robot = panda.get_robot()  # a FER on protocol 5, which has SetFilters
+    robot.set_filters(
+        joint_position_filter_frequency=100.0, joint_velocity_filter_frequency=100.0,
+        cartesian_position_filter_frequency=100.0, cartesian_velocity_filter_frequency=100.0,
+        controller_filter_frequency=100.0,
+    )  # fmt: skip
+    robot.set_filters(1000.0, 1000.0, 1000.0, 1000.0, 1000.0)
+    with pytest.raises(ValueError, match=r"1\.\.1000 Hz"):
+        robot.set_filters(0.5, 1000.0, 1000.0, 1000.0, 1000.0)
+    robot.set_load(load_mass=0.0, F_x_Cload=[0.0, 0.0, 0.0], load_inertia=np.zeros(9))
