@@ -10,11 +10,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MAX_TIMEOUT", "number", "timeout", "vector"]
+__all__ = ["MAX_TIMEOUT", "QUATERNION_NORM_TOL", "number", "timeout", "vector"]
 
 #: The longest wait a caller may ask for [s]: finite, and small enough for every socket
 #: and ``select`` (which reject, e.g., infinity or 1e300 with an ``OverflowError``).
 MAX_TIMEOUT = 86400.0
+# One tolerance for a quaternion's norm wherever one is given (move_to_pose,
+# CartesianImpedance.set_control, CartesianTrajectory, ik): within it the quaternion is
+# normalised, beyond it refused. Hand-typed four-decimal quaternions (0.7071, 0.7071, 0, 0)
+# are 3e-5 off; a forgotten normalisation is percents off.
+QUATERNION_NORM_TOL = 1e-3  # [-] |norm - 1|
 
 
 def number(

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from panda_py._checks import number
+from panda_py._checks import QUATERNION_NORM_TOL, number
 
 __all__ = [
     "matrix6",
@@ -80,10 +80,11 @@ def unit_interval(name: str, value: Any) -> float:
 
 
 def quaternion(name: str, value: Any) -> list[float]:
-    """A unit quaternion (x, y, z, w); within 1 % of unit norm it is normalised."""
+    """A unit quaternion (x, y, z, w); within ``QUATERNION_NORM_TOL`` of unit norm it is
+    normalised."""
     values = vector(name, value, 4, "(quaternion x, y, z, w)")
     norm = math.sqrt(sum(v * v for v in values))
-    if abs(norm - 1.0) > 1e-2:
+    if not abs(norm - 1.0) <= QUATERNION_NORM_TOL:
         raise ValueError(f"{name}: expected a unit quaternion (x, y, z, w), got norm {norm}")
     return [v / norm for v in values]
 

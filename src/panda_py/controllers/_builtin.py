@@ -12,10 +12,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from panda_py._checks import QUATERNION_NORM_TOL
 from panda_py.controllers import _args, laws
 from panda_py.controllers._base import FloatArray, TorqueController
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
+
+# the squared norm's bound on set_control's fast path (|o|^2 - 1 = 2 (|o| - 1) to first order)
+_NORM2_TOL = 2.0 * QUATERNION_NORM_TOL
 
 __all__ = [
     "AppliedForce",
@@ -377,7 +381,8 @@ class CartesianImpedance(TorqueController):
         x, y, z, w = o
         nn = x * x + y * y + z * z + w * w
         s = p[0] + p[1] + p[2] + nn
-        if not (abs(nn - 1.0) <= 2e-2 and s - s == 0.0):  # |o| within 1 % of 1, finite
+        # |o|^2 - 1 ~ 2 (|o| - 1): within the tolerance, and finite, or the full check
+        if not (abs(nn - 1.0) <= _NORM2_TOL and s - s == 0.0):
             p = _fast("position", position, 3, "[m]")
             o = _args.quaternion("orientation", orientation)  # raises, naming the norm
         if q_nullspace is START_POSE:

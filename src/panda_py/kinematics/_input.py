@@ -8,12 +8,14 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py._checks import QUATERNION_NORM_TOL
 from panda_py.kinematics import _backend, _ik
 from panda_py.kinematics._ik import ROTATION_TOL
 
 __all__ = ["ROTATION_TOL"]
-# A quaternion's norm may differ from 1 by this much [-]; it is normalised.
-QUATERNION_TOL = 1e-6
+# A quaternion's norm may differ from 1 by this much [-]; it is normalised (the one
+# tolerance of every entry point that takes quaternions).
+QUATERNION_TOL = QUATERNION_NORM_TOL
 
 
 def _describe(x: object) -> str:

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple, overload
 
 import numpy as np
 
+from panda_py._checks import QUATERNION_NORM_TOL
 from panda_py.motion import _checks
 from panda_py.motion import _rotation as rot
 from panda_py.motion._path import (
@@ -35,7 +36,8 @@ from panda_py.motion._path import (
 from panda_py.motion._profile import Profile
 from panda_py.robots.params import RobotKind, RobotSpec, get_robot
 
-QUATERNION_NORM_TOLERANCE = 1e-3  # [-] |‖q‖ - 1| above this is an error, below it normalised
+# [-] |‖q‖ - 1| above this is an error, below it normalised (one tolerance everywhere)
+QUATERNION_NORM_TOLERANCE = QUATERNION_NORM_TOL
 ROTATION_TOLERANCE = 1e-6  # [-] max |RᵀR - I| entry of a pose's rotation block
 BOTTOM_ROW_TOLERANCE = 1e-9  # [-] max deviation of a pose's last row from (0, 0, 0, 1)
 DUPLICATE_TOLERANCE = 1e-12  # [m, rad] consecutive poses closer than this are merged
