@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import _args
+from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import _parse_poses, _stack
 from panda_py.robots.params import RobotSpec
@@ -29,7 +30,6 @@ __all__ = [
 ]
 
 FloatArray = NDArray[np.float64]
-PERIOD = 1e-3  # [s] the robot's control period
 
 # panda-python 1.1.1's defaults
 JOINT_MOVE_DEFAULTS: dict[str, Any] = {

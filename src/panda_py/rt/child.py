@@ -33,6 +33,7 @@ import numpy as np
 from panda_py import kinematics
 from panda_py.controllers import laws
 from panda_py.controllers._base import TorqueController
+from panda_py.fci import PERIOD
 from panda_py.libfranka import (
     ControlException,
     FrankaException,
@@ -169,7 +170,7 @@ class ControlServer:
             _builtin.Force,
         ):
             ctrl = cls()
-            ctrl.dt = 0.001
+            ctrl.dt = PERIOD
             ctrl.start(state, self.model)
             self._finalize(ctrl.step(state, self.model), state)
         self.walls.reset()

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
+from panda_py.fci import PERIOD
 
 __all__ = ["JointMove", "MoveResult", "PoseMove"]
 
@@ -74,14 +75,14 @@ class JointMove:
         self.K, self.D = stiffness, damping
         self.dq_threshold = dq_threshold
         self.success_threshold = success_threshold
-        self.duration = (len(q) - 1) * 1e-3
+        self.duration = (len(q) - 1) * PERIOD
         self.goal = q[-1]
         self.t = 0.0
         self.dt = 0.0
         self.integral = np.zeros(7)
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        k = min(round(self.t * 1e3), len(self.q) - 1)
+        k = min(round(self.t / PERIOD), len(self.q) - 1)
         tau = self.K * (self.q[k] - state.q) + self.D * (self.dq[k] - state.dq)
         if self.t > self.duration:
             self.integral += self.dt * (self.goal - state.q)
@@ -145,14 +146,14 @@ class PoseMove:
         self.dq_threshold = dq_threshold
         self.success_threshold = success_threshold
         self.orientation_threshold = orientation_threshold
-        self.duration = (len(position) - 1) * 1e-3
+        self.duration = (len(position) - 1) * PERIOD
         self.t = 0.0
         self.dt = 0.0
         self.integral = np.zeros(6)
         self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        k = min(round(self.t * 1e3), len(self.p) - 1)
+        k = min(round(self.t / PERIOD), len(self.p) - 1)
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
         kn = self.kn

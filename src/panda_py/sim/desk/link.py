@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from panda_py.fci import PERIOD
+
 BRAKES_OPEN, FCI_ACTIVE, SEQ, ROBOT_MODE, SIM_TIME = 0, 1, 2, 3, 4
 Q = slice(8, 15)  # [rad]
 O_T_EE = slice(16, 32)  # column-major 4x4
@@ -66,7 +68,7 @@ class DeskLink:
         v[Q] = state["q"]
         v[O_T_EE] = state["O_T_EE"]
         v[ROBOT_MODE] = robot_mode
-        v[SIM_TIME] = tick * 1e-3
+        v[SIM_TIME] = tick * PERIOD
         v[SEQ] += 1.0
 
 
