@@ -82,6 +82,10 @@ class TorqueController:
 
     # --- declared data --------------------------------------------------------------
 
+    def _scalar(self, name: str) -> float:
+        """The current value of the one-value input ``name`` (by its declared layout)."""
+        return float(self._values[self._sig_layout[name][0]])
+
     def _make_views(self) -> None:
         self._views = {n: self._values[o : o + s] for n, (o, s) in self._sig_layout.items()}
 

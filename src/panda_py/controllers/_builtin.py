@@ -103,7 +103,7 @@ class JointPosition(TorqueController):
         self._K, self._D = self._K_t.copy(), self._D_t.copy()
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = float(self._values[28])
+        a = self._scalar("filter_coeff")
         laws.ema(self._q_d, self._q_t, a)
         laws.ema(self._dq_d, self._dq_t, a)
         laws.ema(self._K, self._K_t, a)
@@ -194,7 +194,7 @@ class _Applied(TorqueController):
         self._in, self._D = np.zeros(n), self._D_t.copy()
 
     def _filtered(self) -> FloatArray:
-        a = float(self._values[self._input[1] + 7])
+        a = self._scalar("filter_coeff")
         laws.ema(self._in, self._in_t, a)
         laws.ema(self._D, self._D_t, a)
         return self._in
@@ -293,17 +293,17 @@ class Force(TorqueController):
         self._f = np.zeros(3)
         self._gains = self._gains_t.copy()
         self._D = self._D_t.copy()
-        self._threshold = float(self._values[12])
+        self._threshold = self._scalar("threshold")
         self._p0 = state.O_T_EE[12:15].copy()
         self._tau_ext0 = state.tau_J - model.gravity_of(state)  # bias of the torque sensors
         self._integral = np.zeros(7)
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = float(self._values[13])
+        a = self._scalar("filter_coeff")
         laws.ema(self._f, self._f_t, a)
         laws.ema(self._gains, self._gains_t, a)
         laws.ema(self._D, self._D_t, a)
-        self._threshold += a * (float(self._values[12]) - self._threshold)
+        self._threshold += a * (self._scalar("threshold") - self._threshold)
         moved = float(np.linalg.norm(state.O_T_EE[12:15] - self._p0))
         if self._time > 0.0 and moved > self._threshold:
             raise ControlException(
@@ -405,7 +405,7 @@ class CartesianImpedance(TorqueController):
         self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
 
     def _damping_target(self) -> FloatArray:
-        K, ratio = self._K_t, float(self._values[50])
+        K, ratio = self._K_t, self._scalar("damping_ratio")
         if self._Kd_key is None or not (
             np.array_equal(K, self._Kd_key[0]) and ratio == self._Kd_key[1]
         ):
@@ -422,15 +422,15 @@ class CartesianImpedance(TorqueController):
         self._Kd_key = None
         self._K = self._K_t.copy()
         self._Kd = self._damping_target().copy()
-        self._kn = float(self._values[51])
+        self._kn = self._scalar("nullspace_stiffness")
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = float(self._values[52])
+        a = self._scalar("filter_coeff")
         laws.ema(self._K, self._K_t, a)
         laws.ema(self._Kd, self._damping_target(), a)
         laws.ema(self._p, self._p_t, a)
         laws.ema(self._qn, self._qn_t, a)
-        self._kn += a * (float(self._values[51]) - self._kn)
+        self._kn += a * (self._scalar("nullspace_stiffness") - self._kn)
         self._quat = laws.slerp(self._quat, self._quat_t, a)
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
