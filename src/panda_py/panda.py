@@ -264,8 +264,9 @@ class Panda:
             [20.0] * 7, [20.0] * 7, [10.0] * 7, [10.0] * 7,
             [20.0] * 6, [20.0] * 6, [10.0] * 6, [10.0] * 6,
         )  # fmt: skip
-        robot.set_joint_impedance([3000, 3000, 3000, 2500, 2500, 2000, 2000])
-        robot.set_cartesian_impedance([3000, 3000, 3000, 300, 300, 300])
+        # the impedances a robot powers up with (robots.params, the one place they live)
+        robot.set_joint_impedance(list(self._limits.default_K_theta))
+        robot.set_cartesian_impedance(list(self._limits.default_K_x))
 
     # --- controllers ---------------------------------------------------------------------
 
