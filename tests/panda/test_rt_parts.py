@@ -104,15 +104,17 @@ def test_log_ring_drops_records_overwritten_during_a_read() -> None:
     for _ in range(25):
         ring.append(state.tobytes(), header)
 
-    class Moving:  # the count moves by 3 between the snapshot's two reads
-        def __init__(self) -> None:
-            self.reads = 0
+    class Moving:  # the count moves by 3 during every copy (a writer outrunning them)
+        def __init__(self, moves: int) -> None:
+            self.reads, self.moves = 0, moves
 
         def __getitem__(self, i: int) -> int:
             self.reads += 1
-            return 25 if self.reads == 1 else 28
+            return 25 + 3 * min(self.reads // 2, self.moves)
 
-    assert len(ring.snapshot(Moving())) == 10 - 3  # the 3 oldest may be torn
+    assert len(ring.snapshot(Moving(moves=99))) == 10 - 3  # the 3 oldest may be torn
+    # a writer that crossed one copy only: the next copy is whole
+    assert len(ring.snapshot(Moving(moves=1))) == 10
 
 
 MAIN_SCRIPT = textwrap.dedent(

@@ -58,6 +58,9 @@ LOG_FIELDS = (
 STATE_MAX = 4096  # [bytes] the largest state datagram of any protocol version fits
 SIGNALS_MAX = 1024  # float64 values a controller may declare as inputs
 OUTPUTS_MAX = 256  # float64 values of outputs (time first)
+# A log snapshot the writer crossed drops the record it was writing: copy again, up to
+# this many times (a long ring, whose copy outlasts a tick, keeps the last copy).
+SNAPSHOT_TRIES = 3
 
 
 class HEADER:
@@ -329,11 +332,14 @@ class LogRing:
 
     def snapshot(self, header: Any) -> np.ndarray:
         """The logged records, oldest first (user's process)."""
-        before = header[HEADER.LOG_COUNT]
-        self._fence()
-        raw = np.frombuffer(self._mm, self.record, self.slots).copy()
-        self._fence()
-        after = header[HEADER.LOG_COUNT]
+        for _ in range(SNAPSHOT_TRIES):  # a copy the writer did not cross: every record
+            before = header[HEADER.LOG_COUNT]
+            self._fence()
+            raw = np.frombuffer(self._mm, self.record, self.slots).copy()
+            self._fence()
+            after = header[HEADER.LOG_COUNT]
+            if after == before:
+                break
         # a record is intact if the writer has not reached its slot again: logical index
         # i with i >= after + 1 - slots (the writer may be inside slot ``after``'s now)
         start = max(before - min(before, self.size), after + 1 - self.slots)
