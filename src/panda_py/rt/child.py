@@ -180,6 +180,12 @@ class ControlServer:
         JointMove(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2).step(
             state, self.model
         )
+        p = np.array([state.O_T_EE[12:15]] * 2)
+        quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
+        six = np.zeros((2, 6))
+        PoseMove(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1).step(
+            state, self.model
+        )
 
     # --- the idle loop -------------------------------------------------------------------
 
