@@ -260,8 +260,8 @@ def _cpu_seconds(pid: int) -> float:
 
 def _law_costs(n: int) -> dict[str, list[float]]:
     """Per-call cost [us] of the laws' step on a recorded state, in this process."""
-    from panda_py.rt.model import ControlModel
-    from panda_py.rt.moves import JointMove, PoseMove
+    from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.moves import JointMove, JointPlan, PoseMove, PosePlan
 
     with Simulator(free_loopback_host(), robot="fr3", lockstep=True) as sim:
         with libfranka.Robot(sim.host) as robot:
@@ -269,17 +269,18 @@ def _law_costs(n: int) -> dict[str, list[float]]:
     model = ControlModel("fr3")
 
     def fresh() -> Any:  # a new RobotState each tick, as the loop has
-        return libfranka.RobotState(state._dialect, state._data)
+        return robot.decode_state(state.raw)
 
     ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
     ctrl.start(state, model)
     k = 2000
     p = np.tile(np.asarray(state.O_T_EE)[12:15], (k, 1))
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
-    pose = PoseMove(p, quat, np.zeros((k, 6)), np.zeros((k, 6)), np.asarray(state.q),
-                    np.diag([600.0] * 3 + [30.0] * 3), 1.0, 10.0, 0.01, 0.01, 0.05)  # fmt: skip
-    joint = JointMove(np.tile(np.asarray(state.q), (k, 1)), np.zeros((k, 7)), np.zeros((k, 7)),
-                      np.full(7, 600.0), np.full(7, 50.0), 0.01, 0.01)  # fmt: skip
+    pose = PoseMove(PosePlan(p, quat, np.zeros((k, 6)), np.zeros((k, 6)), np.asarray(state.q),
+                             np.diag([600.0] * 3 + [30.0] * 3), 1.0, 10.0, 0.01, 0.01, 0.05))  # fmt: skip  # noqa: E501
+    joint = JointMove(JointPlan(np.tile(np.asarray(state.q), (k, 1)), np.zeros((k, 7)),
+                                np.zeros((k, 7)), np.full(7, 600.0), np.full(7, 50.0), 0.01,
+                                0.01))  # fmt: skip
     pose.t = joint.t = 0.5
     pose.dt = joint.dt = 1e-3
     out = {}

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from panda_py.motion import CartesianTrajectory
-from panda_py.motion import _rotation as rot
+from panda_py.motion import rotation as rot
 from panda_py.motion.cartesian import _blend_rotation_gain
 from panda_py.robots.params import FER, FR3, RobotSpec
 

@@ -1,6 +1,6 @@
 """One accept/refuse table for the quaternions every entry point takes: ``ik``,
 ``CartesianTrajectory``, ``move_to_pose``'s binder and ``CartesianImpedance.set_control``
-accept and refuse the same ones (one tolerance, ``_checks.QUATERNION_NORM_TOL``)."""
+accept and refuse the same ones (one tolerance, ``checks.QUATERNION_NORM_TOL``)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 import panda_py
-from panda_py import _moves, controllers
+from panda_py import controllers
 from panda_py.motion import CartesianTrajectory
+from panda_py.panda import planning as _moves
 
 POSITION = [0.30689057, 0.0, 0.48688205]  # the start pose's, reachable with q7 = pi/4
 H = math.sqrt(0.5)

@@ -19,7 +19,7 @@ _LAZY: dict[str, str] = {
     "JointTrajectory": "panda_py.motion",
     "CartesianTrajectory": "panda_py.motion",
     "Panda": "panda_py.panda",
-    "PandaContext": "panda_py.context",
+    "PandaContext": "panda_py.panda",
     "realtime_priority_available": "panda_py.panda",
     "ControlProcessError": "panda_py.rt.process",
     # panda-py's name for a robot speaking a protocol version no client here speaks

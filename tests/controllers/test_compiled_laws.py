@@ -79,3 +79,41 @@ def test_cartesian_impedance_step_is_the_same_either_way(compiled: bool, monkeyp
     for tau in taus:
         s = _state(q0 + rng.normal(size=7) * 0.01, rng.normal(size=7) * 0.1)
         np.testing.assert_allclose(tau, ref_ctrl.step(s, _Model()), rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_compiled_finalize_equals_walls_saturation_and_limits_in_numpy(seed: int) -> None:
+    """Over a run that starts inside a wall zone, crosses zones and saturates, the one
+    compiled call gives what the reference (walls, then rate saturation, then limits)
+    gives, tick by tick, with the walls' state evolving the same."""
+    rng = np.random.default_rng(seed)
+    lower, upper = np.full(7, -2.0), np.full(7, 2.0)
+    fast, ref = laws.JointWalls(lower, upper), laws.JointWalls(lower, upper)
+    tau_max = np.array([87.0] * 4 + [12.0] * 3)
+    q = rng.uniform(-2.0, 2.0, 7)
+    q[0] = -1.95  # starts inside the lower zone: the zone shrinks
+    tau_J_d = np.zeros(7)
+    out = np.empty(7)
+    for _ in range(400):
+        dq = rng.normal(scale=0.5, size=7)
+        q = np.clip(q + 0.01 * dq, -2.05, 2.05)
+        tau = rng.normal(scale=20.0, size=7)
+        assert fast.finalize(tau, q, dq, tau_J_d, tau_max, out)
+        walls = np.array(ref.torques(q, dq))
+        expected = laws.clip_torques(laws.saturate_torque_rate(tau + walls, tau_J_d), tau_max)
+        np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-12)
+        tau_J_d = out.copy()
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_finalize_refuses_a_non_finite_torque_even_one_it_could_saturate(
+    bad: float, compiled: bool, monkeypatch
+) -> None:
+    if not compiled:
+        monkeypatch.setattr(laws, "_KERNELS", None)
+    walls = laws.JointWalls(np.full(7, -2.0), np.full(7, 2.0))
+    tau = np.zeros(7)
+    tau[3] = bad
+    z = np.zeros(7)
+    assert not walls.finalize(tau, z, z, z, np.full(7, 87.0), np.empty(7))

@@ -14,7 +14,7 @@ import pytest
 
 from panda_py import fci
 from panda_py import libfranka as lf
-from panda_py.libfranka import _realtime
+from panda_py.libfranka import realtime as _realtime
 from panda_py.robots import RobotKind
 from panda_py.sim import Simulator, free_loopback_host
 

@@ -8,8 +8,8 @@ import types
 
 import pytest
 
-from panda_py import context
-from panda_py.context import PandaContext
+from panda_py.panda import context
+from panda_py.panda.context import PandaContext
 
 PERIOD = 1e-3  # [s] a 1 kHz context
 

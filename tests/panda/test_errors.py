@@ -165,8 +165,8 @@ def test_the_robot_proxy_binds_arguments_as_robot_does() -> None:
     share, so named arguments work through it (``set_filters`` lost them once)."""
     import inspect
 
-    from panda_py._robot_proxy import RobotProxy
     from panda_py.libfranka import Robot
+    from panda_py.panda.proxy import RobotProxy
 
     shared = [n for n in dir(RobotProxy) if not n.startswith("_") and hasattr(Robot, n)]
     assert "set_filters" in shared and "set_load" in shared

@@ -19,15 +19,13 @@ from __future__ import annotations
 
 import struct
 import threading
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py.controllers import _args
-
-if TYPE_CHECKING:
-    from panda_py.rt.shm import SharedBlock
+from panda_py import checks
+from panda_py.controllers.law import ControlLaw, SignalSlot
 
 __all__ = ["TorqueController"]
 
@@ -55,7 +53,7 @@ def _offsets(decl: dict[str, int], first: int = 0) -> tuple[dict[str, tuple[int,
     return out, pos
 
 
-class TorqueController:
+class TorqueController(ControlLaw):
     """Base class of all torque controllers: they give the robot joint torques at 1 kHz
     (gravity is compensated by the robot) and the user an asynchronous interface for
     control signals (panda-py's ``TorqueController``)."""
@@ -66,17 +64,16 @@ class TorqueController:
     outputs: ClassVar[dict[str, int]] = {}
 
     def __init__(self) -> None:
+        super().__init__()
         sig, n_sig = _offsets(type(self).signals)
         out, n_out = _offsets(type(self).outputs, 1)  # outputs[0] is the time
         self._sig_layout = sig
         self._out_layout = out
         self._values = np.zeros(n_sig)  # the inputs (user side: as last set)
         self._out = np.zeros(n_out)
-        self._block: SharedBlock | None = None  # set while running (either side)
+        self._slot: SignalSlot | None = None  # set while running (either side)
+        self._in_seq = -1  # the input slot's sequence number of the last copy taken
         self._lock = threading.Lock()
-        self._time = 0.0
-        #: inside ``step``: the time since the previous tick [s] (0 at the first)
-        self.dt = 0.0
         self._views: dict[str, FloatArray] = {}
         self._make_views()
 
@@ -91,13 +88,13 @@ class TorqueController:
 
     def __getstate__(self) -> dict[str, Any]:
         state = self.__dict__.copy()
-        for key in ("_block", "_lock", "_views"):
+        for key in ("_slot", "_lock", "_views"):
             state.pop(key, None)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        self._block = None
+        self._slot = None
         self._lock = threading.Lock()
         self._make_views()
         self._bind_views()
@@ -125,7 +122,7 @@ class TorqueController:
                     f"{name}: expected one of the signals {sorted(self._sig_layout)} "
                     f"of {type(self).__name__}"
                 )
-            checked[name] = _args.vector(name, value, self._sig_layout[name][1])
+            checked[name] = checks.floats(name, value, self._sig_layout[name][1])
         self._write(**checked)
 
     def _write(self, **checked: list[float]) -> None:
@@ -133,7 +130,7 @@ class TorqueController:
         slot, all under one seqlock write; before, into this object."""
         layout = self._sig_layout
         with self._lock:
-            block = self._block
+            block = self._slot
             if block is None:
                 for name, vals in checked.items():
                     offset = layout[name][0]
@@ -149,31 +146,78 @@ class TorqueController:
         No lock here (it would cost a third of the call): two threads calling
         ``set_control`` at once can at worst make the loop see one's position with the
         other's orientation, both complete and checked, never a torn number."""
-        block = self._block
+        block = self._slot
         if block is None:
             with self._lock:
                 self._values[offset : offset + len(values)] = values
             return
         block.write_packed(_PACKERS.get(len(values)) or packer(len(values)), offset, values)
 
-    def _sync_from(self, block: SharedBlock) -> None:
-        """Take the inputs as the running controller last had them (before unbinding)."""
-        n = len(self._values)
+    # --- binding to a running loop (Panda and the control process call these) ---------
+
+    def attach(self, slot: SignalSlot, values: FloatArray) -> None:
+        """User side: from now on this handle writes into and reads from ``slot``, the
+        running controller's shared inputs and outputs; ``values`` are its inputs as the
+        control process started it (``start`` may have set some)."""
+        self._check_initialized()
         with self._lock:
-            self._values[:] = block.signals[:n]
+            self._values[:] = values
+            self._out[:] = 0.0
+            self._slot = slot
+
+    def detach(self) -> None:
+        """User side: the controller stopped; keep its last inputs and outputs here, so
+        ``get_signal``/``get_time`` go on answering with them."""
+        with self._lock:
+            slot, self._slot = self._slot, None
+            if slot is None:
+                return
+            try:
+                self._out[:] = slot.read_outputs(len(self._out))
+                self._values[:] = slot.signals[: len(self._values)]
+            except (OSError, ValueError):  # the shared memory is gone with its process
+                pass
+
+    def open_slot(self, slot: SignalSlot) -> FloatArray:
+        """Control-process side, after ``start``: publish the starting inputs and outputs
+        into ``slot``, read this controller's inputs from it every tick, and return the
+        starting inputs (for the user's handle)."""
+        self.t = self.dt = 0.0
+        slot.write_signal_array(self._values)
+        self._out[0] = 0.0
+        slot.write_outputs(self._out)
+        self._slot = slot
+        self._in_seq = -1
+        return self._values.copy()
+
+    def tick(self, dt: float) -> None:
+        """The inputs of this tick: the slot's newest consistent copy (the last one when
+        the user's process is writing just now)."""
+        slot = self._slot
+        if slot is not None:
+            self._in_seq = slot.read_signals(self._values, self._in_seq)
+        self.t += dt
+        self.dt = dt
+
+    def published(self) -> None:
+        """Publish the time and the declared outputs for the user's handle."""
+        self._out[0] = self.t
+        slot = self._slot
+        if slot is not None:
+            slot.write_outputs(self._out)
 
     def get_signal(self, name: str) -> FloatArray:
         """The input ``name`` as last set (a copy)."""
         if name not in self._sig_layout:
             raise ValueError(f"{name}: expected one of the signals {sorted(self._sig_layout)}")
         offset, size = self._sig_layout[name]
-        block = self._block
+        block = self._slot
         if block is not None:
             return block.signals[offset : offset + size].copy()
         return self._values[offset : offset + size].copy()
 
     def _outputs(self) -> FloatArray:
-        block = self._block
+        block = self._slot
         if block is not None:
             return block.read_outputs(len(self._out))
         return self._out
@@ -189,23 +233,13 @@ class TorqueController:
         offset, size = self._out_layout[name]
         return self._outputs()[offset : offset + size].copy()
 
-    @property
-    def name(self) -> str:
-        """A human-readable name of the control law."""
-        return type(self).__name__
-
     # --- control-process side (override start/step/stop) --------------------------------
-
-    def start(self, state: Any, model: Any) -> None:
-        """Called once in the control process with the state the controller starts from."""
 
     def step(self, state: Any, model: Any) -> Any:
         """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot);
-        runs at 1 kHz in the control process."""
+        runs at 1 kHz in the control process. Inside it, ``self.t`` is the controller's
+        time and ``self.dt`` the time since the previous tick [s]."""
         raise NotImplementedError(f"{type(self).__name__} must implement step(state, model)")
-
-    def stop(self, state: Any, model: Any) -> None:
-        """Called once in the control process when the controller is stopped."""
 
     def signal(self, name: str) -> FloatArray:
         """Inside ``step``: the input ``name`` of this tick (a view; do not keep it)."""

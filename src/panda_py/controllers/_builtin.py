@@ -12,8 +12,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from panda_py._checks import QUATERNION_NORM_TOL
-from panda_py.controllers import _args, laws
+from panda_py import checks
+from panda_py.checks import QUATERNION_NORM_TOL
+from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
@@ -38,7 +39,7 @@ FORCE_DAMPING = (1.0, 1.0, 1.0, 1.0, 0.33, 0.33, 0.17)  # [Nm s/rad]
 ZERO7 = (0.0,) * 7
 _ZERO7_LIST = list(ZERO7)
 _START_LIST = list(START_POSE)
-_fast = _args.fast_vector
+_fast = checks.fast_floats
 _F64 = np.dtype(np.float64)
 
 
@@ -71,9 +72,9 @@ class JointPosition(TorqueController):
         super().__init__()
         self._values[:] = 0.0
         self._write(
-            stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
-            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
-            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+            stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
+            damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)],
         )
         self._bind_views()
 
@@ -88,13 +89,13 @@ class JointPosition(TorqueController):
         self._send(0, q + dq)
 
     def set_stiffness(self, stiffness: Any) -> None:
-        self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
+        self._write(stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
 
     def set_damping(self, damping: Any) -> None:
-        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+        self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
-        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+        self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
         q = state.q
@@ -121,8 +122,8 @@ class IntegratedVelocity(TorqueController):
     def __init__(self, stiffness: Any = JOINT_STIFFNESS, damping: Any = JOINT_DAMPING) -> None:
         super().__init__()
         self._write(
-            stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
-            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"),
+            damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"),
         )
         self._bind_views()
 
@@ -135,10 +136,10 @@ class IntegratedVelocity(TorqueController):
         self._send(0, _fast("velocity", velocity, 7, "[rad/s]"))
 
     def set_stiffness(self, stiffness: Any) -> None:
-        self._write(stiffness=_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
+        self._write(stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
 
     def set_damping(self, damping: Any) -> None:
-        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+        self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def get_qd(self) -> FloatArray:
         """The integrated desired joint position [rad]."""
@@ -168,8 +169,8 @@ class _Applied(TorqueController):
     def __init__(self, damping: Any = ZERO7, filter_coeff: float = 1.0) -> None:
         super().__init__()
         self._write(
-            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
-            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+            damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)],
         )
         self._bind_views()
 
@@ -183,10 +184,10 @@ class _Applied(TorqueController):
         self._send(0, _fast(name, value, n, unit))
 
     def set_damping(self, damping: Any) -> None:
-        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+        self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
-        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+        self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
         name, n, _ = self._input
@@ -253,11 +254,11 @@ class Force(TorqueController):
     ) -> None:
         super().__init__()
         self._write(
-            k_p=[_args.nonnegative_scalar("k_p", k_p)],
-            k_i=[_args.nonnegative_scalar("k_i", k_i)],
-            damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"),
-            threshold=[_args.nonnegative_scalar("threshold", threshold, "[m]")],
-            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+            k_p=[checks.nonnegative_scalar("k_p", k_p)],
+            k_i=[checks.nonnegative_scalar("k_i", k_i)],
+            damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"),
+            threshold=[checks.nonnegative_scalar("threshold", threshold, "[m]")],
+            filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)],
         )
         self._bind_views()
 
@@ -274,19 +275,19 @@ class Force(TorqueController):
         self._send(0, _fast("force", force, 3, "[N]"))
 
     def set_proportional_gain(self, k_p: float) -> None:
-        self._write(k_p=[_args.nonnegative_scalar("k_p", k_p)])
+        self._write(k_p=[checks.nonnegative_scalar("k_p", k_p)])
 
     def set_integral_gain(self, k_i: float) -> None:
-        self._write(k_i=[_args.nonnegative_scalar("k_i", k_i)])
+        self._write(k_i=[checks.nonnegative_scalar("k_i", k_i)])
 
     def set_threshold(self, threshold: float) -> None:
-        self._write(threshold=[_args.nonnegative_scalar("threshold", threshold, "[m]")])
+        self._write(threshold=[checks.nonnegative_scalar("threshold", threshold, "[m]")])
 
     def set_damping(self, damping: Any) -> None:
-        self._write(damping=_args.nonnegative("damping", damping, 7, "[Nm s/rad]"))
+        self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
-        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+        self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
         self.initial_signals(force=np.zeros(3))
@@ -305,7 +306,7 @@ class Force(TorqueController):
         laws.ema(self._D, self._D_t, a)
         self._threshold += a * (self._scalar("threshold") - self._threshold)
         moved = float(np.linalg.norm(state.O_T_EE[12:15] - self._p0))
-        if self._time > 0.0 and moved > self._threshold:
+        if self.t > 0.0 and moved > self._threshold:
             raise ControlException(
                 f"{self.name}: distance threshold exceeded ({moved:.4f} m > "
                 f"{self._threshold:.4f} m)"
@@ -346,12 +347,12 @@ class CartesianImpedance(TorqueController):
         super().__init__()
         self._write(
             orientation=[0.0, 0.0, 0.0, 1.0],  # x, y, z, w
-            impedance=_args.matrix6("impedance", impedance, "[N/m, Nm/rad]"),
-            damping_ratio=[_args.nonnegative_scalar("damping_ratio", damping_ratio)],
+            impedance=checks.matrix6("impedance", impedance, "[N/m, Nm/rad]"),
+            damping_ratio=[checks.nonnegative_scalar("damping_ratio", damping_ratio)],
             nullspace_stiffness=[
-                _args.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
+                checks.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
             ],
-            filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)],
+            filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)],
         )
         self._bind_views()
 
@@ -384,7 +385,7 @@ class CartesianImpedance(TorqueController):
         # |o|^2 - 1 ~ 2 (|o| - 1): within the tolerance, and finite, or the full check
         if not (abs(nn - 1.0) <= _NORM2_TOL and s - s == 0.0):
             p = _fast("position", position, 3, "[m]")
-            o = _args.quaternion("orientation", orientation)  # raises, naming the norm
+            o = checks.quaternion("orientation", orientation)  # raises, naming the norm
         if q_nullspace is START_POSE:
             n = _START_LIST
         else:
@@ -392,17 +393,17 @@ class CartesianImpedance(TorqueController):
         self._send(0, p + o + n)
 
     def set_impedance(self, impedance: Any) -> None:
-        self._write(impedance=_args.matrix6("impedance", impedance, "[N/m, Nm/rad]"))
+        self._write(impedance=checks.matrix6("impedance", impedance, "[N/m, Nm/rad]"))
 
     def set_damping_ratio(self, damping: float) -> None:
-        self._write(damping_ratio=[_args.nonnegative_scalar("damping", damping)])
+        self._write(damping_ratio=[checks.nonnegative_scalar("damping", damping)])
 
     def set_nullspace_stiffness(self, nullspace_stiffness: float) -> None:
-        value = _args.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
+        value = checks.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
         self._write(nullspace_stiffness=[value])
 
     def set_filter(self, filter_coeff: float) -> None:
-        self._write(filter_coeff=[_args.unit_interval("filter_coeff", filter_coeff)])
+        self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def _damping_target(self) -> FloatArray:
         K, ratio = self._K_t, self._scalar("damping_ratio")

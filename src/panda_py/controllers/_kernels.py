@@ -14,7 +14,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["cartesian_impedance_torque", "impedance_torque"]
+__all__ = ["cartesian_impedance_torque", "finalize_torques", "impedance_torque"]
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
 
@@ -133,3 +133,69 @@ def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, t
     """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, np.zeros(6), K, Kd, q_n, k_n, tau,
                      np.empty(6), np.empty((7, 6)))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """What the loop does to every law's torques, in one call: panda-py's joint walls
+    (``laws.JointWalls.torques``, the reference: ``walls`` holds per joint lower, upper,
+    PD width, D width, PD stiffness, PD damping, D damping; ``scale`` and ``flags``, the
+    walls' state, are updated in place: flags[i] = 1 while joint i moves in a shrunken
+    zone, flags[7] = 1 once initialised), the torque-rate saturation around ``tau_J_d``
+    (``dtau_max`` per tick) and the torque limits. Writes ``out``; False if a torque, the
+    law's or the result, is not finite."""
+    init = flags[7] != 0
+    finite = True
+    for i in range(7):
+        qi, dqi = q[i], dq[i]
+        lower, upper = walls[i, 0], walls[i, 1]
+        pd_w, d_w = walls[i, 2], walls[i, 3]
+        width = pd_w + d_w
+        motion = 0
+        if qi < lower + width:
+            motion = -2 if dqi <= 0.0 else -1
+        elif qi > upper - width:
+            motion = 2 if dqi >= 0.0 else 1
+        if not init:
+            if motion != 0:
+                limit = lower if motion < 0 else upper
+                scale[i] = min(1.0, abs(qi - limit) / width)
+                flags[i] = 1
+        elif flags[i] != 0:
+            if motion == 0:
+                flags[i] = 0
+                scale[i] = 1.0
+            elif motion == 1 or motion == -1:
+                limit = lower if motion < 0 else upper
+                scale[i] = min(1.0, max(scale[i], abs(qi - limit) / width))
+        s = scale[i]
+        d_max = upper - s * width
+        pd_max = upper - s * pd_w
+        d_min = lower + s * width
+        pd_min = lower + s * pd_w
+        wall = 0.0
+        if d_max <= qi <= pd_max or pd_min <= qi <= d_min:
+            wall = -walls[i, 6] * dqi
+        elif qi > pd_max:
+            wall = -walls[i, 5] * dqi + walls[i, 4] * (pd_max - qi)
+        elif qi < pd_min:
+            wall = -walls[i, 5] * dqi + walls[i, 4] * (pd_min - qi)
+        if not math.isfinite(tau[i]):  # the law's own torque: saturating it would hide it
+            finite = False
+        v = tau[i] + wall
+        d = v - tau_J_d[i]
+        if d > dtau_max:
+            d = dtau_max
+        elif d < -dtau_max:
+            d = -dtau_max
+        v = tau_J_d[i] + d
+        m = tau_max[i]
+        if v > m:
+            v = m
+        elif v < -m:
+            v = -m
+        out[i] = v
+        if not math.isfinite(v):
+            finite = False
+    flags[7] = 1
+    return finite

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py.motion._rotation import from_matrix
+from panda_py.motion.rotation import from_matrix
 
 __all__ = [
     "DTAU_MAX_PER_TICK",
@@ -75,6 +75,8 @@ def warmup() -> None:
         T = np.eye(4).reshape(16)
         k.cartesian_impedance_torque(T, J, z7, z7, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]),
                                      K, K, z7, 1.0, np.empty(7))  # fmt: skip
+        JointWalls(np.full(7, -1.0), np.full(7, 1.0)).finalize(z7, z7, z7, z7, z7 + 1.0,
+                                                               np.empty(7))  # fmt: skip
 
 
 def ema(filtered: FloatArray, target: FloatArray, alpha: float) -> None:
@@ -170,12 +172,40 @@ class JointWalls:
     def __init__(self, lower: Any, upper: Any) -> None:
         self.lower = [float(v) for v in lower]
         self.upper = [float(v) for v in upper]
+        # per joint: lower, upper, PD width, D width, PD stiffness, PD damping, D damping
+        self._table = np.array(
+            [self.lower, self.upper, WALL_PD_WIDTH, WALL_D_WIDTH, WALL_PD_STIFFNESS,
+             WALL_PD_DAMPING, WALL_D_DAMPING]
+        ).T.copy()  # fmt: skip
+        self._kernel_scale = np.ones(7)
+        self._flags = np.zeros(8, dtype=np.int64)
         self.reset()
 
     def reset(self) -> None:
         self._scale = [1.0] * 7
         self._moving = [False] * 7
         self._initialized = False
+        self._kernel_scale[:] = 1.0
+        self._flags[:] = 0
+
+    def finalize(self, tau: FloatArray, q: FloatArray, dq: FloatArray, tau_J_d: FloatArray,
+                 tau_max: FloatArray, out: FloatArray) -> bool:  # fmt: skip
+        """What the loop does to a law's torques ``tau`` (7,): add the walls, saturate
+        the rate of change around the last command ``tau_J_d``, clip to ``tau_max``;
+        into ``out``. False if a torque (the law's or the result) is not finite. One
+        compiled call where numba is installed (the walls' state is kept apart for either
+        path: use one per loop)."""
+        kernels = compiled()
+        if kernels is not None:
+            return bool(
+                kernels.finalize_torques(
+                    tau, q, dq, tau_J_d, self._table, self._kernel_scale, self._flags,
+                    DTAU_MAX_PER_TICK, tau_max, out,
+                )
+            )  # fmt: skip
+        walls = self.torques(q, dq)
+        out[:] = clip_torques(saturate_torque_rate(tau + walls, tau_J_d), tau_max)
+        return bool(np.isfinite(tau).all() and np.isfinite(out).all())
 
     def _motion(self, i: int, q: float, dq: float) -> int:
         """0 normal, -1 penetrating/leaving the lower zone, +1 the upper (sign of dq kept

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py._checks import QUATERNION_NORM_TOL
+from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.kinematics import _backend, _ik
 from panda_py.kinematics._ik import ROTATION_TOL
 

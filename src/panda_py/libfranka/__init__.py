@@ -12,10 +12,6 @@ See :class:`Robot`, :class:`Gripper`, :class:`Model` and :class:`RobotState`.
 from __future__ import annotations
 
 from panda_py.libfranka._active import ActiveControl
-from panda_py.libfranka._realtime import (
-    has_realtime_kernel,
-    set_current_thread_to_highest_priority,
-)
 from panda_py.libfranka.async_control import AsyncPositionControlHandler, TargetStatus
 from panda_py.libfranka.commands import (
     CartesianPose,
@@ -50,6 +46,10 @@ from panda_py.libfranka.limits import (
     lowpass_filter,
 )
 from panda_py.libfranka.model import Model
+from panda_py.libfranka.realtime import (
+    has_realtime_kernel,
+    set_current_thread_to_highest_priority,
+)
 from panda_py.libfranka.robot import Robot
 from panda_py.libfranka.state import GripperState, RobotState
 from panda_py.libfranka.types import (

@@ -12,7 +12,6 @@ from panda_py.fci import MoveControllerMode, MoveMotionGeneratorMode
 from panda_py.libfranka._active import ActiveControl, RobotBase
 from panda_py.libfranka._commander import Commander, check_cutoff
 from panda_py.libfranka._motion import MotionSession
-from panda_py.libfranka._realtime import check_realtime, realtime_scope
 from panda_py.libfranka._warm import rehearsal
 from panda_py.libfranka.async_control import check_maximum_velocities
 from panda_py.libfranka.commands import (
@@ -23,6 +22,7 @@ from panda_py.libfranka.commands import (
     Torques,
 )
 from panda_py.libfranka.errors import InvalidOperationException
+from panda_py.libfranka.realtime import check_realtime, realtime_scope
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import (
     ControllerMode,

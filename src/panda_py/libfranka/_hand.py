@@ -9,7 +9,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from panda_py import fci
-from panda_py._checks import timeout as checked_timeout
+from panda_py.checks import timeout as checked_timeout
 from panda_py.libfranka._network import Network, translate
 from panda_py.libfranka.errors import (
     CommandException,

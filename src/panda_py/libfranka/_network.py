@@ -19,7 +19,7 @@ from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-from panda_py._checks import timeout as _timeout
+from panda_py.checks import timeout as _timeout
 from panda_py.fci import MESSAGE_ID, PERIOD, Message, MessageReader, ProtocolError
 from panda_py.libfranka.errors import FrankaException, NetworkException, ProtocolException
 
@@ -111,6 +111,12 @@ class Network:
         """The local UDP port the robot sends states to."""
         assert self._udp is not None
         return int(self._udp.getsockname()[1])
+
+    def state_fileno(self) -> int:
+        """The UDP socket's descriptor (readable when a state datagram is waiting)."""
+        if self._udp is None:
+            raise NetworkException("libfranka: the connection is closed")
+        return self._udp.fileno()
 
     def close(self) -> None:
         for s in (self._tcp, self._udp):

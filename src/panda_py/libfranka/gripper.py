@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from panda_py import fci
-from panda_py._checks import number
+from panda_py.checks import number
 from panda_py.fci import GripperCommand
 from panda_py.libfranka._hand import ACTION_TIMEOUT, HandClient
 from panda_py.libfranka.state import GripperState

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import dynamics
-from panda_py._checks import vector as _vec
+from panda_py.checks import vector as _vec
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import Frame
 from panda_py.robots.params import GRAVITY, RobotKind, RobotSpec, get_robot

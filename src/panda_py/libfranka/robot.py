@@ -18,13 +18,12 @@ from typing import Any
 import numpy as np
 
 from panda_py import fci
-from panda_py._checks import timeout as _timeout
-from panda_py._checks import vector as _vec
+from panda_py.checks import timeout as _timeout
+from panda_py.checks import vector as _vec
 from panda_py.fci import Command
 from panda_py.libfranka._connection import RobotConnection
 from panda_py.libfranka._motion import MotionSession
 from panda_py.libfranka._network import TCP_TIMEOUT
-from panda_py.libfranka._realtime import check_realtime
 from panda_py.libfranka._variants import NamedControlMixin
 from panda_py.libfranka.errors import (
     IncompatibleVersionException,
@@ -33,6 +32,7 @@ from panda_py.libfranka.errors import (
 )
 from panda_py.libfranka.limits import RateLimits
 from panda_py.libfranka.model import Model
+from panda_py.libfranka.realtime import check_realtime
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.robots.params import RobotKind, RobotSpec, get_robot, robot_for_protocol
@@ -213,6 +213,32 @@ class Robot(NamedControlMixin):
                 f"v{self.server_version()}"
             )
         return bytes(self._conn.execute(Command.GET_ROBOT_MODEL)["urdf"]).decode()
+
+    # --- for a loop that owns this robot (an extension of ours, not libfranka's) -----------
+
+    def fileno(self) -> int:
+        """The socket the robot's states arrive on, for ``select``/``poll``: readable
+        when a state is waiting. A loop that also waits on other things (the control
+        process of ``Panda`` waits on its requests too) waits on this, then takes the
+        state with :meth:`receive_raw_state`."""
+        return self._conn.net.state_fileno()
+
+    @property
+    def state_dtype(self) -> np.dtype:
+        """The numpy record type of this robot's raw states (its protocol version's)."""
+        return self._conn.dialect.state_dtype
+
+    def receive_raw_state(self) -> bytes:
+        """The newest state datagram newer than the last one taken (waits up to 1 s), as
+        the robot sent it; :meth:`decode_state` makes it a :class:`RobotState`. Queued
+        older states are skipped, as a 1 kHz loop that fell behind wants."""
+        self._no_motion("receive_raw_state")
+        return self._conn.receive_state()
+
+    def decode_state(self, data: bytes) -> RobotState:
+        """A raw state of this robot (:meth:`receive_raw_state`, ``RobotState.raw``) as a
+        :class:`RobotState`."""
+        return RobotState(self._conn.dialect, data)
 
     # --- commands -------------------------------------------------------------------------
 

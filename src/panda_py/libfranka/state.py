@@ -122,6 +122,11 @@ class RobotState:
         return out if shape is None else out.reshape(shape)
 
     @property
+    def raw(self) -> bytes:
+        """The state as the robot sent it (its protocol version's datagram)."""
+        return self._data
+
+    @property
     def version(self) -> int:
         """The protocol version this state was decoded with."""
         return self._dialect.version

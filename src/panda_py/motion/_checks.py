@@ -3,7 +3,7 @@ argument, what it expects and what it got)."""
 
 from __future__ import annotations
 
-from panda_py._checks import number
+from panda_py.checks import number
 
 
 def speed_factor(value: object) -> float:

@@ -23,9 +23,9 @@ from typing import Any, NamedTuple, overload
 
 import numpy as np
 
-from panda_py._checks import QUATERNION_NORM_TOL
+from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.motion import _checks
-from panda_py.motion import _rotation as rot
+from panda_py.motion import rotation as rot
 from panda_py.motion._path import (
     Array,
     Piece,
@@ -265,7 +265,7 @@ def _bind_poses(
     *,
     robot: object = "fer",
 ) -> _Bound:
-    positions, quats = _parse_poses(poses)
+    positions, quats = parse_poses(poses)
     return positions, quats, speed_factor, max_deviation, timeout, robot
 
 
@@ -278,8 +278,8 @@ def _bind_positions(
     *,
     robot: object = "fer",
 ) -> _Bound:
-    p = _stack("positions", positions, 3, "[m]")
-    q = _stack("orientations", orientations, 4, "(unit quaternions x, y, z, w)")
+    p = stack_rows("positions", positions, 3, "[m]")
+    q = stack_rows("orientations", orientations, 4, "(unit quaternions x, y, z, w)")
     if len(p) != len(q):
         raise ValueError(
             f"orientations: expected one per position ({len(p)}), got {len(q)} orientations"
@@ -294,7 +294,7 @@ def _bind_positions(
     return p, q / norms[:, None], speed_factor, max_deviation, timeout, robot
 
 
-def _stack(name: str, value: object, width: int, unit: str) -> Array:
+def stack_rows(name: str, value: object, width: int, unit: str) -> Array:
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -319,7 +319,7 @@ def _check_finite(name: str, arr: Array) -> None:
         raise ValueError(f"{name}{where}: expected a finite number, got {arr[idx]}")
 
 
-def _parse_poses(poses: object) -> tuple[Array, Array]:
+def parse_poses(poses: object) -> tuple[Array, Array]:
     try:
         arr = np.array(poses, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -31,8 +31,17 @@ from typing import Any
 import numpy as np
 
 from panda_py import kinematics
-from panda_py.controllers import laws
-from panda_py.controllers._base import TorqueController
+from panda_py.controllers import TorqueController, laws
+from panda_py.controllers.law import ControlLaw
+from panda_py.controllers.model import ControlModel
+from panda_py.controllers.moves import (
+    JointMove,
+    JointPlan,
+    MoveResult,
+    PoseMove,
+    PosePlan,
+    tracker_for,
+)
 from panda_py.fci import PERIOD
 from panda_py.libfranka import (
     ControlException,
@@ -44,12 +53,11 @@ from panda_py.libfranka import (
     RobotState,
     Torques,
 )
-from panda_py.libfranka._realtime import set_current_thread_to_highest_priority
+from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.robots.params import get_robot, robot_for_protocol
+from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
-from panda_py.rt.model import ControlModel
-from panda_py.rt.moves import JointMove, MoveResult, PoseMove
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
 
 __all__ = ["ControlServer", "limits_spec_for_version", "main"]
@@ -100,26 +108,37 @@ class ControlServer:
         self.model: ControlModel | None = None
         self.walls: laws.JointWalls | None = None
         self.tau_max = np.zeros(7)
+        self._tau = np.zeros(7)  # the command of this tick, finalized
         self.log: LogRing | None = None
         self.logging = False
         self.closing = False
-        self.pending: tuple[Any, ...] | None = None  # (law, move request id) to run
+        self.pending: tuple[ControlLaw, int | None] | None = None  # (law, move's request id)
         self.stopping = False
         self.stop_waiters: list[int] = []
         self._current_rid = 0
+        self._handlers: dict[rq.Kind, Any] = {
+            rq.Kind.START: self._start,
+            rq.Kind.MOVE: self._move,
+            rq.Kind.STOP: self._stop,
+            rq.Kind.ROBOT: self._robot_call,
+            rq.Kind.RECOVER: self._recover,
+            rq.Kind.ENABLE_LOG: self._enable_log,
+            rq.Kind.DISABLE_LOG: self._disable_log,
+            rq.Kind.CLOSE: self._close,
+        }
 
     # --- channel ---------------------------------------------------------------------
 
     def reply(self, rid: int, ok: bool, value: Any) -> None:
         try:
-            self.chan.send(("reply", rid, ok, value))
+            self.chan.send(rq.Reply(rid, ok, value))
         except ChannelClosed:
             self.closing = True
 
-    def event(self, kind: str, *payload: Any) -> None:
+    def event(self, event: rq.LoopError | rq.LogLine) -> None:
         self.block.header[HEADER.EVENTS] += 1  # counted first: the reader may be quick
         try:
-            self.chan.send(("event", kind, *payload))
+            self.chan.send(event)
         except ChannelClosed:
             self.closing = True
 
@@ -128,9 +147,9 @@ class ControlServer:
 
     # --- start -------------------------------------------------------------------------
 
-    def connect(self, hostname: str, realtime_config: int, timeout: float) -> dict[str, Any]:
-        config = RealtimeConfig(realtime_config)
-        robot = Robot(hostname, config, timeout=timeout)
+    def connect(self, request: rq.Connect) -> rq.Connected:
+        config = RealtimeConfig(request.realtime_config)
+        robot = Robot(request.hostname, config, timeout=request.timeout)
         # sleep until each state arrives: polling for it cost this process about a
         # quarter of its CPU and lowered no latency (benchmarks/bench_panda.py)
         robot.spin_wait = False
@@ -146,28 +165,24 @@ class ControlServer:
                 "libfranka: realtime scheduling (SCHED_FIFO) is required "
                 "(RealtimeConfig.kEnforce) but not permitted for the control process"
             )
-        data = robot._conn.receive_state()
+        data = robot.receive_raw_state()
         self.block.publish_state(data)
-        self._warm_up(RobotState(robot._conn.dialect, data))
-        return {
-            "server_version": version,
-            "robot": robot.robot_spec.name,
-            "limits": limits.name,
-        }
+        self._warm_up(robot.decode_state(data))
+        return rq.Connected(version, robot.robot_spec.name, limits.name)
 
     def _warm_up(self, state: RobotState) -> None:
         """Run every law once (results discarded) so nothing compiles or loads mid-loop."""
         assert self.model is not None and self.walls is not None
         kinematics.warmup()
-        from panda_py.controllers import _builtin
+        from panda_py import controllers as c
 
         for cls in (
-            _builtin.CartesianImpedance,
-            _builtin.JointPosition,
-            _builtin.IntegratedVelocity,
-            _builtin.AppliedTorque,
-            _builtin.AppliedForce,
-            _builtin.Force,
+            c.CartesianImpedance,
+            c.JointPosition,
+            c.IntegratedVelocity,
+            c.AppliedTorque,
+            c.AppliedForce,
+            c.Force,
         ):
             ctrl = cls()
             ctrl.dt = PERIOD
@@ -177,24 +192,21 @@ class ControlServer:
         self.model.gravity_of(state)
         q = state.q
         z = np.zeros((2, 7))
-        JointMove(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2).step(
-            state, self.model
-        )
+        joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2)
         p = np.array([state.O_T_EE[12:15]] * 2)
         quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
         six = np.zeros((2, 6))
-        PoseMove(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1).step(
-            state, self.model
-        )
+        pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1)
+        for plan in (joint, pose):
+            tracker_for(plan).step(state, self.model)
 
     # --- the idle loop -------------------------------------------------------------------
 
     def serve(self) -> None:
         assert self.robot is not None
-        conn = self.robot._conn
-        udp = conn.net._udp
-        assert udp is not None
-        chan = self.chan.sock
+        robot = self.robot
+        udp = robot.fileno()
+        chan = self.chan.sock.fileno()
         last_gc = time.monotonic()
         while not self.closing:
             if self.pending is not None:
@@ -203,8 +215,7 @@ class ControlServer:
                 continue
             readable = select.select([udp, chan], [], [], IDLE_WAIT)[0]
             if udp in readable:
-                data = conn.receive_state()
-                self._publish(data)
+                self._publish(robot.receive_raw_state())
             if chan in readable:
                 self._receive(running=False)
             if self._parent_gone():
@@ -227,17 +238,24 @@ class ControlServer:
             self.closing = True
             self.stopping = True
             return
-        kind, rid, *args = msg
+        if not isinstance(msg, rq.Call):
+            for fd in fds:
+                os.close(fd)
+            return  # not ours to answer: nothing numbered it
+        rid, request = msg.rid, msg.request
         self._current_rid = rid
-        handler = getattr(self, "_req_" + kind, None)
+        kind = getattr(request, "kind", None)
+        handler = self._handlers.get(kind) if isinstance(kind, rq.Kind) else None
         try:
             if handler is None:
-                raise ValueError(f"unknown request {kind!r}")
-            value = handler(*args, fds=fds, running=running)
+                raise ValueError(
+                    f"request: expected one of {[k.value for k in rq.Kind]}, got {request!r}"
+                )
+            value = handler(request, fds, running)
         except Exception as exc:
             for fd in fds:
                 os.close(fd)
-            self.reply(rid, False, _transferable(exc, kind))
+            self.reply(rid, False, _transferable(exc, kind.value if kind else "request"))
             return
         if value is DEFERRED:
             return
@@ -253,54 +271,35 @@ class ControlServer:
 
     def _fresh_state(self) -> RobotState:
         assert self.robot is not None
-        conn = self.robot._conn
-        data = conn.receive_state()
+        data = self.robot.receive_raw_state()
         self._publish(data)
-        return RobotState(conn.dialect, data)
+        return self.robot.decode_state(data)
 
-    def _req_start(self, payload: bytes, *, fds: list[int], running: bool) -> Any:
+    def _start(self, request: rq.StartController, fds: list[int], running: bool) -> Any:
         self._not_running(running, "start_controller")
-        ctrl = pickle.loads(payload)
+        ctrl = pickle.loads(request.payload)
         if not isinstance(ctrl, TorqueController):
             raise ValueError(f"controller: expected a TorqueController, got {type(ctrl)!r}")
-        state = self._fresh_state()
-        ctrl._time = 0.0
-        ctrl.dt = 0.0
-        ctrl.start(state, self.model)
-        block = self.block
-        n = len(ctrl._values)
-        block.write_signal_array(ctrl._values)
-        ctrl._out[0] = 0.0
-        block.write_outputs(ctrl._out)
+        ctrl.t = ctrl.dt = 0.0
+        ctrl.start(self._fresh_state(), self.model)
+        values = ctrl.open_slot(self.block)
         self.pending = (ctrl, None)
-        return ctrl._values[:n].copy()
+        return values
 
-    def _req_move(self, kind: str, arrays: dict[str, Any], params: dict[str, Any], *,
-                  fds: list[int], running: bool) -> Any:  # fmt: skip
+    def _move(self, request: rq.Move, fds: list[int], running: bool) -> Any:
         self._not_running(running, "move")
-        law: JointMove | PoseMove
-        if kind == "joint":
-            law = JointMove(arrays["q"], arrays["dq"], arrays["ddq"], **params)
-        else:
-            law = PoseMove(
-                arrays["position"],
-                arrays["orientation"],
-                arrays["twist"],
-                arrays["accel"],
-                **params,
-            )
-        self.pending = (law, self._current_rid)
+        self.pending = (tracker_for(request.plan), self._current_rid)
         return DEFERRED
 
-    def _req_stop(self, *, fds: list[int], running: bool) -> Any:
+    def _stop(self, request: rq.Stop, fds: list[int], running: bool) -> Any:
         if not running:
             return None
         self.stopping = True
         self.stop_waiters.append(self._current_rid)
         return DEFERRED
 
-    def _req_robot(self, method: str, args: tuple, kwargs: dict, *, fds: list[int],
-                   running: bool) -> Any:  # fmt: skip
+    def _robot_call(self, request: rq.RobotCall, fds: list[int], running: bool) -> Any:
+        method = request.method
         if method not in ROBOT_METHODS:
             raise ValueError(f"method: expected one of {sorted(ROBOT_METHODS)}, got {method!r}")
         if method == "read_once":
@@ -308,25 +307,25 @@ class ControlServer:
             return self._fresh_state()
         if method != "server_version":
             self._not_running(running, method)
-        return getattr(self.robot, method)(*args, **kwargs)
+        return getattr(self.robot, method)(*request.args, **request.kwargs)
 
-    def _req_recover(self, *, fds: list[int], running: bool) -> Any:
+    def _recover(self, request: rq.Recover, fds: list[int], running: bool) -> Any:
         self._not_running(running, "recover")
         assert self.robot is not None
         state = self._fresh_state()
         if state.current_errors or state.robot_mode in (RobotMode.kReflex, RobotMode.kOther):
-            self.event("log", logging.WARNING, "Irregular state detected. Attempting "
-                       "automatic error recovery.")  # fmt: skip
+            self.event(rq.LogLine(logging.WARNING, "Irregular state detected. Attempting "
+                                  "automatic error recovery."))  # fmt: skip
             self.robot.automatic_error_recovery()
             return True
         return False
 
-    def _req_log_enable(self, size: int, *, fds: list[int], running: bool) -> Any:
+    def _enable_log(self, request: rq.EnableLog, fds: list[int], running: bool) -> Any:
         if len(fds) != 1:
-            raise ValueError("log_enable: expected one file descriptor")
+            raise ValueError(f"enable_logging: expected one file descriptor, got {len(fds)}")
         assert self.robot is not None
-        record, spans = LogRing.layout(self.robot._conn.dialect.state_dtype, LOG_FIELDS)
-        ring = LogRing(fds[0], size, record, spans)
+        record, spans = LogRing.layout(self.robot.state_dtype, LOG_FIELDS)
+        ring = LogRing(fds[0], request.size, record, spans)
         os.close(fds[0])
         old, self.log = self.log, ring
         self.block.header[HEADER.LOG_COUNT] = 0
@@ -335,11 +334,11 @@ class ControlServer:
             old.close()
         return None
 
-    def _req_log_disable(self, *, fds: list[int], running: bool) -> Any:
+    def _disable_log(self, request: rq.DisableLog, fds: list[int], running: bool) -> Any:
         self.logging = False
         return None
 
-    def _req_close(self, *, fds: list[int], running: bool) -> Any:
+    def _close(self, request: rq.Close, fds: list[int], running: bool) -> Any:
         self.closing = True
         self.stopping = True
         return None
@@ -349,26 +348,23 @@ class ControlServer:
     def _finalize(self, tau: Any, state: RobotState) -> list[float]:
         """Joint walls, torque-rate saturation and torque limits; refuses non-finite."""
         assert self.walls is not None
-        values = np.asarray(tau, dtype=np.float64).reshape(-1)
+        # contiguous float64: the compiled call has one signature, compiled before the loop
+        values = np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
         if values.shape != (7,):
             raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
-        walls = self.walls.torques(state.q, state.dq)
-        out = laws.clip_torques(
-            laws.saturate_torque_rate(values + walls, state.tau_J_d), self.tau_max
-        ).tolist()
-        s = sum(out)
-        if s - s != 0.0:
-            raise ControlException(f"the controller commanded non-finite torques: {out}")
-        return out
+        out = self._tau
+        if not self.walls.finalize(values, state.q, state.dq, state.tau_J_d, self.tau_max, out):
+            raise ControlException(
+                f"the controller commanded non-finite torques: {values.tolist()}"
+            )
+        return out.tolist()
 
-    def _run(self, law: Any, move_rid: int | None) -> None:
+    def _run(self, law: ControlLaw, move_rid: int | None) -> None:
         assert self.robot is not None and self.model is not None and self.walls is not None
         robot, model, block, chan = self.robot, self.model, self.block, self.chan
         header = block.header
-        user = isinstance(law, TorqueController)
         self.stopping = False
         self.walls.reset()
-        in_seq = -1
         error: BaseException | None = None
         state: RobotState | None = None
         header[HEADER.RUNNING] = 1
@@ -379,23 +375,14 @@ class ControlServer:
         try:
             while True:
                 state, dt = active.readOnce()
-                t = dt.to_sec()
-                if user:
-                    in_seq = block.read_signals(law._values, in_seq)
-                    law.dt = t
-                    law._time += t
-                else:
-                    law.t += t
-                    law.dt = t
+                law.tick(dt.to_sec())
                 tau = self._finalize(law.step(state, model), state)
-                finished = self.stopping or (not user and law.finished(state))
+                finished = self.stopping or law.finished(state)
                 cmd = Torques(tau)
                 cmd.motion_finished = finished
                 active.writeOnce(cmd)
-                self._publish(state._data)
-                if user:
-                    law._out[0] = law._time
-                    block.write_outputs(law._out)
+                self._publish(state.raw)
+                law.published()
                 if finished:
                     break
                 if chan.poll(0.0):
@@ -405,24 +392,25 @@ class ControlServer:
                     self.closing = self.stopping = True
         except BaseException as exc:
             active.cancel()
-            error = _transferable(exc, getattr(law, "name", "control loop"))
-        if user:
-            try:
-                law.stop(state, model)
-            except Exception as exc:
-                error = error or _transferable(exc, f"{law.name}.stop")
+            error = _transferable(exc, law.name)
+        try:
+            law.stop(state, model)
+        except Exception as exc:
+            error = error or _transferable(exc, f"{law.name}.stop")
         if error is not None and move_rid is None:
-            self.event("error", error)
+            self.event(rq.LoopError(error))
         # the error is posted before the loop shows as stopped: whoever sees is_moving()
         # turn False finds it in raise_error()
         header[HEADER.RUNNING] = 0
-        if move_rid is not None:
+        if move_rid is not None and isinstance(law, (JointMove, PoseMove)):
             self._finish_move(law, move_rid, error)
         for rid in self.stop_waiters:
             self.reply(rid, True, None)
         self.stop_waiters.clear()
 
-    def _finish_move(self, law: Any, rid: int, error: BaseException | None) -> None:
+    def _finish_move(
+        self, law: JointMove | PoseMove, rid: int, error: BaseException | None
+    ) -> None:
         try:
             state = self._fresh_state()
             result: MoveResult = law.result(state)
@@ -450,11 +438,13 @@ def main(argv: list[str] | None = None) -> int:
     server = ControlServer(chan, block, parent)
     try:
         msg, _ = chan.recv()
-        _, rid, hostname, realtime_config, timeout = msg
     except (ChannelClosed, ValueError):
         return 1
+    if not (isinstance(msg, rq.Call) and isinstance(msg.request, rq.Connect)):
+        return 1
+    rid = msg.rid
     try:
-        info = server.connect(hostname, realtime_config, timeout)
+        info = server.connect(msg.request)
     except BaseException as exc:
         if not isinstance(exc, FrankaException):  # a bug, not the robot: show where
             traceback.print_exc()

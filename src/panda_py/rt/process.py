@@ -29,6 +29,7 @@ import weakref
 from typing import Any
 
 from panda_py.libfranka.errors import FrankaException
+from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, SharedBlock
 
@@ -118,8 +119,11 @@ class ControlProcess:
         self._reader.start()
         _LIVE.add(self)
         try:
-            self.info = self.call("connect", hostname, int(realtime_config), float(timeout),
-                                  timeout=timeout + READY_TIMEOUT)  # fmt: skip
+            info = self.call(
+                rq.Connect(hostname, int(realtime_config), float(timeout)),
+                timeout=timeout + READY_TIMEOUT,
+            )
+            self.info: rq.Connected = info
         except BaseException:
             self.close()
             raise
@@ -132,14 +136,13 @@ class ControlProcess:
                 msg, fds = self.chan.recv()
                 for fd in fds:
                     os.close(fd)
-                if msg[0] == "reply":
-                    _, rid, ok, value = msg
-                    waiter = self._waiters.pop(rid, None)
+                if isinstance(msg, rq.Reply):
+                    waiter = self._waiters.pop(msg.rid, None)
                     if waiter is not None:
-                        waiter.ok, waiter.value = ok, value
+                        waiter.ok, waiter.value = msg.ok, msg.value
                         waiter.event.set()
-                elif msg[0] == "event":
-                    self._event(msg[1], *msg[2:])
+                elif isinstance(msg, (rq.LoopError, rq.LogLine)):
+                    self._event(msg)
                     self.events_seen += 1
         except (ChannelClosed, OSError, EOFError):
             pass
@@ -149,16 +152,15 @@ class ControlProcess:
                 waiter.event.set()
             self._waiters.clear()
 
-    def _event(self, kind: str, *payload: Any) -> None:
-        if kind == "error":
-            (exc,) = payload
-            self.errors.append(exc)
-            self.logger.error("Control loop interrupted: %s", exc)
-        elif kind == "log":
-            level, message = payload
-            self.logger.log(level, message)
+    def _event(self, event: rq.LoopError | rq.LogLine) -> None:
+        if isinstance(event, rq.LoopError):
+            self.errors.append(event.error)
+            self.logger.error("Control loop interrupted: %s", event.error)
+        else:
+            self.logger.log(event.level, event.message)
 
-    def _gone(self) -> ControlProcessError:
+    def gone(self) -> ControlProcessError:
+        """The error that says this process is gone (with how it ended)."""
         try:
             code = self.proc.wait(timeout=1.0)
         except subprocess.TimeoutExpired:
@@ -174,27 +176,29 @@ class ControlProcess:
             exitcode=code,
         )
 
-    def call(self, kind: str, *args: Any, fds: tuple[int, ...] = (),
+    def call(self, request: rq.Request, *, fds: tuple[int, ...] = (),
              timeout: float | None = None) -> Any:  # fmt: skip
         """Send a request and wait for its reply; raises what the control process raised."""
         if self.closed:
             raise ControlProcessError("this Panda is closed")
         if self.dead:
-            raise self._gone()
+            raise self.gone()
         rid = next(self._ids)
         waiter = _Waiter()
         self._waiters[rid] = waiter
         try:
             with self._send_lock:
-                self.chan.send((kind, rid, *args), fds)
+                self.chan.send(rq.Call(rid, request), fds)
         except (ChannelClosed, OSError):
             self._waiters.pop(rid, None)
-            raise self._gone() from None
+            raise self.gone() from None
         if not waiter.event.wait(timeout):
             self._waiters.pop(rid, None)
-            raise ControlProcessError(f"the control process did not answer {kind!r} in time")
+            raise ControlProcessError(
+                f"the control process did not answer {request.kind.value!r} in time"
+            )
         if not waiter.ok and waiter.value is None and self.dead:
-            raise self._gone()
+            raise self.gone()
         if not waiter.ok:
             raise waiter.value
         return waiter.value
@@ -213,7 +217,7 @@ class ControlProcess:
         if self.errors:
             raise self.errors.popleft()
         if self.dead and not self.closed:
-            raise self._gone()
+            raise self.gone()
 
     # --- shutdown ------------------------------------------------------------------------
 
@@ -223,7 +227,7 @@ class ControlProcess:
             return
         if not self.dead:
             try:
-                self.call("close", timeout=CLOSE_TIMEOUT)
+                self.call(rq.Close(), timeout=CLOSE_TIMEOUT)
             except Exception:
                 pass
         self.closed = True

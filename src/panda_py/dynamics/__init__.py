@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panda_py import _checks as checks
+from panda_py import checks
 from panda_py.robots.params import GRAVITY, RobotSpec, get_robot
 
 __all__ = ["LoadedArm", "coriolis", "gravity", "inverse_dynamics", "mass_matrix"]
@@ -363,18 +363,18 @@ _JIT: Any = _UNSET
 
 
 def _jit() -> Any:
-    """The compiled recursion (:mod:`panda_py._dynamics_jit`), or None (numba missing, or
+    """The compiled recursion (:mod:`panda_py.dynamics._compiled`), or None (numba missing, or
     ``PANDA_PY_NO_JIT=1``): imported on first use."""
     global _JIT
     if _JIT is _UNSET:
         _JIT = None
         if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
             try:
-                from panda_py import _dynamics_jit
+                from panda_py.dynamics import _compiled
             except ImportError:
                 pass
             else:
-                _JIT = _dynamics_jit
+                _JIT = _compiled
     return _JIT
 
 

@@ -197,8 +197,8 @@ def test_joint_walls_push_back_near_the_limits() -> None:
 
 
 def test_control_model_answers_as_libfrankas_model() -> None:
+    from panda_py.controllers.model import ControlModel
     from panda_py.libfranka import Frame, Model, RobotState
-    from panda_py.rt.model import ControlModel
 
     dialect = fci.dialect(5)
     rng = np.random.default_rng(5)

@@ -9,20 +9,24 @@ motion.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py.controllers import _args
+from panda_py import checks
+from panda_py.controllers.moves import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
-from panda_py.motion.cartesian import _parse_poses, _stack
+from panda_py.motion.cartesian import parse_poses, stack_rows
 from panda_py.robots.params import RobotSpec
 
 __all__ = [
     "JOINT_MOVE_DEFAULTS",
     "POSE_MOVE_DEFAULTS",
+    "JointMoveOptions",
+    "PoseMoveOptions",
     "joint_move",
     "parse_joint_targets",
     "parse_pose_targets",
@@ -56,6 +60,32 @@ POSE_MOVE_DEFAULTS: dict[str, Any] = {
 POSE_MOVE_JOINT_OPTIONS = ("stiffness", "damping")
 
 
+@dataclass(frozen=True)
+class JointMoveOptions:
+    """``move_to_joint_position``'s checked keywords."""
+
+    speed_factor: float
+    stiffness: FloatArray  # (7,) [Nm/rad]
+    damping: FloatArray  # (7,) [Nm s/rad]
+    dq_threshold: float  # [rad/s]
+    success_threshold: float  # [rad]
+
+
+@dataclass(frozen=True)
+class PoseMoveOptions:
+    """``move_to_pose``'s checked keywords; ``joint_space`` (joint stiffness, damping)
+    when panda-py < 1.0's joint-space tracking was asked for."""
+
+    speed_factor: float
+    impedance: FloatArray  # (6, 6) [N/m, Nm/rad]
+    damping_ratio: float
+    nullspace_stiffness: float  # [Nm/rad]
+    dq_threshold: float  # [rad/s]
+    success_threshold: float  # [m]
+    orientation_threshold: float  # [rad]
+    joint_space: tuple[FloatArray, FloatArray] | None = None
+
+
 def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict[str, Any]:
     unknown = sorted(set(given) - set(defaults))
     if unknown:
@@ -64,20 +94,22 @@ def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict
 
 
 def _speed(value: Any) -> float:
-    v = _args.scalar("speed_factor", value)
+    v = checks.scalar("speed_factor", value)
     if not 0.0 < v <= 1.0:
         raise ValueError(f"speed_factor: expected a number in (0, 1], got {v}")
     return v
 
 
 def _positive(name: str, value: Any, unit: str) -> float:
-    v = _args.scalar(name, value, unit)
+    v = checks.scalar(name, value, unit)
     if v <= 0.0:
         raise ValueError(f"{name}: expected a number > 0 {unit}, got {v}")
     return v
 
 
-def parse_joint_targets(args: tuple[Any, ...], kwargs: dict[str, Any]) -> tuple[FloatArray, dict]:
+def parse_joint_targets(
+    args: tuple[Any, ...], kwargs: dict[str, Any]
+) -> tuple[FloatArray, JointMoveOptions]:
     """``(waypoints (N, 7), options)`` from ``move_to_joint_position``'s overloads:
     ``(positions, ...)`` one 7-vector or ``(waypoints, ...)`` a sequence of them."""
     kwargs = dict(kwargs)
@@ -104,21 +136,21 @@ def parse_joint_targets(args: tuple[Any, ...], kwargs: dict[str, Any]) -> tuple[
                          f"them, got {target!r}") from exc  # fmt: skip
     if arr.shape in ((7,), (7, 1)):
         arr = arr.reshape(1, 7)
-    waypoints = _stack("waypoints", arr, 7, "[rad]")
+    waypoints = stack_rows("waypoints", arr, 7, "[rad]")
     opts = _options(JOINT_MOVE_DEFAULTS, kwargs, "move_to_joint_position")
-    checked = {
-        "speed_factor": _speed(opts["speed_factor"]),
-        "stiffness": np.array(_args.nonnegative("stiffness", opts["stiffness"], 7, "[Nm/rad]")),
-        "damping": np.array(_args.nonnegative("damping", opts["damping"], 7, "[Nm s/rad]")),
-        "dq_threshold": _positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
-        "success_threshold": _positive("success_threshold", opts["success_threshold"], "[rad]"),
-    }
+    checked = JointMoveOptions(
+        speed_factor=_speed(opts["speed_factor"]),
+        stiffness=np.array(checks.nonnegative("stiffness", opts["stiffness"], 7, "[Nm/rad]")),
+        damping=np.array(checks.nonnegative("damping", opts["damping"], 7, "[Nm s/rad]")),
+        dq_threshold=_positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
+        success_threshold=_positive("success_threshold", opts["success_threshold"], "[rad]"),
+    )
     return waypoints, checked
 
 
 def parse_pose_targets(
     args: tuple[Any, ...], kwargs: dict[str, Any]
-) -> tuple[FloatArray, FloatArray, dict]:
+) -> tuple[FloatArray, FloatArray, PoseMoveOptions]:
     """``(positions (N, 3), unit quaternions (N, 4), options)`` from ``move_to_pose``'s
     overloads: ``(positions, orientations)``, ``(position, orientation)``, ``(poses)`` or
     ``(pose)`` (4x4 homogeneous transforms)."""
@@ -152,7 +184,7 @@ def parse_pose_targets(
         arr = np.array(pose, dtype=np.float64) if _numeric(pose) else pose
         if isinstance(arr, np.ndarray) and arr.shape == (4, 4):
             arr = arr.reshape(1, 4, 4)
-        positions, quats = _parse_poses(arr)
+        positions, quats = parse_poses(arr)
     elif position is not None and orientation is not None:
         p = np.array(position, dtype=np.float64) if _numeric(position) else position
         o = np.array(orientation, dtype=np.float64) if _numeric(orientation) else orientation
@@ -160,38 +192,40 @@ def parse_pose_targets(
             p = p.reshape(1, 3)
         if isinstance(o, np.ndarray) and o.shape in ((4,), (4, 1)):
             o = o.reshape(1, 4)
-        positions = _stack("positions", p, 3, "[m]")
-        quats = _stack("orientations", o, 4, "(unit quaternions x, y, z, w)")
+        positions = stack_rows("positions", p, 3, "[m]")
+        quats = stack_rows("orientations", o, 4, "(unit quaternions x, y, z, w)")
         if len(positions) != len(quats):
             raise ValueError(f"orientations: expected one per position ({len(positions)}), "
                              f"got {len(quats)}")  # fmt: skip
         for i, qv in enumerate(quats):
-            quats[i] = _args.quaternion(f"orientations[{i}]", qv)
+            quats[i] = checks.quaternion(f"orientations[{i}]", qv)
     else:
         raise TypeError("move_to_pose() missing the target: pose(s) or position(s) and "
                         "orientation(s)")  # fmt: skip
     joint_opts = {k: kwargs.pop(k) for k in POSE_MOVE_JOINT_OPTIONS if k in kwargs}
     opts = _options(POSE_MOVE_DEFAULTS, kwargs, "move_to_pose")
-    checked: dict[str, Any] = {
-        "speed_factor": _speed(opts["speed_factor"]),
-        "impedance": np.array(_args.matrix6("impedance", opts["impedance"])).reshape(6, 6),
-        "damping_ratio": _args.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
-        "nullspace_stiffness": _args.nonnegative_scalar(
-            "nullspace_stiffness", opts["nullspace_stiffness"]
-        ),
-        "dq_threshold": _positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
-        "success_threshold": _positive("success_threshold", opts["success_threshold"], "[m]"),
-        "orientation_threshold": _positive(
-            "orientation_threshold", opts["orientation_threshold"], "[rad]"
-        ),
-    }
+    joint_space = None
     if joint_opts:
         stiffness = joint_opts.get("stiffness", JOINT_MOVE_DEFAULTS["stiffness"])
         damping = joint_opts.get("damping", JOINT_MOVE_DEFAULTS["damping"])
-        checked["joint_space"] = {
-            "stiffness": np.array(_args.nonnegative("stiffness", stiffness, 7, "[Nm/rad]")),
-            "damping": np.array(_args.nonnegative("damping", damping, 7, "[Nm s/rad]")),
-        }
+        joint_space = (
+            np.array(checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]")),
+            np.array(checks.nonnegative("damping", damping, 7, "[Nm s/rad]")),
+        )
+    checked = PoseMoveOptions(
+        speed_factor=_speed(opts["speed_factor"]),
+        impedance=np.array(checks.matrix6("impedance", opts["impedance"])).reshape(6, 6),
+        damping_ratio=checks.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
+        nullspace_stiffness=checks.nonnegative_scalar(
+            "nullspace_stiffness", opts["nullspace_stiffness"]
+        ),
+        dq_threshold=_positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
+        success_threshold=_positive("success_threshold", opts["success_threshold"], "[m]"),
+        orientation_threshold=_positive(
+            "orientation_threshold", opts["orientation_threshold"], "[rad]"
+        ),
+        joint_space=joint_space,
+    )
     return positions, quats, checked
 
 
@@ -210,14 +244,17 @@ def _times(duration: float) -> FloatArray:
     return t
 
 
-def joint_move(q_now: FloatArray, waypoints: FloatArray, speed_factor: float,
-               spec: RobotSpec) -> dict[str, FloatArray] | None:  # fmt: skip
+def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
+               spec: RobotSpec) -> JointPlan | None:  # fmt: skip
     """The sampled plan from ``q_now`` through ``waypoints``; None if already there."""
-    traj = JointTrajectory(np.vstack([q_now, waypoints]), speed_factor, robot=spec)
+    traj = JointTrajectory(np.vstack([q_now, waypoints]), opts.speed_factor, robot=spec)
     if traj.get_duration() == 0.0:
         return None
-    samples = traj.sample(_times(traj.get_duration()))
-    return {"q": samples.positions, "dq": samples.velocities, "ddq": samples.accelerations}
+    s = traj.sample(_times(traj.get_duration()))
+    return JointPlan(
+        s.positions, s.velocities, s.accelerations, opts.stiffness, opts.damping,
+        opts.dq_threshold, opts.success_threshold,
+    )  # fmt: skip
 
 
 def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
@@ -225,7 +262,7 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
     """Raise ValueError for the first target pose the arm cannot reach (no IK solution
     within the joint limits for any q7 near the current one)."""
     from panda_py.kinematics import get_kinematics
-    from panda_py.motion._rotation import to_matrix
+    from panda_py.motion.rotation import to_matrix
 
     kin = get_kinematics(spec, F_T_EE)
     for i, (p, quat) in enumerate(zip(positions, quats, strict=True)):
@@ -247,19 +284,22 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
 
 
 def pose_move_in_joint_space(
-    plan: dict[str, FloatArray], q_now: FloatArray, spec: RobotSpec, F_T_EE: FloatArray
-) -> dict[str, FloatArray]:
+    plan: PosePlan, opts: PoseMoveOptions, q_now: FloatArray, spec: RobotSpec,
+    F_T_EE: FloatArray,
+) -> JointPlan:  # fmt: skip
     """The sampled Cartesian plan as joint positions, velocities and accelerations: the
-    IK of every sample, in the current configuration's case and with the current q7."""
+    IK of every sample, in the current configuration's case and with the current q7,
+    tracked with the joint stiffness and damping of the plan's options (judged on the
+    pose by the caller: the joint success threshold is infinite)."""
     from panda_py.kinematics import get_kinematics
-    from panda_py.motion._rotation import to_matrix
+    from panda_py.motion.rotation import to_matrix
 
-    n = len(plan["position"])
+    n = len(plan.position)
     poses = np.zeros((n, 4, 4))
     poses[:, 3, 3] = 1.0
-    for i, quat in enumerate(plan["orientation"]):
+    for i, quat in enumerate(plan.orientation):
         poses[i, :3, :3] = to_matrix(quat)
-    poses[:, :3, 3] = plan["position"]
+    poses[:, :3, 3] = plan.position
     q = get_kinematics(spec, F_T_EE).ik(poses, q_now, float(q_now[6]))
     bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
     if bad.size:
@@ -271,24 +311,35 @@ def pose_move_in_joint_space(
     dq = np.gradient(q, PERIOD, axis=0)
     dq[0] = dq[-1] = 0.0
     ddq = np.gradient(dq, PERIOD, axis=0)
-    return {"q": q, "dq": dq, "ddq": ddq}
+    assert opts.joint_space is not None
+    stiffness, damping = opts.joint_space
+    return JointPlan(q, dq, ddq, stiffness, damping, opts.dq_threshold, math.inf)
 
 
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
-              quats: FloatArray, speed_factor: float,
-              spec: RobotSpec) -> dict[str, FloatArray] | None:  # fmt: skip
-    """The sampled Cartesian plan from the current pose through the targets."""
+              quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
+              spec: RobotSpec) -> PosePlan | None:  # fmt: skip
+    """The sampled Cartesian plan from the current pose through the targets, its
+    nullspace resting at ``q_nullspace``."""
     traj = CartesianTrajectory(
-        np.vstack([p_now, positions]), np.vstack([quat_now, quats]), speed_factor, robot=spec
-    )
+        np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
+        robot=spec,
+    )  # fmt: skip
     if traj.get_duration() == 0.0:
         return None
     s = traj.sample(_times(traj.get_duration()))
     # the angular acceleration, by central differences of the sampled angular velocity
     alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
-    return {
-        "position": s.positions,
-        "orientation": s.orientations,
-        "twist": np.hstack([s.velocities, s.angular_velocities]),
-        "accel": np.hstack([s.accelerations, alpha]),
-    }
+    return PosePlan(
+        position=s.positions,
+        orientation=s.orientations,
+        twist=np.hstack([s.velocities, s.angular_velocities]),
+        accel=np.hstack([s.accelerations, alpha]),
+        q_nullspace=q_nullspace,
+        impedance=opts.impedance,
+        damping_ratio=opts.damping_ratio,
+        nullspace_stiffness=opts.nullspace_stiffness,
+        dq_threshold=opts.dq_threshold,
+        success_threshold=opts.success_threshold,
+        orientation_threshold=opts.orientation_threshold,
+    )

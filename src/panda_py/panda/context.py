@@ -17,7 +17,7 @@ import time
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from panda_py.panda import Panda
+    from panda_py.panda.core import Panda
 
 __all__ = ["PandaContext"]
 

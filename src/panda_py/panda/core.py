@@ -21,18 +21,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py import _moves, fci
-from panda_py._robot_proxy import RobotProxy
-from panda_py.context import PandaContext
-from panda_py.controllers import laws
-from panda_py.controllers._base import TorqueController
-from panda_py.libfranka._realtime import fifo_permitted, has_realtime_kernel
+from panda_py import fci
+from panda_py.controllers import TorqueController, laws
+from panda_py.controllers.moves import JointPlan, MoveResult, PosePlan, rotation_angle
 from panda_py.libfranka.model import Model
+from panda_py.libfranka.realtime import fifo_permitted, has_realtime_kernel
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
+from panda_py.panda import planning as _moves
+from panda_py.panda.context import PandaContext
+from panda_py.panda.proxy import RobotProxy
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import byvalue
-from panda_py.rt.moves import MoveResult, rotation_angle
+from panda_py.rt import requests as rq
 from panda_py.rt.process import ControlProcess, ControlProcessError
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, anonymous_file
 
@@ -87,11 +88,11 @@ class Panda:
         self._controller: TorqueController | None = None
         self._log_ring: LogRing | None = None
         self._proc = ControlProcess(hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger)
-        self._info: dict[str, Any] = self._proc.info
+        self._info: rq.Connected = self._proc.info
         self._hostname = hostname
-        self._dialect = fci.dialect(self._info["server_version"])
-        self._spec = get_robot(self._info["robot"])
-        self._limits = get_robot(self._info["limits"])
+        self._dialect = fci.dialect(self._info.server_version)
+        self._spec = get_robot(self._info.robot)
+        self._limits = get_robot(self._info.limits)
         self._model = Model(self._spec)
         block = self._proc.block
         self._q_view = block.field_views(self._dialect.state_dtype, "q")
@@ -107,7 +108,7 @@ class Panda:
         self._logger.info(
             "Using %s joint limits (robot server version %d).",
             self._limits.name,
-            self._info["server_version"],
+            self._info.server_version,
         )
         self._warn_realtime()
 
@@ -127,9 +128,6 @@ class Panda:
             self._logger.info("The running kernel is not a realtime (PREEMPT_RT) kernel.")
 
     # --- lifecycle ---------------------------------------------------------------------
-
-    def _process(self) -> ControlProcess:
-        return self._proc
 
     def close(self) -> None:
         """Stop what runs, close the connection and end the control process."""
@@ -163,7 +161,7 @@ class Panda:
     def _data(self) -> bytes:
         proc = self._proc
         if proc.dead:
-            raise proc._gone()
+            raise proc.gone()
         data = proc.block.read_state()
         if data is None:
             raise ControlProcessError("no robot state received yet")
@@ -178,7 +176,7 @@ class Panda:
         """Current joint positions [rad]."""
         proc = self._proc
         if proc.dead:
-            raise proc._gone()
+            raise proc.gone()
         # the state latch, read inline (this is the hot path of a user's loop)
         h, views, copy = self._header, self._q_view, self._copy
         while True:
@@ -191,7 +189,7 @@ class Panda:
         """Current end-effector pose in the base frame (4x4)."""
         proc = self._proc
         if proc.dead:
-            raise proc._gone()
+            raise proc.gone()
         h, views, copy = self._header, self._T_view, self._copy
         while True:
             seq = h[0]
@@ -203,7 +201,7 @@ class Panda:
         """Current end-effector position in the base frame [m]."""
         proc = self._proc
         if proc.dead:
-            raise proc._gone()
+            raise proc.gone()
         return proc.block.read_field(self._p_view)
 
     def get_orientation(self, scalar_first: bool = False) -> FloatArray:
@@ -224,7 +222,7 @@ class Panda:
     def get_robot(self) -> RobotProxy:
         """The libfranka-level robot (setters, ``automatic_error_recovery``,
         ``read_once``), run in the control process that owns the connection."""
-        return RobotProxy(self)
+        return RobotProxy(self._proc, self._info.server_version, self._model, self.stop_controller)
 
     def get_model(self) -> Model:
         """The robot's dynamics model (computed locally)."""
@@ -249,7 +247,7 @@ class Panda:
 
     def recover(self) -> None:
         """Automatic error recovery if the robot is in a reflex or has errors."""
-        self._proc.call("recover")
+        self._proc.call(rq.Recover())
 
     def is_moving(self) -> bool:
         """True while a controller or a move runs."""
@@ -272,13 +270,8 @@ class Panda:
 
     def _unbind(self) -> None:
         ctrl, self._controller = self._controller, None
-        if ctrl is not None and ctrl._block is not None:
-            try:
-                ctrl._out[:] = ctrl._block.read_outputs(len(ctrl._out))
-                ctrl._sync_from(ctrl._block)
-            except Exception:
-                pass
-            ctrl._block = None
+        if ctrl is not None:
+            ctrl.detach()
 
     def start_controller(self, controller: TorqueController) -> None:
         """Stop what runs, recover from errors, and start ``controller`` at 1 kHz in the
@@ -288,23 +281,19 @@ class Panda:
                 f"controller: expected a panda_py.controllers.TorqueController, got "
                 f"{type(controller).__name__}"
             )
-        controller._check_initialized()
+        payload = byvalue.dumps(controller)  # before anything stops: a bad one stops nothing
         self.stop_controller()
         self.recover()
         self._logger.info("Starting new controller (%s).", controller.name)
-        payload = byvalue.dumps(controller)
-        values = self._proc.call("start", payload)
-        with controller._lock:
-            controller._values[:] = values
-            controller._out[:] = 0.0
-            controller._block = self._proc.block
+        values = self._proc.call(rq.StartController(payload))
+        controller.attach(self._proc.block, values)
         self._controller = controller
 
     def stop_controller(self) -> None:
         """Stop the running controller (the robot holds its position)."""
         if self._controller is not None:
             self._logger.info("Stopping active controller (%s).", self._controller.name)
-        self._proc.call("stop")
+        self._proc.call(rq.Stop())
         self._unbind()
 
     def teaching_mode(self, active: bool, damping: Any = (0.0,) * 7) -> None:
@@ -319,12 +308,11 @@ class Panda:
 
     # --- moves -------------------------------------------------------------------------
 
-    def _move(self, kind: str, plan: dict[str, FloatArray] | None,
-              params: dict[str, Any]) -> bool:  # fmt: skip
+    def _move(self, plan: JointPlan | PosePlan | None) -> bool:
         if plan is None:
             self._logger.info("Already at goal.")
             return True
-        result: MoveResult = self._proc.call("move", kind, plan, params)
+        result: MoveResult = self._proc.call(rq.Move(plan))
         if result.error is not None:
             self._proc.errors.append(result.error)
             self._logger.error("Control loop interrupted: %s", result.error)
@@ -352,8 +340,7 @@ class Panda:
         self.recover()
         self._logger.info("Initializing motion generation (moveToJointPosition).")
         q_now = np.clip(self.q, lower, upper)
-        plan = _moves.joint_move(q_now, waypoints, opts.pop("speed_factor"), self._limits)
-        return self._move("joint", plan, opts)
+        return self._move(_moves.joint_move(q_now, waypoints, opts, self._limits))
 
     def move_to_start(
         self,
@@ -393,25 +380,18 @@ class Panda:
         p_now = state.O_T_EE[12:15].copy()
         quat_now = laws.quat_from_matrix(state.O_T_EE)
         plan = _moves.pose_move(
-            p_now, quat_now, positions, quats, opts.pop("speed_factor"), self._limits
+            p_now, quat_now, positions, quats, opts, state.q.copy(), self._limits
         )
-        joint_space = opts.pop("joint_space", None)
-        if joint_space is None or plan is None:
-            opts["q_nullspace"] = state.q
-            return self._move("pose", plan, opts)
+        if opts.joint_space is None or plan is None:
+            return self._move(plan)
         # panda-py < 1.0's form: the straight path tracked in joint space
-        joint_plan = _moves.pose_move_in_joint_space(plan, state.q, self._limits, F_T_EE)
-        params = {
-            **joint_space,
-            "dq_threshold": opts["dq_threshold"],
-            "success_threshold": np.inf,  # judged on the pose below
-        }
-        if not self._move("joint", joint_plan, params):
+        joint_plan = _moves.pose_move_in_joint_space(plan, opts, state.q, self._limits, F_T_EE)
+        if not self._move(joint_plan):
             return False
         T = self.get_pose()
         pos_err = float(np.linalg.norm(T[:3, 3] - positions[-1]))
         rot_err = rotation_angle(self.get_orientation(), quats[-1])
-        ok = pos_err <= opts["success_threshold"] and rot_err <= opts["orientation_threshold"]
+        ok = pos_err <= opts.success_threshold and rot_err <= opts.orientation_threshold
         if not ok:
             self._logger.warning(
                 "Motion finished %.4f m and %.2f deg from the goal, above the success threshold.",
@@ -440,7 +420,7 @@ class Panda:
         fd = anonymous_file(nbytes, "panda_py-log")
         try:
             ring = LogRing(fd, int(size), record, spans)
-            self._proc.call("log_enable", int(size), fds=(fd,))
+            self._proc.call(rq.EnableLog(int(size)), fds=(fd,))
         finally:
             import os
 
@@ -451,7 +431,7 @@ class Panda:
 
     def disable_logging(self) -> None:
         """Stop logging; :meth:`get_log` keeps returning what was logged."""
-        self._proc.call("log_disable")
+        self._proc.call(rq.DisableLog())
 
     def get_log(self) -> dict[str, list[FloatArray]]:
         """The logged states, oldest first: panda-py's keys (``q``, ``dq``, ``tau_J``,

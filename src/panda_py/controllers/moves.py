@@ -18,9 +18,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
+from panda_py.controllers.law import ControlLaw
 from panda_py.fci import PERIOD
 
-__all__ = ["JointMove", "MoveResult", "PoseMove"]
+__all__ = ["JointMove", "JointPlan", "MoveResult", "PoseMove", "PosePlan", "tracker_for"]
 
 FloatArray = NDArray[np.float64]
 
@@ -49,36 +50,68 @@ class MoveResult:
     error: BaseException | None = None  # what aborted it
 
 
+@dataclass(frozen=True)
+class JointPlan:
+    """A joint move as the user's process planned it: the trajectory sampled at the
+    robot's 1 ms period and how to track and judge it (``Panda.move_to_joint_position``)."""
+
+    q: FloatArray  # (N, 7) [rad]
+    dq: FloatArray  # (N, 7) [rad/s]
+    ddq: FloatArray  # (N, 7) [rad/s^2]
+    stiffness: FloatArray  # (7,) [Nm/rad]
+    damping: FloatArray  # (7,) [Nm s/rad]
+    dq_threshold: float  # [rad/s] at rest below this
+    success_threshold: float  # [rad] success within this of the goal
+
+
+@dataclass(frozen=True)
+class PosePlan:
+    """A Cartesian move as the user's process planned it: positions, orientations, twists
+    and their derivatives sampled at 1 ms, and how to track and judge it
+    (``Panda.move_to_pose``)."""
+
+    position: FloatArray  # (N, 3) [m]
+    orientation: FloatArray  # (N, 4) unit quaternions (x, y, z, w)
+    twist: FloatArray  # (N, 6) [m/s, rad/s]
+    accel: FloatArray  # (N, 6) [m/s^2, rad/s^2]
+    q_nullspace: FloatArray  # (7,) [rad] the nullspace's rest configuration
+    impedance: FloatArray  # (6, 6) [N/m, Nm/rad]
+    damping_ratio: float
+    nullspace_stiffness: float  # [Nm/rad]
+    dq_threshold: float  # [rad/s]
+    success_threshold: float  # [m]
+    orientation_threshold: float  # [rad]
+
+
+def tracker_for(plan: JointPlan | PosePlan) -> JointMove | PoseMove:
+    """The law that tracks ``plan`` in the control loop."""
+    if isinstance(plan, JointPlan):
+        return JointMove(plan)
+    if isinstance(plan, PosePlan):
+        return PoseMove(plan)
+    raise TypeError(f"plan: expected a JointPlan or a PosePlan, got {type(plan).__name__}")
+
+
 def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
     """Angle of the rotation between two unit quaternions [rad] (q and -q are equal)."""
     d = min(1.0, abs(float(q0 @ q1)) / math.sqrt(float(q0 @ q0) * float(q1 @ q1)))
     return 2.0 * math.acos(d)
 
 
-class JointMove:
+class JointMove(ControlLaw):
     """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
     ``dq_d``, ``ddq_d`` (the inertial and friction feed-forward keep the arm on the planned
     path instead of lagging behind it). Once the trajectory has ended, an integral of the error
     to the goal removes what friction and model errors leave (panda-py stops there)."""
 
-    def __init__(
-        self,
-        q: FloatArray,
-        dq: FloatArray,
-        ddq: FloatArray,
-        stiffness: FloatArray,
-        damping: FloatArray,
-        dq_threshold: float,
-        success_threshold: float,
-    ) -> None:
-        self.q, self.dq, self.ddq = q, dq, ddq
-        self.K, self.D = stiffness, damping
-        self.dq_threshold = dq_threshold
-        self.success_threshold = success_threshold
-        self.duration = (len(q) - 1) * PERIOD
-        self.goal = q[-1]
-        self.t = 0.0
-        self.dt = 0.0
+    def __init__(self, plan: JointPlan) -> None:
+        super().__init__()
+        self.q, self.dq, self.ddq = plan.q, plan.dq, plan.ddq
+        self.K, self.D = plan.stiffness, plan.damping
+        self.dq_threshold = plan.dq_threshold
+        self.success_threshold = plan.success_threshold
+        self.duration = (len(plan.q) - 1) * PERIOD
+        self.goal = plan.q[-1]
         self.integral = np.zeros(7)
 
     def step(self, state: Any, model: Any) -> FloatArray:
@@ -113,7 +146,7 @@ class JointMove:
         return MoveResult(ok, reason, joint_error=err, duration=self.duration, elapsed=self.t)
 
 
-class PoseMove:
+class PoseMove(ControlLaw):
     """Cartesian impedance along sampled positions, orientations, twists and their
     derivatives, with a joint impedance toward the start configuration in the task's
     nullspace and an inertial feed-forward of the planned acceleration:
@@ -122,33 +155,19 @@ class PoseMove:
     the planned joint velocity ``J^+ v_d`` and, once the trajectory has ended, an integral
     of the error to the goal (as :class:`JointMove`)."""
 
-    def __init__(
-        self,
-        position: FloatArray,
-        orientation: FloatArray,
-        twist: FloatArray,
-        accel: FloatArray,
-        q_nullspace: FloatArray,
-        impedance: FloatArray,
-        damping_ratio: float,
-        nullspace_stiffness: float,
-        dq_threshold: float,
-        success_threshold: float,
-        orientation_threshold: float,
-    ) -> None:
-        self.p, self.quat, self.v, self.a = position, orientation, twist, accel
+    def __init__(self, plan: PosePlan) -> None:
+        super().__init__()
+        self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
         self._J_prev: FloatArray | None = None
-        self.qn = q_nullspace
-        self.K = impedance
-        w, v = np.linalg.eigh(impedance)
-        self.D = 2.0 * damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
-        self.kn = nullspace_stiffness
-        self.dq_threshold = dq_threshold
-        self.success_threshold = success_threshold
-        self.orientation_threshold = orientation_threshold
-        self.duration = (len(position) - 1) * PERIOD
-        self.t = 0.0
-        self.dt = 0.0
+        self.qn = plan.q_nullspace
+        self.K = plan.impedance
+        w, v = np.linalg.eigh(plan.impedance)
+        self.D = 2.0 * plan.damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
+        self.kn = plan.nullspace_stiffness
+        self.dq_threshold = plan.dq_threshold
+        self.success_threshold = plan.success_threshold
+        self.orientation_threshold = plan.orientation_threshold
+        self.duration = (len(plan.position) - 1) * PERIOD
         self.integral = np.zeros(6)
         self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
 

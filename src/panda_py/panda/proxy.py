@@ -6,16 +6,17 @@ runs in the control process between ticks.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
+from panda_py.checks import vector as _vec
 from panda_py.libfranka.model import Model
-from panda_py.libfranka.robot import _vec, collision_thresholds
+from panda_py.libfranka.robot import collision_thresholds
 from panda_py.libfranka.state import RobotState
-
-if TYPE_CHECKING:
-    from panda_py.panda import Panda
+from panda_py.rt import requests as rq
+from panda_py.rt.process import ControlProcess
 
 __all__ = ["RobotProxy"]
 
@@ -34,14 +35,23 @@ class RobotProxy:
     """The ``libfranka.Robot`` of a :class:`~panda_py.Panda` (setters, error recovery,
     ``read_once``), forwarded to its control process."""
 
-    def __init__(self, panda: Panda) -> None:
-        self._panda = panda
+    def __init__(
+        self,
+        process: ControlProcess,
+        server_version: int,
+        model: Model,
+        stop: Callable[[], None],
+    ) -> None:
+        self._process = process
+        self._server_version = server_version
+        self._model = model
+        self._stop = stop
 
     def _call(self, method: str, *args: Any) -> Any:
-        return self._panda._process().call("robot", method, args, {})
+        return self._process.call(rq.RobotCall(method, args))
 
     def server_version(self) -> int:
-        return int(self._panda._info["server_version"])
+        return self._server_version
 
     def read_once(self) -> RobotState:
         """A fresh robot state (newer than any returned before)."""
@@ -51,7 +61,7 @@ class RobotProxy:
     readOnce = read_once
 
     def load_model(self) -> Model:
-        return self._panda.get_model()
+        return self._model
 
     def set_collision_behavior(self, *args: Any, **kwargs: Any) -> None:
         """Contact/collision thresholds: 4 or 8 arrays as libfranka's
@@ -128,4 +138,4 @@ class RobotProxy:
 
     def stop(self) -> None:
         """Stop whatever runs: the controller or move of the Panda."""
-        self._panda.stop_controller()
+        self._stop()

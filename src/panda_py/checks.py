@@ -1,0 +1,176 @@
+"""Argument checks shared by every package area (client, simulator, math, controllers): each
+raises a ``ValueError`` naming the argument, the expected shape or range with its unit, and
+what was given, before anything is sent or changed.
+
+Two flavours of vector: :func:`vector` gives a new float64 array (libfranka's setters, the
+model); :func:`floats` gives plain Python floats, cheap to pack into shared memory (the
+controllers' inputs, checked in the user's process: nothing reaches the control process
+unchecked, and a robot is never sent a non-finite value)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "MAX_TIMEOUT",
+    "QUATERNION_NORM_TOL",
+    "fast_floats",
+    "floats",
+    "matrix6",
+    "nonnegative",
+    "nonnegative_scalar",
+    "number",
+    "quaternion",
+    "scalar",
+    "timeout",
+    "unit_interval",
+    "vector",
+]
+
+#: The longest wait a caller may ask for [s]: finite, and small enough for every socket
+#: and ``select`` (which reject, e.g., infinity or 1e300 with an ``OverflowError``).
+MAX_TIMEOUT = 86400.0
+# One tolerance for a quaternion's norm wherever one is given (move_to_pose,
+# CartesianImpedance.set_control, CartesianTrajectory, ik): within it the quaternion is
+# normalised, beyond it refused. Hand-typed four-decimal quaternions (0.7071, 0.7071, 0, 0)
+# are 3e-5 off; a forgotten normalisation is percents off.
+QUATERNION_NORM_TOL = 1e-3  # [-] |norm - 1|
+
+
+def number(
+    name: str,
+    value: Any,
+    unit: str = "",
+    *,
+    low: float = -math.inf,
+    high: float = math.inf,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """``value`` as a finite float within ``[low, high]`` (``(`` / ``)`` where open)."""
+    u = f" {unit}" if unit else ""
+    try:
+        if isinstance(value, (bool, str, bytes)):  # float() would take "5" and True
+            raise TypeError(value)
+        x = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected a number{u}, got {value!r}") from exc
+    too_low = x <= low if low_open else x < low
+    too_high = x >= high if high_open else x > high
+    if not math.isfinite(x) or too_low or too_high:
+        interval = _interval(low, high, low_open, high_open)
+        raise ValueError(f"{name}: expected a finite number in {interval}{u}, got {value!r}")
+    return x
+
+
+def _interval(low: float, high: float, low_open: bool, high_open: bool) -> str:
+    lo = "(" if low_open or low == -math.inf else "["
+    hi = ")" if high_open or high == math.inf else "]"
+    return f"{lo}{low:g}, {high:g}{hi}"
+
+
+def timeout(name: str, value: Any) -> float:
+    """A wait [s]: finite, > 0 and at most :data:`MAX_TIMEOUT`."""
+    return number(name, value, "[s]", low=0.0, low_open=True, high=MAX_TIMEOUT)
+
+
+def vector(name: str, value: Any, n: int, unit: str = "") -> NDArray[np.float64]:
+    """``value`` as a new finite float64 array of shape ``(n,)``; a 4x4 (n = 16) or 3x3
+    (n = 9) matrix is accepted and flattened column-major, as libfranka stores them."""
+    try:
+        arr = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
+    if (n == 16 and arr.shape == (4, 4)) or (n == 9 and arr.shape == (3, 3)):
+        arr = arr.reshape(n, order="F")
+    if arr.shape != (n,):
+        raise ValueError(f"{name}: expected shape ({n},) {unit}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: expected finite values {unit}, got {arr.tolist()}")
+    return arr
+
+
+_F64 = np.dtype(np.float64)
+
+
+def fast_floats(name: str, value: Any, n: int, unit: str = "") -> list[float]:
+    """:func:`floats` with a shortcut for the common case, a finite float64 array (n,)."""
+    if type(value) is np.ndarray and value.dtype is _F64 and value.shape == (n,):
+        values: list[float] = value.tolist()
+        s = sum(values)
+        if s - s == 0.0:
+            return values
+    return floats(name, value, n, unit)
+
+
+def floats(name: str, value: Any, n: int, unit: str = "") -> list[float]:
+    """``value`` as ``n`` finite floats (any array-like of n elements, e.g. (n,) or (n, 1))."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.size == n:
+        values = value.ravel().tolist()
+    else:
+        try:
+            arr = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{name}: expected {n} numbers {unit}, got {value!r}") from exc
+        if arr.size != n or (arr.ndim > 1 and max(arr.shape) != n):
+            raise ValueError(
+                f"{name}: expected {n} values of shape ({n},) {unit}, got shape {arr.shape}"
+            )
+        if np.iscomplexobj(value):
+            raise ValueError(f"{name}: expected real numbers {unit}, got {value!r}")
+        values = arr.ravel().tolist()
+    s = sum(values)
+    if s - s != 0.0:  # NaN or infinity somewhere (or an overflowing sum)
+        raise ValueError(f"{name}: expected finite values {unit}, got {values}")
+    return values
+
+
+def nonnegative(name: str, value: Any, n: int, unit: str = "") -> list[float]:
+    values = floats(name, value, n, unit)
+    if min(values) < 0.0:
+        raise ValueError(f"{name}: expected values >= 0 {unit}, got {values}")
+    return values
+
+
+def scalar(name: str, value: Any, unit: str = "") -> float:
+    return number(name, value, unit)
+
+
+def nonnegative_scalar(name: str, value: Any, unit: str = "") -> float:
+    return number(name, value, unit, low=0.0)
+
+
+def unit_interval(name: str, value: Any) -> float:
+    """A filter coefficient: a number in (0, 1] (1: no filtering)."""
+    return number(name, value, low=0.0, low_open=True, high=1.0)
+
+
+def quaternion(name: str, value: Any) -> list[float]:
+    """A unit quaternion (x, y, z, w); within ``QUATERNION_NORM_TOL`` of unit norm it is
+    normalised."""
+    values = floats(name, value, 4, "(quaternion x, y, z, w)")
+    norm = math.sqrt(sum(v * v for v in values))
+    if not abs(norm - 1.0) <= QUATERNION_NORM_TOL:
+        raise ValueError(f"{name}: expected a unit quaternion (x, y, z, w), got norm {norm}")
+    return [v / norm for v in values]
+
+
+def matrix6(name: str, value: Any, unit: str = "") -> list[float]:
+    """A 6x6 symmetric positive semi-definite matrix, row-major."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected a 6x6 matrix {unit}, got {value!r}") from exc
+    if arr.shape != (6, 6):
+        raise ValueError(f"{name}: expected shape (6, 6) {unit}, got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name}: expected finite values {unit}, got {arr.tolist()}")
+    if not np.allclose(arr, arr.T, rtol=0.0, atol=1e-9 * max(1.0, float(abs(arr).max()))):
+        raise ValueError(f"{name}: expected a symmetric matrix {unit}, got {arr.tolist()}")
+    if np.linalg.eigvalsh(arr).min() < -1e-9 * max(1.0, float(abs(arr).max())):
+        raise ValueError(f"{name}: expected a positive semi-definite matrix {unit}")
+    return arr.ravel().tolist()

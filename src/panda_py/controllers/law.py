@@ -1,0 +1,97 @@
+"""The one interface the control loop runs: a control law, whether a torque controller the
+user feeds or a move tracking a planned trajectory.
+
+The loop (:mod:`panda_py.rt.child`) drives every law the same way::
+
+    law.start(state, model)              # once, with the state it starts from
+    every tick (1 ms):
+        law.tick(dt)                     # the robot's clock, and the inputs of this tick
+        tau = law.step(state, model)     # joint torques [Nm] (gravity is the robot's)
+        ... walls, rate saturation, limits; the command is sent ...
+        law.published()                  # after the command: publish outputs
+        if law.finished(state): break
+    law.stop(state, model)               # once, with the last state
+    law.result(state)                    # what a caller waiting for the law gets
+
+and never asks which kind of law it runs. The laws' inputs from the user's process arrive
+through a :class:`SignalSlot` (the shared memory's seqlock and latch,
+:class:`panda_py.rt.shm.SharedBlock`), handed to the law as an object.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterable
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ControlLaw", "SignalSlot"]
+
+FloatArray = NDArray[np.float64]
+
+
+class SignalSlot(Protocol):
+    """Where a running controller's inputs and outputs live while it runs: written by the
+    user's process under a seqlock, read by the loop without waiting (the loop keeps its
+    last consistent copy), outputs published by the loop as a latch. Implemented once, by
+    :class:`panda_py.rt.shm.SharedBlock`."""
+
+    @property
+    def signals(self) -> FloatArray: ...
+
+    def write_packed(self, packer: struct.Struct, offset: int, values: Any) -> None: ...
+
+    def write_packed_many(self, pieces: Iterable[tuple[struct.Struct, int, Any]]) -> None: ...
+
+    def write_signal_array(self, values: FloatArray, offset: int = 0) -> None: ...
+
+    def read_signals(self, out: FloatArray, last_seq: int) -> int: ...
+
+    def write_outputs(self, values: FloatArray) -> None: ...
+
+    def read_outputs(self, n: int) -> FloatArray: ...
+
+
+class ControlLaw:
+    """Base of everything the control loop runs (see the module's docstring).
+
+    ``t`` is the time since the law started and ``dt`` the time since the previous tick
+    [s], both of the robot's clock (``dt`` is 0 at the first tick)."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+        self.dt = 0.0
+
+    @property
+    def name(self) -> str:
+        """A human-readable name of the law (error messages, logs)."""
+        return type(self).__name__
+
+    def start(self, state: Any, model: Any) -> None:
+        """Called once, before the first tick, with the state the law starts from."""
+
+    def tick(self, dt: float) -> None:
+        """Called first in every tick with the time since the previous one [s]."""
+        self.t += dt
+        self.dt = dt
+
+    def step(self, state: Any, model: Any) -> Any:
+        """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot)."""
+        raise NotImplementedError(f"{type(self).__name__} must implement step(state, model)")
+
+    def published(self) -> None:
+        """Called in every tick after the command left: publish what the law outputs."""
+
+    def finished(self, state: Any) -> bool:
+        """Whether the law is done after this tick (a controller runs until stopped)."""
+        return False
+
+    def stop(self, state: Any, model: Any) -> None:
+        """Called once when the law ends (finished, stopped or aborted), with the last
+        state (None if there was none)."""
+
+    def result(self, state: Any) -> Any:
+        """What the caller waiting for this law gets when it ended (None by default)."""
+        return None

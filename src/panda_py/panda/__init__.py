@@ -1,0 +1,16 @@
+"""The high-level interface (panda-py's ``Panda``): the user's side of a robot whose 1 kHz
+loop runs in a control process of its own.
+
+* :mod:`~panda_py.panda.core`: ``Panda`` (state, moves, controllers, logging);
+* :mod:`~panda_py.panda.planning`: panda-py's move arguments and the sampled plans;
+* :mod:`~panda_py.panda.context`: ``PandaContext``, a fixed-frequency user loop;
+* :mod:`~panda_py.panda.proxy`: ``Panda.get_robot()``'s libfranka interface.
+"""
+
+from __future__ import annotations
+
+from panda_py.panda.context import PandaContext
+from panda_py.panda.core import Panda, realtime_priority_available
+from panda_py.panda.proxy import RobotProxy
+
+__all__ = ["Panda", "PandaContext", "RobotProxy", "realtime_priority_available"]

@@ -1,0 +1,113 @@
+"""The typed seam between the user's process and the control process: every request kind
+has its dataclass and its handler, requests and replies survive the channel, and the
+control process answers a request it does not know, or one it must refuse while a law
+runs, with an error naming it (no robot, no simulator: the server's dispatch alone)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import pickle
+import socket
+
+import numpy as np
+import pytest
+
+from panda_py.controllers.moves import JointPlan
+from panda_py.libfranka import InvalidOperationException
+from panda_py.rt import requests as rq
+from panda_py.rt.channel import Channel
+from panda_py.rt.child import ControlServer
+from panda_py.rt.shm import SharedBlock
+
+pytestmark = pytest.mark.timeout(30)
+
+REQUESTS = [
+    rq.Connect("172.16.0.2", 0, 5.0),
+    rq.StartController(b"payload"),
+    rq.Move(
+        JointPlan(
+            np.zeros((2, 7)), np.zeros((2, 7)), np.zeros((2, 7)), np.ones(7), np.ones(7), 1e-3, 1e-2
+        )
+    ),
+    rq.Stop(),
+    rq.RobotCall("set_load", (0.5, [0.0, 0.0, 0.1], [0.0] * 9)),
+    rq.Recover(),
+    rq.EnableLog(100),
+    rq.DisableLog(),
+    rq.Close(),
+]
+
+
+def test_every_kind_has_one_request_and_every_request_a_kind() -> None:
+    assert sorted(r.kind.value for r in REQUESTS) == sorted(k.value for k in rq.Kind)
+
+
+@pytest.fixture
+def server():  # type: ignore[no-untyped-def]
+    mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    block, fd = SharedBlock.create()
+    os.close(fd)
+    srv = ControlServer(Channel(theirs), block, os.getppid())
+    user = Channel(mine)
+    yield srv, user
+    user.close()
+    srv.chan.close()
+    block.close()
+
+
+def test_the_server_has_a_handler_for_every_kind_but_connect(server) -> None:  # type: ignore[no-untyped-def]
+    srv, _ = server
+    assert set(srv._handlers) == set(rq.Kind) - {rq.Kind.CONNECT}
+
+
+@pytest.mark.parametrize("request_", REQUESTS, ids=lambda r: r.kind.value)
+def test_requests_survive_the_channel(server, request_) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    user.send(rq.Call(7, request_))
+    msg, fds = srv.chan.recv()
+    assert fds == [] and isinstance(msg, rq.Call) and msg.rid == 7
+    got = msg.request
+    assert type(got) is type(request_)
+    for field in dataclasses.fields(request_):
+        a, b = getattr(got, field.name), getattr(request_, field.name)
+        if isinstance(a, JointPlan):
+            np.testing.assert_array_equal(a.q, b.q)
+        else:
+            assert a == b
+
+
+def test_an_unknown_request_is_refused_by_name(server) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    user.send(rq.Call(3, ("start", 3, b"old-style tuple")))  # type: ignore[arg-type]
+    srv._receive(running=False)
+    reply, _ = user.recv()
+    assert isinstance(reply, rq.Reply) and reply.rid == 3 and not reply.ok
+    assert isinstance(reply.value, ValueError)
+    assert "request: expected one of" in str(reply.value) and "start_controller" in str(reply.value)
+
+
+def test_requests_that_need_the_loop_idle_are_refused_while_it_runs(server) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    for rid, request in enumerate([rq.Recover(), rq.RobotCall("set_load"), REQUESTS[2]]):
+        user.send(rq.Call(rid, request))
+        srv._receive(running=True)
+        reply, _ = user.recv()
+        assert reply.rid == rid and not reply.ok
+        assert isinstance(reply.value, InvalidOperationException)
+        assert "not while a controller or a move runs" in str(reply.value)
+
+
+def test_a_robot_method_outside_the_list_is_refused(server) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    user.send(rq.Call(1, rq.RobotCall("__del__")))
+    srv._receive(running=False)
+    reply, _ = user.recv()
+    assert not reply.ok and "method: expected one of" in str(reply.value)
+
+
+def test_replies_and_events_pickle() -> None:
+    for msg in (rq.Reply(1, True, rq.Connected(10, "fr3", "fr3")), rq.LogLine(30, "x"),
+                rq.LoopError(InvalidOperationException("y"))):  # fmt: skip
+        back = pickle.loads(pickle.dumps(msg))
+        assert type(back) is type(msg)
