@@ -1,6 +1,6 @@
 """Log the end effector's path and plot the paper's figure: move_to_pose draws a straight
-line, move_to_joint_position a curve (the paper's code block 5). Needs matplotlib
-(``pip install ".[examples]"``)."""
+line, move_to_joint_position a curve (the paper's code block 5), with matplotlib (installed
+with the package)."""
 
 import numpy as np
 from _robot import connect, robot_host

@@ -8,7 +8,8 @@
 Everything below is what a user writes: ``panda_py.Panda``, ``libfranka.Gripper`` and
 ``fk``/``ik``. The simulator is only started (and always stopped, on Ctrl-C too) when no
 ``--host`` is given. The paper's figure (the logged end-effector path of ``move_to_pose``,
-a straight line, beside ``move_to_joint_position``'s curve) is written as a PNG.
+a straight line, against ``move_to_joint_position``'s curve, seen from above and from the
+front) is drawn with matplotlib and written as a PNG.
 """
 
 from __future__ import annotations
@@ -18,12 +19,13 @@ import contextlib
 import sys
 import threading
 import time
-import zlib
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 import panda_py
 from panda_py import constants, libfranka
@@ -113,80 +115,75 @@ def _tcp_at(position: np.ndarray) -> np.ndarray:
     return T
 
 
-def deviation_from_line(xy: np.ndarray) -> float:
-    """Largest distance [m] of a path (N, 2) from the straight line between its ends."""
-    a, b = xy[0], xy[-1]
-    d = b - a
-    return float(np.max(np.abs(d[0] * (xy[:, 1] - a[1]) - d[1] * (xy[:, 0] - a[0])))) / float(
-        np.linalg.norm(d)
-    )
-
-
 # --- the figure -----------------------------------------------------------------------------
 
-
-def write_figure(path: Path, pose_xy: np.ndarray, joint_xy: np.ndarray) -> str:
-    """The paper's figure: the two logged paths, x against y [m], side by side. Drawn
-    with matplotlib when it is installed (``pip install ".[examples]"``), otherwise as a
-    plain raster (no axis labels); returns which."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        _write_png(path, [pose_xy, joint_xy])
-        return "plain raster (install matplotlib for axes)"
-    fig, axes = plt.subplots(1, 2, figsize=(8, 4), sharex=True, sharey=True)
-    for ax, xy, title in zip(
-        axes, (pose_xy, joint_xy), ("move_to_pose", "move_to_joint_position"), strict=True
-    ):
-        ax.plot(xy[:, 1], xy[:, 0])
-        ax.set_title(title)
-        ax.set_xlabel("y [m]")
-        ax.grid(True)
-    axes[0].set_ylabel("x [m]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return "matplotlib"
+PATH_STYLES = (  # (motion, shape, colour): the paper's two motions
+    ("move_to_pose", "straight", "tab:blue"),
+    ("move_to_joint_position", "curved", "tab:orange"),
+)
+MIN_SPAN = 0.1  # [m] each view shows at least this much along each axis
+PAD = 0.02  # [m] margin around the paths in each view
+WIDTH = 8.0  # [in] of the figure; its height follows from the views' spans (to scale)
+DPI = 120  # pixels per inch of the PNG
 
 
-def _write_png(path: Path, paths: list[np.ndarray], size: int = 320) -> None:
-    """Panels of ``size`` pixels, one per path (y across, x up, shared scale), as a
-    grayscale PNG written with zlib alone."""
+def write_figure(path: Path, pose_path: np.ndarray, joint_path: np.ndarray) -> Figure:
+    """The paper's figure as a PNG at ``path``: the logged end-effector positions (N, 3)
+    [m] of ``move_to_pose`` (a straight line) and ``move_to_joint_position`` (a curve),
+    seen from above (x-y) and from the front (z-y), both to scale, both paths in each.
+    Drawn on matplotlib's Agg canvas (no display needed); returns the figure, written."""
+    paths = [np.asarray(p, dtype=np.float64) for p in (pose_path, joint_path)]
+    for name, p in zip(("pose_path", "joint_path"), paths, strict=True):
+        if p.ndim != 2 or p.shape[0] < 2 or p.shape[1] != 3 or not np.isfinite(p).all():
+            raise ValueError(
+                f"{name}: expected finite end-effector positions of shape (N >= 2, 3) [m], "
+                f"got an array of shape {p.shape}"
+            )
     both = np.concatenate(paths)
-    span = max(float(np.ptp(both, axis=0).max()), 1e-6)
-    lo = (both.min(axis=0) + both.max(axis=0) - span) / 2  # centred, equal scales
-    margin = 16
-    image = np.full((size, size * len(paths)), 255, dtype=np.uint8)
-    for k, xy in enumerate(paths):
-        x0 = k * size
-        image[margin, x0 + margin : x0 + size - margin] = 160  # panel frame
-        image[size - margin, x0 + margin : x0 + size - margin] = 160
-        image[margin : size - margin, x0 + margin] = 160
-        image[margin : size - margin, x0 + size - margin] = 160
-        # densify the polyline so consecutive samples leave no gaps
-        t = np.linspace(0.0, len(xy) - 1, 4 * size)
-        pts = np.column_stack([np.interp(t, np.arange(len(xy)), xy[:, i]) for i in (0, 1)])
-        u = (pts - lo) / span * (size - 2 * margin - 1)
-        cols = (x0 + margin + u[:, 1]).astype(int)
-        rows = (size - margin - 1 - u[:, 0]).astype(int)
-        for dr in (0, 1):
-            image[np.clip(rows + dr, 0, size - 1), cols] = 0
-    raw = b"".join(b"\x00" + row.tobytes() for row in image)
+    mid = (both.min(axis=0) + both.max(axis=0)) / 2
+    span = np.maximum(np.ptp(both, axis=0) + 2 * PAD, MIN_SPAN)
+    lo, hi = mid - span / 2, mid + span / 2
+    # axes about WIDTH - 1 in wide; titles, labels and the legend take about 2.4 in
+    height = float(np.clip((WIDTH - 1.0) * (span[0] + span[2]) / span[1] + 2.4, 3.0, 12.0))
+    fig = Figure(figsize=(WIDTH, height), dpi=DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    top, front = fig.subplots(2, 1, sharex=True, height_ratios=[span[0], span[2]])
+    # Third-angle projection: the top view above the front view, y across both; seen
+    # from above with the robot's front towards the front view, x grows downwards.
+    for ax, k, title, flip in ((top, 0, "Top view", True), (front, 2, "Front view", False)):
+        for p, (motion, shape, colour) in zip(paths, PATH_STYLES, strict=True):
+            off = deviation_from_line(p) * 1000
+            label = f"{motion}: {shape}, at most {off:.1f} mm from the line $T_0 T_1$"
+            ax.plot(p[:, 1], p[:, k], color=colour, lw=2, label=label)
+        for point, name in ((paths[0][0], "$T_0$"), (paths[0][-1], "$T_1$")):
+            ax.plot(point[1], point[k], "o", color="black", ms=4)
+            ax.annotate(name, (point[1], point[k]), xytext=(0, 6), textcoords="offset points",
+                        ha="center", va="bottom")  # fmt: skip
+        ax.set_ylim((hi[k], lo[k]) if flip else (lo[k], hi[k]))
+        if flip:
+            ax.text(0.005, 0.97, "\u2191 to the robot's base", transform=ax.transAxes,
+                    fontsize="small", color="dimgray", va="top")  # fmt: skip
+        ax.set_aspect("equal")
+        ax.set_title(title)
+        ax.set_ylabel(f"{'xyz'[k]} [m]")
+        ax.grid(True, alpha=0.3)
+    front.set_xlim(lo[1], hi[1])
+    front.set_xlabel("y [m]")
+    handles, labels = top.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", fontsize="small")
+    fig.suptitle("The end effector from $T_0$ to $T_1$, logged at 1 kHz")
+    fig.savefig(path)
+    return fig
 
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        body = kind + data
-        return len(data).to_bytes(4, "big") + body + zlib.crc32(body).to_bytes(4, "big")
 
-    header = image.shape[1].to_bytes(4, "big") + image.shape[0].to_bytes(4, "big")
-    path.write_bytes(
-        b"\x89PNG\r\n\x1a\n"
-        + chunk(b"IHDR", header + bytes([8, 0, 0, 0, 0]))
-        + chunk(b"IDAT", zlib.compress(raw, 9))
-        + chunk(b"IEND", b"")
-    )
+def deviation_from_line(path: np.ndarray) -> float:
+    """Largest distance [m] of a path (N, 2 or 3) from the straight line between its
+    ends (from its start, if it ends where it started)."""
+    rel = path - path[0]
+    d = rel[-1]
+    if float(d @ d) > 0.0:
+        rel = rel - np.outer(rel @ d / float(d @ d), d)
+    return float(np.max(np.linalg.norm(rel, axis=1)))
 
 
 # --- the demo ---------------------------------------------------------------------------------
@@ -260,15 +257,15 @@ def run(
     gripper.move(0.08, 0.1)
     steps.to_pose("retreat", above)
     steps.to_joints("move to start", np.asarray(constants.JOINT_POSITION_START))
-    pose_xy = np.array(log["O_T_EE"])[:, 12:14]
-    joint_xy = np.array(joint_log["O_T_EE"])[:, 12:14]
-    how = write_figure(figure, pose_xy, joint_xy)
+    # O_T_EE is column-major: [12:15] is the end effector's position
+    pose_path = np.array(log["O_T_EE"])[:, 12:15]
+    joint_path = np.array(joint_log["O_T_EE"])[:, 12:15]
+    write_figure(figure, pose_path, joint_path)
     return {
         "times": steps.times,
-        "pose_deviation": deviation_from_line(pose_xy),
-        "joint_deviation": deviation_from_line(joint_xy),
-        "samples": (len(pose_xy), len(joint_xy)),
-        "figure": how,
+        "pose_deviation": deviation_from_line(pose_path),
+        "joint_deviation": deviation_from_line(joint_path),
+        "samples": (len(pose_path), len(joint_path)),
     }
 
 
@@ -322,7 +319,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"({moved * 1000:.0f} mm from where it was)"
         )
     print(f"  total {total:.1f} s")
-    print(f"Figure ({summary['figure']}): {args.figure.resolve()}")
+    print(f"Figure: {args.figure.resolve()}")
     return 0
 
 

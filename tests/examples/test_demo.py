@@ -1,5 +1,6 @@
 """panda-py-demo, run as a user runs it (a subprocess), judged by what it prints and
-writes: the cube picked up and put back, the paper's straight and curved paths, the PNG."""
+writes: the cube picked up and put back, the paper's straight and curved paths, the PNG;
+and the figure itself, drawn from known paths and read back."""
 
 from __future__ import annotations
 
@@ -11,17 +12,22 @@ import sys
 import time
 from pathlib import Path
 
+import matplotlib.image
+import numpy as np
 import pytest
+
+from panda_py import demo
 
 pytestmark = pytest.mark.timeout(240)
 
 # the panda_py under test, also where another checkout is installed
 SRC = Path(__file__).resolve().parents[2] / "src"  # this checkout's panda_py
 ENV = {
-    **os.environ,
+    **{k: v for k, v in os.environ.items() if k != "PANDA_PY_PROGRESS"},
     "PYTHONUNBUFFERED": "1",
     "PYTHONPATH": os.pathsep.join([str(SRC), os.environ.get("PYTHONPATH", "")]),
 }
+BLUE, ORANGE = (0x1F, 0x77, 0xB4), (0xFF, 0x7F, 0x0E)  # matplotlib's tab:blue, tab:orange
 
 
 def _children(pid: int) -> set[int]:
@@ -88,8 +94,73 @@ def test_demo_picks_the_cube_draws_the_paths_and_writes_the_figure(demo_run) -> 
     # put back where it was (within 2 cm)
     assert float(cube[1]) == pytest.approx(0.5, abs=0.02)
     assert float(cube[2]) == pytest.approx(0.0, abs=0.02)
-    assert f"{figure.resolve()}" in out
-    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"Figure: {figure.resolve()}" in out
+    assert b"Matplotlib" in figure.read_bytes()[:200]  # a PNG matplotlib wrote
+    image = matplotlib.image.imread(figure)
+    assert image.shape[1] == demo.WIDTH * demo.DPI
+    # no progress bars where nobody watches (stderr a pipe here)
+    assert "panda_py: compiling" not in done.stderr and "%|" not in done.stderr
+
+
+def _pixels(image: np.ndarray, colour: tuple[int, int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the pixels of ``colour`` (8-bit RGB) in an RGB(A) image."""
+    rgb = np.round(image[..., :3] * 255)
+    return np.nonzero(np.all(np.abs(rgb - colour) <= 2, axis=-1))
+
+
+def test_the_figure_shows_the_straight_line_against_the_curve_in_two_views(
+    tmp_path: Path,
+) -> None:
+    """Known paths from y = 0.25 to -0.25 m: a straight line, and a curve bulging 15 mm
+    in x and 90 mm in z. The PNG, read back, has two panels, each with both paths: the
+    line flat in both, the curve higher in the front view than the top view."""
+    s = np.linspace(0.0, 1.0, 500)
+    line = np.column_stack([np.full_like(s, 0.3), 0.25 - 0.5 * s, np.full_like(s, 0.5)])
+    bulge = np.sin(np.pi * s)
+    curve = np.column_stack([0.3 + 0.015 * bulge, 0.25 - 0.5 * s, 0.5 + 0.09 * bulge])
+    path = tmp_path / "paths.png"
+    fig = demo.write_figure(path, line, curve)
+
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and b"Matplotlib" in path.read_bytes()
+    image = matplotlib.image.imread(path)
+    width, height = fig.canvas.get_width_height()  # [px]
+    assert width == demo.WIDTH * demo.DPI
+    assert image.shape[:2] == (height, width)
+    assert [ax.get_title() for ax in fig.axes] == ["Top view", "Front view"]
+    assert [ax.get_ylabel() for ax in fig.axes] == ["x [m]", "z [m]"]
+    assert fig.axes[1].get_xlabel() == "y [m]"
+    assert len(fig.legends) == 1
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert legend[0].startswith("move_to_pose: straight, at most 0.0 mm")
+    assert legend[1].startswith("move_to_joint_position: curved, at most 91.")
+    heights = []
+    for ax in fig.axes:
+        x0, y0, x1, y1 = ax.get_window_extent().extents  # [px], origin at the bottom left
+        panel = image[height - int(y1) : height - int(y0), int(x0) : int(x1)]
+        assert panel.std() > 0.05  # drawn on, not blank
+        rows, cols = _pixels(panel, BLUE)
+        assert np.ptp(cols) > 0.8 * panel.shape[1]  # the line runs across the panel
+        assert np.ptp(rows) < 6  # and stays flat: a straight line
+        rows, cols = _pixels(panel, ORANGE)
+        assert np.ptp(cols) > 0.8 * panel.shape[1]
+        heights.append(np.ptp(rows))
+        # to scale: the equal-aspect panel's pixels per metre, the same both ways
+        (ux0, uy0), (ux1, uy1) = ax.transData.transform([(0.0, 0.0), (0.1, 0.1)])
+        assert abs(ux1 - ux0) == pytest.approx(abs(uy1 - uy0), rel=1e-6)
+    assert heights[1] > 4 * heights[0] > 20  # 90 mm up against 15 mm out
+
+
+def test_the_figure_refuses_paths_that_are_not_positions(tmp_path: Path) -> None:
+    good = np.zeros((10, 3))
+    with pytest.raises(
+        ValueError,
+        match=r"joint_path: expected finite end-effector "
+        r"positions of shape \(N >= 2, 3\) \[m\], got an array of shape \(10, 2\)",
+    ):
+        demo.write_figure(tmp_path / "f.png", good, np.zeros((10, 2)))
+    with pytest.raises(ValueError, match=r"pose_path: .* shape \(2, 3\)"):
+        demo.write_figure(tmp_path / "f.png", np.array([[0, 0, 0], [np.nan, 0, 0]]), good)
+    assert not (tmp_path / "f.png").exists()
 
 
 def test_demo_bad_host_says_so() -> None:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import progress
 from panda_py.motion.rotation import from_matrix
 
 __all__ = [
@@ -73,10 +74,17 @@ def warmup() -> None:
         J[:6, :6] = np.eye(6)
         z7, K = np.zeros(7), np.eye(6)
         T = np.eye(4).reshape(16)
-        k.cartesian_impedance_torque(T, J, z7, z7, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]),
-                                     K, K, z7, 1.0, np.empty(7))  # fmt: skip
-        JointWalls(np.full(7, -1.0), np.full(7, 1.0)).finalize(z7, z7, z7, z7, z7 + 1.0,
-                                                               np.empty(7))  # fmt: skip
+        z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+        with progress.work("panda_py: compiling the control laws, once after installing", 3) as w:
+            k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
+            w.advance()
+            # move_to_pose's tracker (controllers.moves.PoseMove)
+            k.impedance_torque(T, J, z7, z7, z3, quat, np.zeros(6), K, K, z7, 1.0, np.empty(7),
+                               np.empty(6), np.empty((7, 6)))  # fmt: skip
+            w.advance()
+            JointWalls(np.full(7, -1.0), np.full(7, 1.0)).finalize(z7, z7, z7, z7, z7 + 1.0,
+                                                                   np.empty(7))  # fmt: skip
+            w.advance()
 
 
 def ema(filtered: FloatArray, target: FloatArray, alpha: float) -> None:

@@ -374,6 +374,7 @@ def _jit() -> Any:
             except ImportError:
                 pass
             else:
+                _compiled.warmup()  # compiled (the first time) or loaded, both at once
                 _JIT = _compiled
     return _JIT
 

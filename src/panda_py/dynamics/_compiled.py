@@ -14,7 +14,9 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["crba", "rnea"]
+from panda_py import progress
+
+__all__ = ["crba", "rnea", "warmup"]
 
 _N = 7
 
@@ -141,3 +143,15 @@ def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def
                 no[k] = nc[k] + t1[k]
             M[i, j] = no[2]
             M[j, i] = no[2]
+
+
+def warmup() -> None:
+    """Compile (or load from numba's cache) both kernels now, for the C-contiguous
+    float64 arrays :class:`panda_py.dynamics.LoadedArm` passes, with a progress bar the
+    first time after installing (several seconds)."""
+    z7, z73, z733 = np.zeros(_N), np.zeros((_N, 3)), np.zeros((_N, 3, 3))
+    with progress.work("panda_py: compiling the dynamics, once after installing", 2) as work:
+        rnea(z73, z7, z7, z7, z73, z733, z7, z7, z7, np.zeros(3), np.empty(_N))
+        work.advance()
+        crba(z73, z7, z7, z7, z73, z733, z7, np.empty((_N, _N)))
+        work.advance()

@@ -32,6 +32,7 @@ import numba
 import numpy as np
 from numba.extending import overload, register_jitable
 
+from panda_py import progress
 from panda_py.kinematics import _fk, _ik, _nbmath, _scalar
 
 _OPTS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
@@ -291,25 +292,33 @@ _BATCH: dict[str, list[Any]] = {
 _READY: set[str] = set()
 
 
+def _compile(names: list[str], what: str) -> None:
+    """Compile (or load from the cache) the kernels ``names`` for their signatures, with
+    a progress bar where that takes long (the first time after installing)."""
+    todo = [(name, sig) for name in names if name not in _READY
+            for sig in _SINGLE.get(name) or _BATCH[name]]  # fmt: skip
+    if not todo:
+        return
+    what = f"panda_py: compiling {what}, once after installing"
+    with progress.work(what, total=len(todo)) as work:
+        for name, sig in todo:
+            globals()[name].compile(sig)
+            work.advance()
+    for name in names:
+        if name in _SINGLE:
+            globals()[name].disable_compile()
+        _READY.add(name)
+
+
 def single(name: str) -> Any:
     """The single-call kernel ``name`` (fk_one, ik_one, ik_full_one), compiled (or
     loaded from the cache) on first use for its signatures only."""
-    kernel = globals()[name]
     if name not in _READY:
-        for sig in _SINGLE[name]:
-            kernel.compile(sig)
-        kernel.disable_compile()
-        _READY.add(name)
-    return kernel
+        _compile([name], name.removesuffix("_one"))
+    return globals()[name]
 
 
 def compile_all() -> None:
     """Compile (or load from the cache) every kernel for the types its callers pass;
     cheap once done. Nothing runs (no thread pool starts)."""
-    for name in _SINGLE:
-        single(name)
-    for name, sigs in _BATCH.items():
-        if name not in _READY:
-            for sig in sigs:
-                globals()[name].compile(sig)
-            _READY.add(name)
+    _compile([*_SINGLE, *_BATCH], "the kinematics")

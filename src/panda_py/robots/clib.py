@@ -28,6 +28,7 @@ import tempfile
 import threading
 from pathlib import Path
 
+from panda_py import progress
 from panda_py.fci.enums import ModelLibraryArchitecture, ModelLibrarySystem
 from panda_py.robots.csource import EXPORTED_SYMBOLS, c_source
 from panda_py.robots.params import RobotSpec, get_robot
@@ -256,8 +257,10 @@ def model_library(
         except OSError:
             data = None
         if data is None or _check_elf(data, arch) is not None:
+            what = f"panda_py: building the {spec.name.upper()} model library, once"
             try:
-                data = _build(cmd, source, target, arch)
+                with progress.work(what):
+                    data = _build(cmd, source, target, arch)
             except OSError as exc:
                 raise ModelLibraryUnavailable(
                     architecture, system, f"cannot write the cache under {target.parent}: {exc}"
