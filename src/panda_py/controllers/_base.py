@@ -73,6 +73,9 @@ class TorqueController(ControlLaw):
         self._out = np.zeros(n_out)
         self._slot: SignalSlot | None = None  # set while running (either side)
         self._in_seq = -1  # the input slot's sequence number of the last copy taken
+        #: inside ``step``: whether the inputs changed since the previous tick (True where
+        #: unknown), so a law can redo what depends on them only then
+        self.inputs_changed = True
         self._lock = threading.Lock()
         self._views: dict[str, FloatArray] = {}
         self._make_views()
@@ -195,7 +198,9 @@ class TorqueController(ControlLaw):
         the user's process is writing just now)."""
         slot = self._slot
         if slot is not None:
-            self._in_seq = slot.read_signals(self._values, self._in_seq)
+            seq = slot.read_signals(self._values, self._in_seq)
+            self.inputs_changed = seq != self._in_seq
+            self._in_seq = seq
         self.t += dt
         self.dt = dt
 

@@ -428,7 +428,8 @@ class CartesianImpedance(TorqueController):
     def step(self, state: Any, model: Any) -> FloatArray:
         a = self._scalar("filter_coeff")
         laws.ema(self._K, self._K_t, a)
-        laws.ema(self._Kd, self._damping_target(), a)
+        # the damping's target depends on the inputs only: redone when they changed
+        laws.ema(self._Kd, self._damping_target() if self.inputs_changed else self._Kd_target, a)
         laws.ema(self._p, self._p_t, a)
         laws.ema(self._qn, self._qn_t, a)
         self._kn += a * (self._scalar("nullspace_stiffness") - self._kn)

@@ -25,6 +25,8 @@ FloatArray = NDArray[np.float64]
 # A planned joint speed this fast gets most (76 %) of the drives' dry friction compensated
 # [rad/s] (tanh: smooth through zero, so a joint at rest is never pushed).
 FRICTION_SPEED = 0.01
+# the state fields that make the load the dynamics see (the end effector and the payload)
+LOAD_FIELDS = ("m_ee", "I_ee", "F_x_Cee", "m_load", "I_load", "F_x_Cload")
 
 
 class ControlModel(Model):
@@ -38,7 +40,7 @@ class ControlModel(Model):
         self._cor: tuple[Any, FloatArray] | None = None
         self._grav: tuple[Any, FloatArray] | None = None
         self._mass: tuple[Any, FloatArray] | None = None
-        self._arm_key: tuple[Any, ...] | None = None
+        self._arm_key: bytes | None = None
         self._arm_cached: dynamics.LoadedArm | None = None
         self._rotors = np.diag(self.spec.drives.armature)
         self._coulomb = np.array(self.spec.drives.coulomb)
@@ -65,11 +67,10 @@ class ControlModel(Model):
         """The arm with the state's total load, prepared once per load: keyed on the raw
         end-effector and payload fields, combined (``combine_load``) only when they
         change."""
-        I_ee, c_ee, I_load, c_load = state.I_ee, state.F_x_Cee, state.I_load, state.F_x_Cload
-        key = (state.m_ee, state.m_load, I_ee.tobytes(), c_ee.tobytes(), I_load.tobytes(),
-               c_load.tobytes())  # fmt: skip
+        key = state.raw_fields(LOAD_FIELDS)
         if key != self._arm_key:
-            m, c, inertia = combine_load(key[0], c_ee, I_ee, key[1], c_load, I_load)
+            m, c, inertia = combine_load(state.m_ee, state.F_x_Cee, state.I_ee, state.m_load,
+                                         state.F_x_Cload, state.I_load)  # fmt: skip
             self._arm_cached = dynamics.LoadedArm(self.spec, m_load=m, F_x_Cload=c, I_load=inertia)
             self._arm_key = key
         assert self._arm_cached is not None

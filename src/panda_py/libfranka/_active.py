@@ -42,8 +42,10 @@ class ActiveControl:
         *,
         control: bool,
         motion: bool,
+        state_type: type[RobotState] = RobotState,
     ) -> None:
         self._robot = robot
+        self._state_type = state_type
         self._session = session
         self._commander = commander
         self._convert = convert  # the Commander method for this motion's command type
@@ -74,7 +76,7 @@ class ActiveControl:
             self.cancel()
             raise
         conn = self._robot._conn
-        state = RobotState(conn.dialect, data)
+        state = self._state_type(conn.dialect, data)
         self._robot._log.append(state)
         mid = conn.last_id
         dt = Duration(0 if self._last_id is None else mid - self._last_id)

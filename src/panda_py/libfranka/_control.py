@@ -221,7 +221,12 @@ class ControlMixin(RobotBase):
     # --- active control (libfranka >= 0.15 / pylibfranka) ---------------------------------
 
     def _start_active(
-        self, kind: type, controller_mode: Any, limit_rate: bool, cutoff_frequency: float
+        self,
+        kind: type,
+        controller_mode: Any,
+        limit_rate: bool,
+        cutoff_frequency: float,
+        state_type: type[RobotState] = RobotState,
     ) -> ActiveControl:
         limit_rate, cutoff_frequency = check_cutoff(limit_rate, cutoff_frequency)
         check_realtime(self._realtime_config)
@@ -231,14 +236,24 @@ class ControlMixin(RobotBase):
         session.caller_driven = True
         convert = commander.torques if kind is Torques else getattr(commander, _MOTIONS[kind][1])
         return ActiveControl(
-            self, session, commander, convert, control=kind is Torques, motion=has_mg
-        )
+            self, session, commander, convert, control=kind is Torques, motion=has_mg,
+            state_type=state_type,
+        )  # fmt: skip
 
     def start_torque_control(
-        self, *, limit_rate: bool = False, cutoff_frequency: float = 1000.0
+        self,
+        *,
+        limit_rate: bool = False,
+        cutoff_frequency: float = 1000.0,
+        state_type: type[RobotState] = RobotState,
     ) -> ActiveControl:
-        """Start torque control driven by the caller (``writeOnce(Torques)``)."""
-        return self._start_active(Torques, None, limit_rate, cutoff_frequency)
+        """Start torque control driven by the caller (``writeOnce(Torques)``).
+        ``state_type`` (an extension of ours): what ``readOnce`` returns, a
+        :class:`RobotState` or a :class:`~panda_py.libfranka.state.TickState` (each field
+        decoded once, read-only), which a loop whose laws read fields often wants."""
+        if not (isinstance(state_type, type) and issubclass(state_type, RobotState)):
+            raise ValueError(f"state_type: expected RobotState or a subclass, got {state_type!r}")
+        return self._start_active(Torques, None, limit_rate, cutoff_frequency, state_type)
 
     def start_joint_position_control(
         self,

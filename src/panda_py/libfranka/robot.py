@@ -235,10 +235,10 @@ class Robot(NamedControlMixin):
         self._no_motion("receive_raw_state")
         return self._conn.receive_state()
 
-    def decode_state(self, data: bytes) -> RobotState:
+    def decode_state(self, data: bytes, state_type: type[RobotState] = RobotState) -> RobotState:
         """A raw state of this robot (:meth:`receive_raw_state`, ``RobotState.raw``) as a
-        :class:`RobotState`."""
-        return RobotState(self._conn.dialect, data)
+        :class:`RobotState` (or ``state_type``, a subclass such as ``TickState``)."""
+        return state_type(self._conn.dialect, data)
 
     # --- commands -------------------------------------------------------------------------
 

@@ -21,7 +21,7 @@ from panda_py.libfranka._wire import Layout, layout
 from panda_py.libfranka.types import Duration, Errors, RobotMode
 from panda_py.robots.params import GRAVITY
 
-__all__ = ["GripperState", "RobotState", "combine_load"]
+__all__ = ["GripperState", "RobotState", "TickState", "combine_load"]
 
 FloatArray = NDArray[np.float64]
 
@@ -72,6 +72,9 @@ def combine_load(
         S = _skew(c - c_total)
         I_total += I_c - float(m) * (S @ S)  # I + m (|r|^2 1 - r r^T)
     return m_total, c_total, I_total.reshape(9, order="F")
+
+
+_SPANS: dict[tuple[int, tuple[str, ...]], tuple[tuple[int, int], ...]] = {}
 
 
 class RobotState:
@@ -125,6 +128,20 @@ class RobotState:
     def raw(self) -> bytes:
         """The state as the robot sent it (its protocol version's datagram)."""
         return self._data
+
+    def raw_fields(self, names: tuple[str, ...]) -> bytes:
+        """The raw bytes of the fields ``names`` (in that order): a cheap key of what
+        they hold, e.g. to notice that the load changed without decoding it."""
+        spans = _SPANS.get((self._layout.version, names))
+        if spans is None:
+            fields = self._layout.fields
+            spans = tuple(
+                (fields[n].offset, fields[n].offset + fields[n].count * fields[n].dtype.itemsize)
+                for n in names
+            )
+            _SPANS[(self._layout.version, names)] = spans
+        data = self._data
+        return b"".join([data[a:b] for a, b in spans])
 
     @property
     def version(self) -> int:
@@ -337,3 +354,24 @@ class GripperState:
             f"GripperState(width={self.width:.4f}, max_width={self.max_width:.4f}, "
             f"is_grasped={self.is_grasped}, temperature={self.temperature})"
         )
+
+
+class TickState(RobotState):
+    """A state as a 1 kHz loop's laws read it within one tick (an extension of ours): each
+    array field is decoded once, on its first read, and every later read returns the same
+    read-only array (a law, the walls and the model read ``q`` five times a tick). Copy an
+    array to keep it past the tick or to change it."""
+
+    __slots__ = ("_cache",)
+
+    def __init__(self, dialect: Dialect, data: bytes | np.void | np.ndarray) -> None:
+        super().__init__(dialect, data)
+        self._cache: dict[str, FloatArray] = {}
+
+    def _field(self, name: str) -> FloatArray:
+        out = self._cache.get(name)
+        if out is None:
+            out = super()._field(name)
+            out.flags.writeable = False
+            self._cache[name] = out
+        return out

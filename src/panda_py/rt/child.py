@@ -54,6 +54,7 @@ from panda_py.libfranka import (
     Torques,
 )
 from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
+from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.robots.params import get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
@@ -116,6 +117,7 @@ class ControlServer:
         self.stopping = False
         self.stop_waiters: list[int] = []
         self._current_rid = 0
+        self.requests_taken = 0  # requests received so far (HEADER.REQUESTS counts those sent)
         self._handlers: dict[rq.Kind, Any] = {
             rq.Kind.START: self._start,
             rq.Kind.MOVE: self._move,
@@ -167,7 +169,8 @@ class ControlServer:
             )
         data = robot.receive_raw_state()
         self.block.publish_state(data)
-        self._warm_up(robot.decode_state(data))
+        # the states the loop's laws get: read-only arrays, compiled for as such
+        self._warm_up(robot.decode_state(data, TickState))
         return rq.Connected(version, robot.robot_spec.name, limits.name)
 
     def _warm_up(self, state: RobotState) -> None:
@@ -238,6 +241,7 @@ class ControlServer:
             self.closing = True
             self.stopping = True
             return
+        self.requests_taken += 1
         if not isinstance(msg, rq.Call):
             for fd in fds:
                 os.close(fd)
@@ -369,7 +373,7 @@ class ControlServer:
         state: RobotState | None = None
         header[HEADER.RUNNING] = 1
         active = robot.start_torque_control(
-            limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY
+            limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY, state_type=TickState
         )
         ticks = 0
         try:
@@ -385,11 +389,16 @@ class ControlServer:
                 law.published()
                 if finished:
                     break
-                if chan.poll(0.0):
+                # a request waits when the user's process counted one more than were
+                # taken (one shared-memory read a tick, not a system call)
+                if header[HEADER.REQUESTS] != self.requests_taken:
                     self._receive(running=True)
                 ticks += 1
-                if ticks % PARENT_CHECK_TICKS == 0 and self._parent_gone():
-                    self.closing = self.stopping = True
+                if ticks % PARENT_CHECK_TICKS == 0:
+                    if self._parent_gone():
+                        self.closing = self.stopping = True
+                    elif chan.poll(0.0) and header[HEADER.REQUESTS] == self.requests_taken:
+                        self._receive(running=True)  # the channel closed: nothing counted
         except BaseException as exc:
             active.cancel()
             error = _transferable(exc, law.name)
@@ -442,6 +451,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     if not (isinstance(msg, rq.Call) and isinstance(msg.request, rq.Connect)):
         return 1
+    server.requests_taken = 1
     rid = msg.rid
     try:
         info = server.connect(msg.request)

@@ -189,6 +189,8 @@ class ControlProcess:
         try:
             with self._send_lock:
                 self.chan.send(rq.Call(rid, request), fds)
+                # counted after the send: the loop that sees the count finds the message
+                self.block.header[HEADER.REQUESTS] += 1
         except (ChannelClosed, OSError):
             self._waiters.pop(rid, None)
             raise self.gone() from None

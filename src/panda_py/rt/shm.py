@@ -74,6 +74,7 @@ class HEADER:
     IN_SEQ = 5  # seqlock of the controller inputs (writer: user's process)
     OUT_SEQ = 6  # latch sequence of the controller outputs (writer: control process)
     LOG_COUNT = 7  # states appended to the log ring so far
+    REQUESTS = 8  # requests sent on the channel so far (user's process, after each send)
     COUNT = 16
 
 
