@@ -27,7 +27,7 @@ from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
-from panda_py.sim.drawing import DrawingError, DrawingProcess
+from panda_py.sim.drawing import DrawingError, DrawingProcess, start_drawing, stop_drawing
 from panda_py.sim.server import SimConfig
 from panda_py.sim.video import DEFAULT_FPS, check_record
 
@@ -220,34 +220,17 @@ class Simulator:
             self._stop_drawing()
 
     def _start_drawing(self) -> None:
-        """Start the viewer's and the recorder's processes (before the simulator, which
-        writes into their feeds)."""
-        from panda_py.sim.video import Recorder
-        from panda_py.sim.viewer import Viewer
-
         try:
-            if self.viewer:
-                self._drawing.append(Viewer(self.config).start(self.start_timeout))
-            if self.record is not None:
-                recorder = Recorder(self.config, self.record, self.record_fps)
-                self._drawing.append(recorder.start(self.start_timeout))
+            self._drawing = start_drawing(
+                self.config, viewer=self.viewer, record=self.record, fps=self.record_fps,
+                timeout=self.start_timeout,
+            )  # fmt: skip
         except DrawingError as exc:
-            self._stop_drawing()
             raise SimulatorError(str(exc)) from exc
-        self.config.frame_feeds = tuple(d.feed for d in self._drawing)
 
     def _stop_drawing(self) -> None:
-        """After the simulator: the recorder encodes what is queued and closes the file."""
-        from panda_py.sim.video import Recorder
-
-        drawing, self._drawing = self._drawing, []
-        for d in drawing:
-            result = d.stop()
-            if isinstance(d, Recorder):
-                self.recording = result
-                if result is None or result.get("error"):
-                    why = "it did not finish" if result is None else result["error"]
-                    log.warning("the video %s may be incomplete: %s", d.path, why)
+        if self._drawing:
+            self.recording = stop_drawing(self._drawing)
         self.config.frame_feeds = ()
 
     def __enter__(self) -> Simulator:

@@ -69,10 +69,9 @@ def _recorder_main(feed: FrameFeed, conn: Any, config: SimConfig, path: str) -> 
         model = build_model(config)
         renderer = mujoco.Renderer(model, HEIGHT, WIDTH)
     except Exception as exc:  # no GL here: the parent reports it
-        backend = os.environ["MUJOCO_GL"]
-        conn.send(("error", f"record: offscreen rendering failed (MUJOCO_GL={backend}: "
-                            f"{exc}): install EGL (Debian: apt-get install libegl1 "
-                            "libegl-mesa0) or OSMesa (libosmesa6, with MUJOCO_GL=osmesa)"))  # fmt: skip
+        why = " ".join(f"MUJOCO_GL={os.environ['MUJOCO_GL']}: {exc}".split())
+        fix = "install EGL (Debian: libegl1 libegl-mesa0) or OSMesa (libosmesa6, MUJOCO_GL=osmesa)"
+        conn.send(("error", f"record: offscreen rendering failed ({why}): {fix}"))
         return
     try:
         import imageio_ffmpeg

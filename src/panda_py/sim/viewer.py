@@ -56,6 +56,7 @@ def _viewer_main(feed: FrameFeed, conn: Any, config: SimConfig) -> None:
     try:
         import glfw
 
+        glfw.ERROR_REPORTING = "ignore"  # its warnings are not one line: get_error() below
         if not glfw.init():
             code, why = glfw.get_error()
             raise RuntimeError(why.decode() if isinstance(why, bytes) else str(why or code))
