@@ -136,7 +136,7 @@ def test_panda_sim_record_finishes_the_video_when_stopped(
 def test_record_rejects_bad_input(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"record: expected a file name ending in \.mp4"):
         Simulator(record=tmp_path / "run.avi")
-    with pytest.raises(ValueError, match="record: the directory .* does not exist"):
+    with pytest.raises(ValueError, match=r"record: the directory .* does not exist"):
         Simulator(record=tmp_path / "nowhere" / "run.mp4")
     with pytest.raises(ValueError, match=r"record_fps: expected 1\.\.120"):
         Simulator(record=tmp_path / "run.mp4", record_fps=0)
@@ -174,21 +174,29 @@ def xvfb() -> Iterator[str]:
     if shutil.which("Xvfb") is None:
         _missing("no Xvfb (apt-get install xvfb)")
     try:
-        from PIL import ImageGrab  # noqa: F401
+        from PIL import ImageGrab
     except ImportError:
         _missing("no Pillow for screenshots (pip install pillow)")
-    read, write = os.pipe()
-    proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write), "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-        pass_fds=(write,), stderr=subprocess.DEVNULL,
+    number = next(
+        n for n in range(100 + os.getpid() % 400, 1000)
+        if not os.path.exists(f"/tmp/.X{n}-lock") and not os.path.exists(f"/tmp/.X11-unix/X{n}")
     )  # fmt: skip
-    os.close(write)
+    display = f":{number}"
+    proc = subprocess.Popen(
+        ["Xvfb", display, "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        stderr=subprocess.DEVNULL,
+    )
     try:
-        number = os.read(read, 16).decode().strip()  # written once the display is ready
-        os.close(read)
-        if not number:
-            _missing(f"Xvfb did not start (exit {proc.wait(5)})")
-        yield f":{number}"
+        deadline = time.monotonic() + 10
+        while True:  # until it accepts connections
+            try:
+                ImageGrab.grab(xdisplay=display)
+                break
+            except OSError:
+                if proc.poll() is not None or time.monotonic() > deadline:
+                    _missing(f"Xvfb did not start on {display} (exit {proc.poll()})")
+                time.sleep(0.05)
+        yield display
     finally:
         proc.terminate()
         proc.wait(10)
@@ -217,11 +225,9 @@ def test_viewer_opens_under_xvfb_and_follows_the_arm(
     with Simulator(free_loopback_host(), lockstep=True, viewer=True) as sim:
         before = _wait_screen(xvfb, lambda s: _arm_pixels(s).sum() > 2000)
         assert _arm_pixels(before).sum() > 2000, "the viewer does not show the arm"
-        q = np.array(START_POSE) + [0.8, 0.3, 0, 0.3, 0, 0, 0]
+        q = np.array(START_POSE) + np.array([0.8, 0.3, 0, 0.3, 0, 0, 0])
         sim.set_joint_positions(q)  # the viewer syncs to the new pose
-        after = _wait_screen(
-            xvfb, lambda s: (_arm_pixels(s) != _arm_pixels(before)).sum() > 1000
-        )
+        after = _wait_screen(xvfb, lambda s: (_arm_pixels(s) != _arm_pixels(before)).sum() > 1000)
     changed = _arm_pixels(after) != _arm_pixels(before)
     assert changed.sum() > 1000, "the viewer did not follow the arm"
     assert _arm_pixels(after).sum() > 2000

@@ -95,11 +95,14 @@ def _viewer_main(feed: FrameFeed, conn: Any, config: SimConfig) -> None:
             time.sleep(next_sync - now)
     finally:
         reader.mark_gone()
-        handle.close()
     try:
         conn.send({"frames": frames})
     except (OSError, EOFError):
         pass
+    # End here rather than close the window: MuJoCo's render thread can still swap the
+    # buffers of a window its close destroyed, and Xlib's default handler then prints an
+    # X error (GLXBadDrawable) and exits. Ending the process closes the window cleanly.
+    os._exit(0)
 
 
 __all__ = ["FIX", "FPS", "Viewer", "check_display"]
