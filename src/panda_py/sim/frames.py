@@ -175,8 +175,11 @@ class FrameTaps:
             return False
         deadline = time.monotonic() + _FULL_WAIT
         while int(head[_WRITTEN]) - int(head[_READ]) >= feed.slots:
-            if head[_GONE] or time.monotonic() > deadline:
-                log.warning("the video recorder fell behind; dropping frames")
+            if head[_GONE]:
+                return False
+            if time.monotonic() > deadline:
+                log.warning("the video recorder stalled for %g s; dropping its frames", _FULL_WAIT)
+                head[_GONE] = 1.0  # never wait for it again
                 return False
             time.sleep(0.001)
         return True

@@ -4,12 +4,14 @@ The viewer (``mujoco.viewer.launch_passive``) runs in a process of its own
 (:mod:`.drawing`), on its own copy of the world: at ``FPS`` frames per simulated second
 the simulator's tick copies the joint positions into a ring, and the viewer shows the
 newest (``mj_forward``, then ``sync`` under the viewer's lock) at up to ``FPS`` per wall
-second. In the simulator's process the passive viewer made realtime ticks late: its
-software-OpenGL render thread and its Python wrapper competed with the tick for the
-CPU and the GIL (measured: a 1 kHz loop's p99 lateness went from 4 ms to 135 ms on two
-loaded cores; ``sync`` itself took 51 us median, 8.7 ms worst). A process of its own runs
-at a lower priority and never holds the tick's GIL. Mouse perturbations in the window
-therefore do not reach the simulated robot: it is a view.
+second. Not in the simulator's process: there the viewer's render thread (software
+OpenGL on most headless machines, tens of ms a frame) would inherit the simulator's
+SCHED_FIFO priority and share the GIL with the tick (whose ``sync`` calls took 51 us
+median, 8.7 ms worst, in a 5 s trial here). A process of its own runs
+below the simulator (``nice``) and never holds the tick's GIL
+(``benchmarks/bench_drawing.py``: a realtime simulator's late ticks with the viewer open
+stay within the spread of the simulator alone's). Dragging a body in the window therefore
+does not push the simulated robot: it is a view.
 
 Without a display the viewer fails at start with one line naming the fix.
 """
