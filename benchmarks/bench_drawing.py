@@ -40,16 +40,21 @@ def display() -> Iterator[str | None]:
     if shutil.which("Xvfb") is None:
         yield None
         return
-    read, write = os.pipe()
-    proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-        pass_fds=(write,), stderr=subprocess.DEVNULL,
+    number = next(
+        n for n in range(100 + os.getpid() % 400, 1000)
+        if not os.path.exists(f"/tmp/.X{n}-lock") and not os.path.exists(f"/tmp/.X11-unix/X{n}")
     )  # fmt: skip
-    os.close(write)
+    proc = subprocess.Popen(
+        ["Xvfb", f":{number}", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
+        stderr=subprocess.DEVNULL,
+    )
     try:
-        number = os.read(read, 16).decode().strip()
-        os.close(read)
-        yield f":{number}" if number else None
+        deadline = time.monotonic() + 10
+        while not os.path.exists(f"/tmp/.X11-unix/X{number}"):  # its socket: it is up
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise SystemExit(f"Xvfb did not start on :{number}")
+            time.sleep(0.05)
+        yield f":{number}"
     finally:
         proc.terminate()
         proc.wait(10)

@@ -9,8 +9,8 @@ OpenGL on most headless machines, tens of ms a frame) would inherit the simulato
 SCHED_FIFO priority and share the GIL with the tick (whose ``sync`` calls took 51 us
 median, 8.7 ms worst, in a 5 s trial here). A process of its own runs
 below the simulator (``nice``) and never holds the tick's GIL
-(``benchmarks/bench_drawing.py``: a realtime simulator's late ticks with the viewer open
-stay within the spread of the simulator alone's). Dragging a body in the window therefore
+(``benchmarks/bench_drawing.py``: a realtime simulator had 0.06-0.19 % late ticks with
+the viewer open, 0.10-0.20 % alone, on two loaded cores). Dragging a body in the window therefore
 does not push the simulated robot: it is a view.
 
 Without a display the viewer fails at start with one line naming the fix.
