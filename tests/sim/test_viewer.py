@@ -231,3 +231,15 @@ def test_viewer_opens_under_xvfb_and_follows_the_arm(
     changed = _arm_pixels(after) != _arm_pixels(before)
     assert changed.sum() > 1000, "the viewer did not follow the arm"
     assert _arm_pixels(after).sum() > 2000
+
+
+@pytest.mark.timeout(60)
+def test_record_without_offscreen_opengl_fails_in_one_line_naming_the_fix(
+    tmp_path: Path, video_tools: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("MUJOCO_GL", "no-such-backend")  # the recorder's process inherits it
+    with pytest.raises(SimulatorError, match="offscreen rendering failed") as info:
+        Simulator(free_loopback_host(), lockstep=True, record=tmp_path / "run.mp4").start()
+    message = str(info.value)
+    assert "\n" not in message and "libegl1" in message and "no-such-backend" in message
+    assert not (tmp_path / "run.mp4").exists()
