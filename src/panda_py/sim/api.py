@@ -27,7 +27,9 @@ from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
+from panda_py.sim.drawing import DrawingError, DrawingProcess, start_drawing, stop_drawing
 from panda_py.sim.server import SimConfig
+from panda_py.sim.video import DEFAULT_FPS, check_record
 
 log = logging.getLogger("panda_py.sim")
 
@@ -88,6 +90,12 @@ class Simulator:
     without it the robot is always unlocked with the FCI active. ``connect_timeout`` [s]: a
     TCP connection that sends no Connect within it is closed (it would hold the robot from
     every other client).
+
+    ``viewer=True`` opens MuJoCo's interactive viewer on the robot (needs a display:
+    ``$DISPLAY``, e.g. under ``xvfb-run``); ``record="run.mp4"`` writes a video of the run,
+    drawn offscreen at ``record_fps`` frames per simulated second and finished when the
+    simulator stops (needs the ``video`` extra). Both draw in processes of their own and
+    never make a tick late; :attr:`recording` then tells what was written.
     """
 
     def __init__(
@@ -107,6 +115,9 @@ class Simulator:
         desk: DeskConfig | None = None,
         connect_timeout: float = 5.0,
         end_effector: EndEffector | str = EndEffector.HAND,
+        viewer: bool = False,
+        record: str | Path | None = None,
+        record_fps: float = DEFAULT_FPS,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -128,6 +139,12 @@ class Simulator:
         self._lock = threading.Lock()
         self.desk_config = desk
         self.desk: DeskProcess | None = None  # the running Desk's handle
+        self.viewer = bool(viewer)
+        self.record = check_record(record, record_fps) if record is not None else None
+        self.record_fps = float(record_fps)
+        self._drawing: list[DrawingProcess] = []  # the viewer's and recorder's processes
+        # What the recorder wrote, after stop(): path, frames, dropped, error, ms_per_frame.
+        self.recording: dict[str, Any] | None = None
 
     @property
     def host(self) -> str:
@@ -145,6 +162,7 @@ class Simulator:
         if self.desk_config is not None:
             link = DeskLink.create(locked=self.desk_config.locked)
             self.config.desk_link = link.array
+        self._start_drawing()
         ctx = multiprocessing.get_context("spawn")
         parent, child = ctx.Pipe()
         proc = ctx.Process(
@@ -154,14 +172,17 @@ class Simulator:
         child.close()
         if not parent.poll(self.start_timeout):
             proc.kill()
+            self._stop_drawing()
             raise SimulatorError(f"simulator did not start within {self.start_timeout} s")
         try:
             kind, detail = parent.recv()
         except EOFError as exc:
             proc.join(1)
+            self._stop_drawing()
             raise SimulatorError(f"simulator process died on start (exit {proc.exitcode})") from exc
         if kind != "ready":
             proc.join(1)
+            self._stop_drawing()
             raise SimulatorError(f"simulator failed to start on {self.host}: {detail}")
         self._process, self._conn = proc, parent
         if link is not None and self.desk_config is not None:
@@ -182,6 +203,7 @@ class Simulator:
             return
         self._process = self._conn = None
         stop_child(proc, conn, kill=True)
+        self._stop_drawing()
 
     def kill(self) -> None:
         """End the simulator abruptly, as a robot that loses power (for failure tests)."""
@@ -195,6 +217,21 @@ class Simulator:
             self._process = None
             self._conn.close()
             self._conn = None
+            self._stop_drawing()
+
+    def _start_drawing(self) -> None:
+        try:
+            self._drawing = start_drawing(
+                self.config, viewer=self.viewer, record=self.record, fps=self.record_fps,
+                timeout=self.start_timeout,
+            )  # fmt: skip
+        except DrawingError as exc:
+            raise SimulatorError(str(exc)) from exc
+
+    def _stop_drawing(self) -> None:
+        if self._drawing:
+            self.recording = stop_drawing(self._drawing)
+        self.config.frame_feeds = ()
 
     def __enter__(self) -> Simulator:
         return self.start()

@@ -13,7 +13,6 @@ import argparse
 import logging
 import signal
 import sys
-import threading
 from collections.abc import Sequence
 from types import FrameType
 
@@ -21,6 +20,8 @@ from panda_py import fci
 from panda_py.robots.end_effectors import END_EFFECTOR_CHOICES
 from panda_py.robots.params import ROBOTS
 from panda_py.sim.desk.launch import add_desk_arguments, start_desk
+from panda_py.sim.drawing import DrawingProcess, start_drawing, stop_drawing
+from panda_py.sim.video import DEFAULT_FPS, check_record
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -69,7 +70,23 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--no-scene", action="store_true", help="no table and cube")
     p.add_argument("--scene", metavar="MJCF", help="add the bodies of this MJCF file")
-    p.add_argument("--viewer", action="store_true", help="open the MuJoCo viewer (needs a display)")
+    p.add_argument(
+        "--viewer",
+        action="store_true",
+        help="open MuJoCo's viewer on the robot (needs a display: $DISPLAY, or xvfb-run)",
+    )
+    p.add_argument(
+        "--record",
+        metavar="FILE.mp4",
+        help="write a video of the run, drawn offscreen (needs panda-py-pure[video])",
+    )
+    p.add_argument(
+        "--record-fps",
+        type=float,
+        default=DEFAULT_FPS,
+        metavar="FPS",
+        help="video frames per simulated second (default %(default)g)",
+    )
     p.add_argument("--log-level", default="INFO", help="logging level (default %(default)s)")
     add_desk_arguments(p)
     return p
@@ -81,7 +98,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     from panda_py.sim.server import SimConfig, SimServer
 
     desk = None
+    drawing: list[DrawingProcess] = []
     try:
+        if args.record is not None:
+            check_record(args.record, args.record_fps)
         config = SimConfig(
             host=args.host,
             robot=args.robot,
@@ -93,12 +113,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             extra=args.scene,
             end_effector=args.end_effector,
         )
+        drawing = start_drawing(
+            config, viewer=args.viewer, record=args.record, fps=args.record_fps, timeout=60.0
+        )
         desk, config.desk_link = start_desk(args, config.host, config.robot)
         server = SimServer(config)
-    except (ValueError, OSError, RuntimeError) as exc:
+    except (ValueError, OSError, RuntimeError) as exc:  # DrawingError too: one line
         print(f"panda-sim: {exc}", file=sys.stderr)
         if desk is not None:
             desk.stop()
+        stop_drawing(drawing)
         return 2
 
     def stop(signum: int, frame: FrameType | None) -> None:
@@ -110,8 +134,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise_priority()
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
-    if args.viewer:
-        _start_viewer(server)
     mode = "lockstep" if args.lockstep else "realtime"
     tool = "gripper 1338" if server.pump is None else "cobot pump 1339"
     logging.getLogger("panda_py.sim").info(
@@ -126,27 +148,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if desk is not None:
             desk.stop()
+        stop_drawing(drawing)  # the video is finished here, after the last tick
     return 0
-
-
-def _start_viewer(server: object) -> None:
-    """The MuJoCo viewer in a thread, synced at about 30 Hz (optional; needs a display)."""
-    import os
-
-    if not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
-        logging.getLogger("panda_py.sim").warning("no display: running without the viewer")
-        return
-    import mujoco.viewer
-
-    physics = server.physics  # type: ignore[attr-defined]
-
-    def run() -> None:
-        with mujoco.viewer.launch_passive(physics.model, physics.data) as viewer:
-            while viewer.is_running():
-                viewer.sync()
-                threading.Event().wait(1 / 30)
-
-    threading.Thread(target=run, daemon=True).start()
 
 
 if __name__ == "__main__":

@@ -45,6 +45,8 @@ class SimConfig:
     # A TCP connection must send Connect within this time [s], else it is closed (it
     # would hold the robot from every other client).
     connect_timeout: float = 5.0
+    # Rings of the processes that draw the robot (viewer, recorder): sim/frames.py.
+    frame_feeds: tuple[Any, ...] = ()
 
     @property
     def accepted_versions(self) -> tuple[int, ...]:

@@ -38,6 +38,7 @@ from panda_py.sim.connections import Client, GripperConnection, RobotConnection
 from panda_py.sim.control import ControlRpc
 from panda_py.sim.desk.link import DeskLink
 from panda_py.sim.fci_session import FciSession
+from panda_py.sim.frames import FrameTaps
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.gripper_session import GripperSession
 from panda_py.sim.models import ModelDelivery
@@ -80,6 +81,10 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
         self.tick_count = 0
         self.drop_commands = 0
+        # Snapshots for the viewer and the video recorder (their own processes draw them).
+        self.frames = (
+            FrameTaps(config.frame_feeds, lockstep=config.lockstep) if config.frame_feeds else None
+        )
         self._running = True
         self._sel = selectors.SelectSelector()  # select(): microsecond timeouts, unlike epoll
         self._robot_listener = self._listen(config.robot_port)
@@ -109,6 +114,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             if conn is not None:
                 self._close_conn(conn)
         self._models.shutdown(wait=False, cancel_futures=True)
+        if self.frames is not None:
+            self.frames.close()
         for s in (self._robot_listener, self._gripper_listener):
             self._sel.unregister(s)
             s.close()
@@ -224,6 +231,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         self.core.tick(command if moving else None, excused=excused)
         self.tick_count += 1
         self.stats.ticks += 1
+        if self.frames is not None:
+            self.frames.tick(self.tick_count, self.physics.data.qpos)
         if self.desk is not None:
             self.desk.publish(self.tick_count, self.core.state, self.core.robot_mode)
         if conn is not None:
