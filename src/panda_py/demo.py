@@ -160,12 +160,10 @@ def write_figure(path: Path, pose_path: np.ndarray, joint_path: np.ndarray) -> F
             ax.annotate(name, (point[1], point[k]), xytext=(0, 6), textcoords="offset points",
                         ha="center", va="bottom")  # fmt: skip
         ax.set_ylim((hi[k], lo[k]) if flip else (lo[k], hi[k]))
-        if flip:
-            ax.text(0.005, 0.97, "\u2191 to the robot's base", transform=ax.transAxes,
-                    fontsize="small", color="dimgray", va="top")  # fmt: skip
         ax.set_aspect("equal")
         ax.set_title(title)
-        ax.set_ylabel(f"{'xyz'[k]} [m]")
+        # (in the label, not on the plot, where a path's end could sit under it)
+        ax.set_ylabel("x [m], \u2191 to the robot's base" if flip else f"{'xyz'[k]} [m]")
         ax.grid(True, alpha=0.3)
     front.set_xlim(lo[1], hi[1])
     front.set_xlabel("y [m]")
