@@ -127,7 +127,7 @@ def test_the_figure_shows_the_straight_line_against_the_curve_in_two_views(
     assert width == demo.WIDTH * demo.DPI
     assert image.shape[:2] == (height, width)
     assert [ax.get_title() for ax in fig.axes] == ["Top view", "Front view"]
-    assert [ax.get_ylabel() for ax in fig.axes] == ["x [m]", "z [m]"]
+    assert [ax.get_ylabel() for ax in fig.axes] == ["x [m], \u2191 to the robot's base", "z [m]"]
     assert fig.axes[1].get_xlabel() == "y [m]"
     assert len(fig.legends) == 1
     legend = [t.get_text() for t in fig.legends[0].get_texts()]
