@@ -65,7 +65,12 @@ __all__ = ["ControlServer", "limits_spec_for_version", "main"]
 
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
-LIMIT_RATE = True  # libfranka's defaults for robot.control(), as panda-py uses them
+# libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz).
+# Its rate limiter stays off: the loop's own saturation (laws.DTAU_MAX_PER_TICK, 1 Nm a
+# tick around tau_J_d) is libfranka's torque-rate bound (1000 Nm/s), applied before the
+# filter, which only shrinks the step further; the limiter could never bind, so running
+# it (as panda-py does) would only cost time. tests/rt/test_loop_limits.py holds this.
+LIMIT_RATE = False
 CUTOFF_FREQUENCY = 100.0  # [Hz]
 # what Panda.get_robot() may run on the robot (between ticks)
 ROBOT_METHODS = frozenset({
