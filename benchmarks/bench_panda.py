@@ -259,20 +259,27 @@ def _cpu_seconds(pid: int) -> float:
 
 
 def _law_costs(n: int) -> dict[str, list[float]]:
-    """Per-call cost [us] of the laws' step on a recorded state, in this process."""
+    """Per-call cost [us] of the laws' tick and step on a recorded state, in this process,
+    on the state type the loop hands them (TickState) and a controller fed through a
+    signal slot, as in the control process."""
     from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import JointMove, JointPlan, PoseMove, PosePlan
+    from panda_py.libfranka.state import TickState
+    from panda_py.rt.shm import SharedBlock
 
     with Simulator(free_loopback_host(), robot="fr3", lockstep=True) as sim:
         with libfranka.Robot(sim.host) as robot:
             state = robot.read_once()
     model = ControlModel("fr3")
 
-    def fresh() -> Any:  # a new RobotState each tick, as the loop has
-        return robot.decode_state(state.raw)
+    def fresh() -> Any:  # a new state each tick, as the loop has
+        return robot.decode_state(state.raw, TickState)
 
     ctrl = controllers.CartesianImpedance(filter_coeff=1.0)
-    ctrl.start(state, model)
+    ctrl.start(fresh(), model)
+    block, fd = SharedBlock.create()
+    os.close(fd)
+    ctrl.open_slot(block)
     k = 2000
     p = np.tile(np.asarray(state.O_T_EE)[12:15], (k, 1))
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
@@ -286,9 +293,14 @@ def _law_costs(n: int) -> dict[str, list[float]]:
     out = {}
     for label, law in (("CartesianImpedance", ctrl), ("move_to_pose", pose),
                        ("move_to_joint_position", joint)):  # fmt: skip
-        for _ in range(300):
+
+        def tick(law: Any = law) -> None:
+            law.tick(0.0)  # (dt 0: a move stays at its sample)
             law.step(fresh(), model)
-        out[label] = _per_call(lambda law=law: law.step(fresh(), model), n)
+
+        for _ in range(300):
+            tick()
+        out[label] = _per_call(tick, n)
     return out
 
 
