@@ -27,3 +27,14 @@ def panda(sim: Simulator) -> Iterator[panda_py.Panda]:
         yield p
     finally:
         p.close()
+
+
+@pytest.fixture(scope="module")
+def shared_panda() -> Iterator[panda_py.Panda]:
+    """One lockstep simulator and Panda for a whole module, for tests that leave no trace
+    on them (refused input): starting both takes about 2.5 s a test."""
+    with (
+        Simulator(free_loopback_host(), lockstep=True) as s,
+        panda_py.Panda(s.host) as p,
+    ):
+        yield p
