@@ -1,6 +1,8 @@
 """One accept/refuse table for the quaternions every entry point takes: ``ik``,
 ``CartesianTrajectory``, ``move_to_pose``'s binder and ``CartesianImpedance.set_control``
-accept and refuse the same ones (one tolerance, ``checks.QUATERNION_NORM_TOL``)."""
+accept and refuse the same ones (one tolerance, ``checks.QUATERNION_NORM_TOL``); one for
+the 4x4 poses and frames (``ik``, ``CartesianTrajectory``, ``move_to_pose``,
+``get_robot().set_K``: one test, ``checks.rigid_errors`` within ``checks.RIGID_TOL``)."""
 
 from __future__ import annotations
 
@@ -74,3 +76,94 @@ def test_accepted_quaternions_are_normalised_alike() -> None:
     np.testing.assert_allclose(np.linalg.norm(quats, axis=1), 1.0, atol=1e-15)
     T = panda_py.fk(_ik(quat))
     np.testing.assert_allclose(T[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-9)
+
+
+# --- one rigid-transform test ------------------------------------------------------------
+
+
+START = np.diag([1.0, -1.0, -1.0])  # the start pose's orientation
+
+
+def _pose(R: Any = START, last: Any = (0.0, 0.0, 0.0, 1.0)) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = POSITION
+    T[3] = last
+    return T
+
+
+def _rot_x(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+RIGID = [
+    _pose(),
+    _pose(START @ _rot_x(0.3)),
+    _pose(START * (1.0 + 4e-7)),  # within RIGID_TOL
+    _pose(last=(0.0, 0.0, 0.0, 1.0 + 5e-7)),
+]
+NOT_RIGID = [
+    _pose(START * 1.01),  # scaled 1 %
+    _pose(np.diag([1.0, 1.0, -1.0])),  # a reflection: det -1
+    _pose(last=(0.0, 0.0, 0.0, 1.0 + 5e-6)),  # last row off beyond the tolerance
+    _pose(last=(0.0, 0.01, 0.0, 1.0)),
+    _pose(START + 1e-5),
+]
+
+
+def _ik_pose(T: np.ndarray) -> Any:
+    return panda_py.ik(T)
+
+
+def _trajectory_poses(T: np.ndarray) -> Any:
+    T2 = T.copy()
+    T2[1, 3] += 0.05
+    return CartesianTrajectory([T, T2])
+
+
+def _move_to_pose_pose(T: np.ndarray) -> Any:
+    return _moves.parse_pose_targets((T,), {})
+
+
+def _set_k(T: np.ndarray) -> Any:
+    from panda_py.panda import RobotProxy
+
+    frame = T.copy()
+    frame[:3, 3] = 0.0
+    return RobotProxy._transform(None, "EE_T_K", frame)  # type: ignore[arg-type]
+
+
+POSE_ENTRY_POINTS: list[Callable[[np.ndarray], Any]] = [
+    _ik_pose,
+    _trajectory_poses,
+    _move_to_pose_pose,
+    _set_k,
+]
+
+
+@pytest.mark.parametrize("entry", POSE_ENTRY_POINTS, ids=lambda f: f.__name__.lstrip("_"))
+@pytest.mark.parametrize("T", RIGID, ids=range(len(RIGID)))
+def test_rigid_poses_accepted_everywhere(entry: Callable[[np.ndarray], Any], T: Any) -> None:
+    entry(T)
+
+
+@pytest.mark.parametrize("entry", POSE_ENTRY_POINTS, ids=lambda f: f.__name__.lstrip("_"))
+@pytest.mark.parametrize("T", NOT_RIGID, ids=range(len(NOT_RIGID)))
+def test_non_rigid_poses_refused_everywhere(entry: Callable[[np.ndarray], Any], T: Any) -> None:
+    with pytest.raises(ValueError, match="expected a rigid transform"):
+        entry(T)
+
+
+def test_the_compiled_and_the_numpy_rigid_tests_are_one() -> None:
+    from panda_py import checks
+    from panda_py.kinematics import _ik
+
+    assert _ik.ROTATION_TOL == checks.RIGID_TOL
+    rng = np.random.default_rng(5)
+    for _ in range(500):
+        T = _pose(START @ _rot_x(rng.uniform(-3, 3)))
+        T += rng.normal(scale=10 ** rng.uniform(-9, -4), size=(4, 4))
+        assert float(checks.rigid_errors(T)) == pytest.approx(
+            _ik.rigid_error(*T.ravel().tolist()), rel=1e-9, abs=1e-15
+        )

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 __all__ = [
     "MAX_TIMEOUT",
     "QUATERNION_NORM_TOL",
+    "RIGID_TOL",
     "fast_floats",
     "floats",
     "matrix6",
@@ -25,6 +26,8 @@ __all__ = [
     "nonnegative_scalar",
     "number",
     "quaternion",
+    "rigid_errors",
+    "rigid_message",
     "scalar",
     "timeout",
     "unit_interval",
@@ -39,6 +42,13 @@ MAX_TIMEOUT = 86400.0
 # normalised, beyond it refused. Hand-typed four-decimal quaternions (0.7071, 0.7071, 0, 0)
 # are 3e-5 off; a forgotten normalisation is percents off.
 QUATERNION_NORM_TOL = 1e-3  # [-] |norm - 1|
+# One test of "a rigid transform" wherever a pose or a frame is given (move_to_pose,
+# CartesianTrajectory, ik, get_robot().set_K / set_EE): unit orthogonal x and y columns,
+# z = x cross y (so det = +1), last row (0, 0, 0, 1), every deviation within this. The
+# compiled kinematics test the same (kinematics/_ik.py's rigid_error and ROTATION_TOL,
+# kept in the kernels' sources so that their cache follows an edit; a test holds the two
+# equal).
+RIGID_TOL = 1e-6  # [-]
 
 
 def number(
@@ -174,3 +184,31 @@ def matrix6(name: str, value: Any, unit: str = "") -> list[float]:
     if np.linalg.eigvalsh(arr).min() < -1e-9 * max(1.0, float(abs(arr).max())):
         raise ValueError(f"{name}: expected a positive semi-definite matrix {unit}")
     return arr.ravel().tolist()
+
+
+def rigid_errors(T: Any) -> NDArray[np.float64]:
+    """The largest deviation [-] of each 4x4 of ``T`` ((4, 4) or (N, 4, 4), finite) from a
+    rigid transform (see :data:`RIGID_TOL`): one value, or one per matrix."""
+    a = np.asarray(T, dtype=np.float64)
+    m = a.reshape(-1, 4, 4)
+    x, y, z = m[:, :3, 0], m[:, :3, 1], m[:, :3, 2]
+    err = np.stack(
+        [
+            np.abs((x * x).sum(axis=1) - 1.0),
+            np.abs((y * y).sum(axis=1) - 1.0),
+            np.abs((x * y).sum(axis=1)),
+            np.abs(np.cross(x, y) - z).max(axis=1),
+            np.abs(m[:, 3, :3]).max(axis=1),
+            np.abs(m[:, 3, 3] - 1.0),
+        ]
+    ).max(axis=0)
+    return err if a.ndim == 3 else err.reshape(())
+
+
+def rigid_message(name: str, deviation: float, index: int | None = None) -> str:
+    """The message for a matrix that is finite but not a rigid transform."""
+    where = "" if index is None else f" (batch index {index})"
+    return (
+        f"{name}: expected a rigid transform (orthonormal rotation with det +1, last row "
+        f"0 0 0 1, tolerance {RIGID_TOL}){where}; largest deviation {deviation:.3g}"
+    )

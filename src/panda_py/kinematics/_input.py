@@ -8,6 +8,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.kinematics import _backend, _ik
 from panda_py.kinematics._ik import ROTATION_TOL
@@ -93,13 +94,7 @@ def check_rigid(name: str, a: NDArray[np.float64]) -> None:
         raise ValueError(rigid_message(name, float(err[i]), i if a.ndim == 3 else None))
 
 
-def rigid_message(name: str, deviation: float, index: int | None) -> str:
-    """The message for a matrix that is finite but not a rigid transform."""
-    where = "" if index is None else f" (batch index {index})"
-    return (
-        f"{name}: expected a rigid transform (orthonormal rotation with det +1, last row "
-        f"0 0 0 1, tolerance {ROTATION_TOL}){where}; largest deviation {deviation:.3g}"
-    )
+rigid_message = checks.rigid_message
 
 
 def position_orientation(position: object, orientation: object) -> NDArray[np.float64]:

@@ -23,6 +23,7 @@ from typing import Any, NamedTuple, overload
 
 import numpy as np
 
+from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.motion import _checks
 from panda_py.motion import rotation as rot
@@ -38,8 +39,6 @@ from panda_py.robots.params import RobotKind, RobotSpec, get_robot
 
 # [-] |‖q‖ - 1| above this is an error, below it normalised (one tolerance everywhere)
 QUATERNION_NORM_TOLERANCE = QUATERNION_NORM_TOL
-ROTATION_TOLERANCE = 1e-6  # [-] max |RᵀR - I| entry of a pose's rotation block
-BOTTOM_ROW_TOLERANCE = 1e-9  # [-] max deviation of a pose's last row from (0, 0, 0, 1)
 DUPLICATE_TOLERANCE = 1e-12  # [m, rad] consecutive poses closer than this are merged
 
 
@@ -331,18 +330,11 @@ def parse_poses(poses: object) -> tuple[Array, Array]:
     if arr.ndim != 3 or arr.shape[1:] != (4, 4):
         raise ValueError(f"poses: expected shape (N, 4, 4), got shape {arr.shape}")
     _check_finite("poses", arr)
-    bottom = np.abs(arr[:, 3, :] - (0.0, 0.0, 0.0, 1.0)).max(axis=1)
+    err = checks.rigid_errors(arr)  # the package's one rigid-transform test
+    bad = np.flatnonzero(~(err <= checks.RIGID_TOL))
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(checks.rigid_message(f"poses[{i}]", float(err[i])))
     rots = arr[:, :3, :3]
-    ortho = np.abs(np.einsum("nji,njk->nik", rots, rots) - np.eye(3)).max(axis=(1, 2))
-    det = np.linalg.det(rots)
-    for i in range(len(arr)):
-        if bottom[i] > BOTTOM_ROW_TOLERANCE:
-            raise ValueError(f"poses[{i}]: expected last row (0, 0, 0, 1), got {arr[i, 3]}")
-        if ortho[i] > ROTATION_TOLERANCE or det[i] <= 0.0:
-            raise ValueError(
-                f"poses[{i}]: expected a proper rotation block (RᵀR = I within "
-                f"{ROTATION_TOLERANCE}, det = +1), got |RᵀR - I| = {ortho[i]:.3g}, "
-                f"det = {det[i]:.6g}"
-            )
     quats = np.array([rot.from_matrix(r) for r in rots])
     return arr[:, :3, 3].copy(), quats

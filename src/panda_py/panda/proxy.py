@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from panda_py import checks
 from panda_py.checks import vector as _vec
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.robot import collision_thresholds
@@ -93,12 +94,9 @@ class RobotProxy:
         flat = arr.reshape(4, 4).reshape(16, order="F") if arr.shape == (4, 4) else arr
         T = _vec(name, flat, 16, "(transform, column-major)")
         M = T.reshape(4, 4, order="F")
-        R = M[:3, :3]
-        rigid = np.allclose(R.T @ R, np.eye(3), atol=1e-6) and np.array_equal(
-            M[3], [0.0, 0.0, 0.0, 1.0]
-        )
-        if not rigid or abs(np.linalg.det(R) - 1.0) > 1e-6:
-            raise ValueError(f"{name}: expected a rigid transform, got {M.tolist()}")
+        err = float(checks.rigid_errors(M))
+        if not err <= checks.RIGID_TOL:
+            raise ValueError(checks.rigid_message(name, err) + f", got {M.tolist()}")
         return T
 
     def set_k(self, EE_T_K: Any) -> None:
