@@ -349,13 +349,7 @@ class RobotCore(RobotSettings, StateAssembly):
         if self.robot_mode != RobotMode.MOVE:
             return np.zeros(7)
         # Measured-state checks during motion.
-        q = ph.q
-        if (
-            (q < self._q_lo).any()
-            or (q > self._q_hi).any()
-            or (np.abs(ph.dq) > self._dq_hi).any()
-            or self.contact_active
-        ):
+        if self.contact_active or not self._measured_in_limits():
             flags = self._measured_violations()
             if flags:
                 self._reflex(flags)
@@ -366,6 +360,26 @@ class RobotCore(RobotSettings, StateAssembly):
         tau = ph.joint_tracking_torque(self.joint.q, self.joint.dq, self.joint.ddq, scale)
         self.tau_J_d[:] = tau
         return tau
+
+    def _measured_in_limits(self) -> bool:
+        """No joint beyond its position limits or its speed limit (with the robot's
+        tolerance); a NaN passes here and is caught by the flags' own tests."""
+        q, dq, fast = self.physics.q, self.physics.dq, self._fast
+        if fast is not None:
+            return fast.measured_in_limits(q, dq, self._q_lo, self._q_hi, self._dq_hi)
+        return not (
+            (q < self._q_lo).any() or (q > self._q_hi).any() or (np.abs(dq) > self._dq_hi).any()
+        )
+
+    def _torque_in_limits(self, tau: np.ndarray) -> bool:
+        """A torque command within the joints' range and rate limits (False for a NaN)."""
+        fast = self._fast
+        if fast is not None:
+            return fast.torque_in_limits(tau, self.tau_J_d, self._tau_max, self._dtau_step)
+        return bool(
+            (np.abs(tau) <= self._tau_max).all()
+            and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
+        )
 
     def _measured_violations(self) -> list[str]:
         """Flags of the checks on the measured state (position, velocity, contact)."""
@@ -414,10 +428,7 @@ class RobotCore(RobotSettings, StateAssembly):
         # NaN fails every <= test: a torque command that is within its range and its
         # rate is finite, so one test each covers both on the common path.
         tau = c.tau_J_d
-        tau_ok = not external or (
-            (np.abs(tau) <= self._tau_max).all()
-            and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
-        )
+        tau_ok = not external or self._torque_in_limits(tau)
         if not finite or (not tau_ok and not all_finite(tau)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)
