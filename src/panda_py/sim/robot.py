@@ -415,7 +415,9 @@ class RobotCore(RobotSettings, StateAssembly):
         """Apply one received command; returns a final status if the motion ended."""
         mg = self.mg_mode
         external = self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
-        if mg == MotionGeneratorMode.JOINT_POSITION:
+        if mg == MotionGeneratorMode.NONE:  # a torque-only motion (v7+): tested below
+            finite = True
+        elif mg == MotionGeneratorMode.JOINT_POSITION:
             finite = all_finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
             finite = all_finite(c.dq_c)
