@@ -152,7 +152,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     self._dispatch(key.data, mask)
                 for client in backlog:
                     self._handle_backlog(client)
-                self._answer_models()
+                if self._model_requests:
+                    self._answer_models()
                 now = time.monotonic()
                 if waiting:
                     conn = self.robot_conn
