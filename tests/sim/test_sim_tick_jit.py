@@ -1,8 +1,8 @@
 """The simulator's compiled tick (``sim/_tick_jit.py`` through ``sim/fastpath.py``)
 equals its NumPy reference: the same state buffer bit for bit on generated states of every
 motion generator, the same verdicts of the command and measured-state checks (NaN,
-infinities and values exactly at a limit included); and without the JIT the robot runs
-the reference."""
+infinities and values exactly at a limit included), the same commanded joint signal and
+flags over random command sequences; and without the JIT the robot runs the reference."""
 
 from __future__ import annotations
 
@@ -153,13 +153,18 @@ def test_the_command_views_use_the_warm_kernels(core: RobotCore) -> None:
     from panda_py.sim import _tick_jit
     from panda_py.sim.wire import CommandWire
 
-    before = len(_tick_jit.torque_in_limits.signatures)
+    kernels = (_tick_jit.torque_in_limits, _tick_jit.all_finite, _tick_jit.joint_push)
+    before = [len(k.signatures) for k in kernels]
     z = np.zeros(7)
+    signal = [np.zeros(7) for _ in range(4)]
+    assert core._fast is not None
     for version in fci.SUPPORTED_VERSIONS:
-        tau = CommandWire(fci.dialect(version)).command.tau_J_d
-        assert core._fast is not None
-        assert core._fast.torque_in_limits(tau, z, core._tau_max, core._dtau_step)
-    assert len(_tick_jit.torque_in_limits.signatures) == before
+        c = CommandWire(fci.dialect(version)).command
+        assert core._fast.torque_in_limits(c.tau_J_d, z, core._tau_max, core._dtau_step)
+        for x in (c.q_c, c.dq_c):
+            assert core._fast.all_finite(x)
+            _tick_jit.joint_push(*signal, x, _tick_jit.PUSH_POSITION, 1e-3)
+    assert [len(k.signatures) for k in kernels] == before
 
 
 def test_without_the_jit_the_robot_runs_the_reference() -> None:
@@ -180,3 +185,56 @@ def test_without_the_jit_the_robot_runs_the_reference() -> None:
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True", "False", "True"]
+
+
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # NaN, inf
+@pytest.mark.parametrize("cartesian", [False, True])
+def test_joint_signal_equals_the_reference(core: RobotCore, cartesian: bool) -> None:
+    """Positions, velocities and lost commands in random order, some beyond the limits or
+    not finite: the compiled signal keeps the reference's values and flags bit for bit."""
+    from panda_py.sim import _tick_jit
+    from panda_py.sim.safety import JointSignal
+
+    assert core._fast is not None and core._fast.kernels is _tick_jit
+    rng = np.random.default_rng(9 + cartesian)
+    j = core.spec.joints
+    fast, ref = JointSignal(_tick_jit), JointSignal()
+    start = np.array(START_POSE)
+    fast.reset(start)
+    ref.reset(start)
+    flagged = set()
+    for step in range(3000):
+        if step % 500 == 0:  # start over now and then, so the values stay near the limits
+            fast.reset(start)
+            ref.reset(start)
+        kind = rng.integers(3)
+        scale = rng.choice((1e-4, 1e-3, 1e-2))  # most steps smooth, some far too fast
+        if kind == 0:
+            x = ref.q + rng.normal(size=7) * scale
+            if rng.random() < 0.01:
+                x[rng.integers(7)] = rng.choice(_SPECIAL)
+            fast.push_position(x)
+            ref.push_position(x)
+        elif kind == 1:
+            x = ref.dq + rng.normal(size=7) * scale * np.asarray(j.dq_max)
+            fast.push_velocity(x)
+            ref.push_velocity(x)
+        else:
+            fast.extrapolate()
+            ref.extrapolate()
+        for a, b in ((fast.q, ref.q), (fast.dq, ref.dq), (fast.ddq, ref.ddq),
+                     (fast.dddq, ref.dddq)):  # fmt: skip
+            np.testing.assert_array_equal(a, b)
+        flags = fast.violations(core.spec, cartesian=cartesian)
+        assert flags == ref.violations(core.spec, cartesian=cartesian)
+        flagged.update(flags)
+    assert len(flagged) >= 3  # the limits were hit, not only passed
+
+
+def test_finite_check_equals_the_reference(core: RobotCore) -> None:
+    from panda_py.sim.safety import all_finite
+
+    assert core._fast is not None
+    rng = np.random.default_rng(10)
+    for v in _vectors(rng, np.ones(7), 50):
+        assert core._fast.all_finite(v) == all_finite(v)

@@ -1,22 +1,29 @@
-"""The simulator's per-tick arithmetic compiled by numba: the robot state's per-tick fields
-and the checks every received torque command and every motion tick pass through.
+"""The simulator's per-tick arithmetic compiled by numba: the robot state's per-tick fields,
+the checks every received command and every motion tick pass through, and the commanded
+joint signal's derivatives and limits.
 
 Each kernel does, value for value, what the plain NumPy reference does
 (:meth:`StateAssembly._fill_state_reference`, :meth:`RobotCore._accept`,
-:meth:`RobotCore._motion_tick`); one call replaces a few dozen NumPy calls on 7-vectors,
-whose fixed cost (about 0.5 us each) was most of a tick. ``tests/sim/test_sim_tick_jit.py``
-holds them equal bit for bit. Imported by :mod:`.state` only when the kinematics run
-compiled (numba installed, ``PANDA_PY_NO_JIT`` unset); compiled once per machine and
-cached by numba (next to this file, or in its per-user cache where that is not
+:meth:`RobotCore._motion_tick`, :class:`~panda_py.sim.safety.JointSignal`); one call
+replaces a few dozen NumPy calls on 7-vectors, whose fixed cost (about 0.5 us each) was
+most of a tick. ``tests/sim/test_sim_tick_jit.py`` holds them equal bit for bit.
+Imported by :mod:`.fastpath` only when the kinematics run compiled (numba installed,
+``PANDA_PY_NO_JIT`` unset); compiled once per machine (about 3 s, when the first simulator
+starts) and cached by numba (next to this file, or in its per-user cache where that is not
 writable). The kernels call nothing compiled elsewhere, so numba's cache, which looks at
 this file only, never loads stale code.
 """
 
 from __future__ import annotations
 
+import math
+
 import numba
 
-__all__ = ["FIELDS", "fill_state", "measured_in_limits", "torque_in_limits"]
+__all__ = [
+    "FIELDS", "all_finite", "fill_state", "joint_limit_bits", "joint_push", "measured_in_limits",
+    "torque_in_limits",
+]  # fmt: skip
 
 # The state fields the kernel writes, in the order of its offset vector ``off``.
 FIELDS = (
@@ -141,5 +148,61 @@ def measured_in_limits(q, dq, q_lo, q_hi, dq_hi):  # type: ignore[no-untyped-def
     NumPy reference, whose comparisons are all False for it)."""
     for i in range(7):
         if q[i] < q_lo[i] or q[i] > q_hi[i] or abs(dq[i]) > dq_hi[i]:
+            return False
+    return True
+
+
+# kinds of joint_push
+PUSH_POSITION = 0  # x: the commanded positions [rad]
+PUSH_VELOCITY = 1  # x: the commanded velocities [rad/s]
+EXTRAPOLATE = 2  # a lost command: keep the acceleration (x unused)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def joint_push(q, dq, ddq, dddq, x, kind, dt):  # type: ignore[no-untyped-def,unused-ignore]
+    """:class:`~panda_py.sim.safety.JointSignal`'s backward-Euler update, in place, with
+    its arithmetic operation for operation (``kind``: PUSH_POSITION, PUSH_VELOCITY or
+    EXTRAPOLATE)."""
+    for i in range(7):
+        if kind == PUSH_POSITION:
+            q_new = x[i]
+            dq_new = (q_new - q[i]) / dt
+        elif kind == PUSH_VELOCITY:
+            dq_new = x[i]
+            q_new = q[i] + dq_new * dt
+        else:
+            dq_new = dq[i] + ddq[i] * dt
+            q_new = q[i] + dq_new * dt
+        ddq_new = (dq_new - dq[i]) / dt
+        dddq[i] = (ddq_new - ddq[i]) / dt
+        ddq[i] = ddq_new
+        dq[i] = dq_new
+        q[i] = q_new
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def joint_limit_bits(q, dq, ddq, dddq, upper, lower):  # type: ignore[no-untyped-def,unused-ignore]
+    """Which joint limits a commanded signal breaks: bit 0 position (below ``lower`` or
+    above ``upper[7:14]``), bit 1 velocity, bit 2 acceleration, bit 3 jerk (``upper``
+    as ``safety._Limits.upper``: q_max twice, then |dq|, |ddq|, |dddq| limits). A NaN
+    breaks none, as in the NumPy reference."""
+    bits = 0
+    for i in range(7):
+        if q[i] < lower[i] or q[i] > upper[7 + i]:
+            bits |= 1
+        if abs(dq[i]) > upper[14 + i]:
+            bits |= 2
+        if abs(ddq[i]) > upper[21 + i]:
+            bits |= 4
+        if abs(dddq[i]) > upper[28 + i]:
+            bits |= 8
+    return bits
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def all_finite(x):  # type: ignore[no-untyped-def,unused-ignore]
+    """No NaN and no infinity in the vector ``x``."""
+    for i in range(x.shape[0]):
+        if not math.isfinite(x[i]):
             return False
     return True

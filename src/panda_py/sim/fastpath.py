@@ -1,5 +1,5 @@
-"""The compiled per-tick path of one simulated robot: its state fill and its command
-checks on numba kernels (:mod:`._tick_jit`), on buffers allocated once.
+"""The compiled per-tick path of one simulated robot: its state fill, its command checks
+and its commanded joint signal on numba kernels (:mod:`._tick_jit`), on buffers allocated once.
 
 Used where the kinematics run compiled (numba installed, ``PANDA_PY_NO_JIT`` unset;
 ``panda_py.kinematics``' choice, so the two never disagree); otherwise, and for the rare
@@ -27,7 +27,7 @@ class TickKernels:
     """The compiled kernels bound to one robot's state buffer and model."""
 
     def __init__(self, jit: Any, kernels: Any, core: StateAssembly) -> None:
-        self._k = kernels
+        self._k = self.kernels = kernels
         self._fk_one = jit.single("fk_one")
         self._chain = core._kin._CF  # the nominal EE's chain, as core._kin.fk uses it
         self._fk = np.zeros((2, 4, 4))
@@ -54,15 +54,23 @@ class TickKernels:
         motion's first command."""
         from panda_py.sim.wire import CommandWire  # (wire imports the robot, which imports us)
 
+        k = self._k
         z = np.zeros(7)
+        signal = [np.zeros(7) for _ in range(4)]
         seen = set()
         for version in fci.SUPPORTED_VERSIONS:
-            tau = CommandWire(fci.dialect(version)).command.tau_J_d
-            kind = (tau.flags.aligned, tau.flags.c_contiguous)
-            if kind not in seen:
-                seen.add(kind)
-                self._k.torque_in_limits(tau, z, z, z)
-        self._k.measured_in_limits(z, z, z, z, z)
+            c = CommandWire(fci.dialect(version)).command
+            for x in (c.tau_J_d, c.q_c, c.dq_c):
+                kind = (x.flags.aligned, x.flags.c_contiguous)
+                if kind not in seen:
+                    seen.add(kind)
+                    k.torque_in_limits(x, z, z, z)
+                    k.all_finite(x)
+                    k.joint_push(*signal, x, k.PUSH_POSITION, DT)
+        k.measured_in_limits(z, z, z, z, z)
+        k.all_finite(z)
+        k.joint_push(*signal, z, k.PUSH_POSITION, DT)  # (the robot's own IK, generator)
+        k.joint_limit_bits(*signal, np.zeros(35), z)
 
     def fill(self, core: StateAssembly) -> bool:
         """The per-tick state fields; False (nothing written) where the reference must
@@ -95,6 +103,9 @@ class TickKernels:
         self, tau: np.ndarray, tau_J_d: np.ndarray, tau_max: np.ndarray, dtau_step: np.ndarray
     ) -> bool:
         return bool(self._k.torque_in_limits(tau, tau_J_d, tau_max, dtau_step))
+
+    def all_finite(self, x: np.ndarray) -> bool:
+        return bool(self._k.all_finite(x))
 
     def measured_in_limits(
         self, q: np.ndarray, dq: np.ndarray, lo: np.ndarray, hi: np.ndarray, dq_hi: np.ndarray

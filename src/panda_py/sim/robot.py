@@ -123,7 +123,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.I_load = np.zeros((3, 3))
         self.F_x_Cload = np.zeros(3)
         self._fill_static()
-        self.joint = JointSignal()
+        self.joint = JointSignal(self._fast.kernels if self._fast is not None else None)
         self.joint.reset(q)
         self.cart = CartesianSignal()
         self.cart.reset(self.physics.flange_pose_at(q) @ self.F_T_EE)
@@ -371,6 +371,11 @@ class RobotCore(RobotSettings, StateAssembly):
             (q < self._q_lo).any() or (q > self._q_hi).any() or (np.abs(dq) > self._dq_hi).any()
         )
 
+    def _finite(self, x: np.ndarray) -> bool:
+        """No NaN and no infinity in the vector ``x``."""
+        fast = self._fast
+        return fast.all_finite(x) if fast is not None else all_finite(x)
+
     def _torque_in_limits(self, tau: np.ndarray) -> bool:
         """A torque command within the joints' range and rate limits (False for a NaN)."""
         fast = self._fast
@@ -418,9 +423,9 @@ class RobotCore(RobotSettings, StateAssembly):
         if mg == MotionGeneratorMode.NONE:  # a torque-only motion (v7+): tested below
             finite = True
         elif mg == MotionGeneratorMode.JOINT_POSITION:
-            finite = all_finite(c.q_c)
+            finite = self._finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
-            finite = all_finite(c.dq_c)
+            finite = self._finite(c.dq_c)
         elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
             finite = all_finite(c.O_T_EE_c, c.elbow_c)
         elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
