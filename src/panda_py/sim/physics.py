@@ -183,23 +183,24 @@ class Physics:
         """Third rows of the rotations of links 1..6 (6x3): base z in each link frame."""
         return self._xmat[self._links_1_6, 6:9]
 
-    def contact_torques(self) -> np.ndarray:
-        """Joint torques that contacts with the robot exert on the arm [Nm] (tau_ext)."""
+    def contact_torques(self) -> np.ndarray | None:
+        """Joint torques that contacts with the robot exert on the arm [Nm] (tau_ext);
+        None when nothing touches the robot (most ticks: no array to build or test)."""
         m, d = self.model, self.data
-        tau = np.zeros(7)
         if d.ncon == 0:
-            return tau
+            return None
         # Most ticks only the cube rests on the table: the same pairs as last tick need
         # no look; otherwise select robot contacts vectorised.
         geom = d.contact.geom
         pairs = geom.tobytes()
         if pairs == self._quiet_contacts:
-            return tau
+            return None
         on = self._robot_geom[geom]
         hits = np.flatnonzero(on[:, 0] != on[:, 1])
         if hits.size == 0:
             self._quiet_contacts = pairs
-            return tau
+            return None
+        tau = np.zeros(7)
         f6 = np.zeros(6)
         sl = slice(self.v0, self.v0 + 7)
         for i in hits.tolist():

@@ -123,7 +123,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.I_load = np.zeros((3, 3))
         self.F_x_Cload = np.zeros(3)
         self._fill_static()
-        self.joint = JointSignal()
+        self.joint = JointSignal(self._fast.kernels if self._fast is not None else None)
         self.joint.reset(q)
         self.cart = CartesianSignal()
         self.cart.reset(self.physics.flange_pose_at(q) @ self.F_T_EE)
@@ -349,13 +349,7 @@ class RobotCore(RobotSettings, StateAssembly):
         if self.robot_mode != RobotMode.MOVE:
             return np.zeros(7)
         # Measured-state checks during motion.
-        q = ph.q
-        if (
-            (q < self._q_lo).any()
-            or (q > self._q_hi).any()
-            or (np.abs(ph.dq) > self._dq_hi).any()
-            or self.contact_active
-        ):
+        if self.contact_active or not self._measured_in_limits():
             flags = self._measured_violations()
             if flags:
                 self._reflex(flags)
@@ -366,6 +360,31 @@ class RobotCore(RobotSettings, StateAssembly):
         tau = ph.joint_tracking_torque(self.joint.q, self.joint.dq, self.joint.ddq, scale)
         self.tau_J_d[:] = tau
         return tau
+
+    def _measured_in_limits(self) -> bool:
+        """No joint beyond its position limits or its speed limit (with the robot's
+        tolerance); a NaN passes here and is caught by the flags' own tests."""
+        q, dq, fast = self.physics.q, self.physics.dq, self._fast
+        if fast is not None:
+            return fast.measured_in_limits(q, dq, self._q_lo, self._q_hi, self._dq_hi)
+        return not (
+            (q < self._q_lo).any() or (q > self._q_hi).any() or (np.abs(dq) > self._dq_hi).any()
+        )
+
+    def _finite(self, x: np.ndarray) -> bool:
+        """No NaN and no infinity in the vector ``x``."""
+        fast = self._fast
+        return fast.all_finite(x) if fast is not None else all_finite(x)
+
+    def _torque_in_limits(self, tau: np.ndarray) -> bool:
+        """A torque command within the joints' range and rate limits (False for a NaN)."""
+        fast = self._fast
+        if fast is not None:
+            return fast.torque_in_limits(tau, self.tau_J_d, self._tau_max, self._dtau_step)
+        return bool(
+            (np.abs(tau) <= self._tau_max).all()
+            and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
+        )
 
     def _measured_violations(self) -> list[str]:
         """Flags of the checks on the measured state (position, velocity, contact)."""
@@ -401,10 +420,12 @@ class RobotCore(RobotSettings, StateAssembly):
         """Apply one received command; returns a final status if the motion ended."""
         mg = self.mg_mode
         external = self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER
-        if mg == MotionGeneratorMode.JOINT_POSITION:
-            finite = all_finite(c.q_c)
+        if mg == MotionGeneratorMode.NONE:  # a torque-only motion (v7+): tested below
+            finite = True
+        elif mg == MotionGeneratorMode.JOINT_POSITION:
+            finite = self._finite(c.q_c)
         elif mg == MotionGeneratorMode.JOINT_VELOCITY:
-            finite = all_finite(c.dq_c)
+            finite = self._finite(c.dq_c)
         elif mg == MotionGeneratorMode.CARTESIAN_POSITION:
             finite = all_finite(c.O_T_EE_c, c.elbow_c)
         elif mg == MotionGeneratorMode.CARTESIAN_VELOCITY:
@@ -414,10 +435,7 @@ class RobotCore(RobotSettings, StateAssembly):
         # NaN fails every <= test: a torque command that is within its range and its
         # rate is finite, so one test each covers both on the common path.
         tau = c.tau_J_d
-        tau_ok = not external or (
-            (np.abs(tau) <= self._tau_max).all()
-            and (np.abs(tau - self.tau_J_d) <= self._dtau_step).all()
-        )
+        tau_ok = not external or self._torque_in_limits(tau)
         if not finite or (not tau_ok and not all_finite(tau)):
             log.warning("motion aborted: non-finite value in command %d", c.message_id)
             self._end_motion(MoveStatus.INPUT_ERROR_ABORTED)

@@ -9,6 +9,7 @@ raised, by name as in libfranka's ``Errors``.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -27,13 +28,15 @@ START_CARTESIAN_TOLERANCE = 1e-3
 
 
 class JointSignal:
-    """Backward-Euler derivatives of a commanded joint signal and its limit checks."""
+    """Backward-Euler derivatives of a commanded joint signal and its limit checks;
+    ``kernels``: the compiled ones (:mod:`._tick_jit`) to run instead of NumPy."""
 
-    def __init__(self) -> None:
+    def __init__(self, kernels: Any = None) -> None:
         self.q = np.zeros(7)
         self.dq = np.zeros(7)
         self.ddq = np.zeros(7)
         self.dddq = np.zeros(7)
+        self._k = kernels
 
     def reset(self, q: np.ndarray) -> None:
         self.q[:] = q
@@ -42,14 +45,24 @@ class JointSignal:
         self.dddq[:] = 0.0
 
     def push_position(self, q: np.ndarray) -> None:
+        if self._k is not None:
+            self._k.joint_push(self.q, self.dq, self.ddq, self.dddq, q, self._k.PUSH_POSITION, DT)
+            return
         dq = (q - self.q) / DT
         self._push(q, dq)
 
     def push_velocity(self, dq: np.ndarray) -> None:
+        if self._k is not None:
+            self._k.joint_push(self.q, self.dq, self.ddq, self.dddq, dq, self._k.PUSH_VELOCITY, DT)
+            return
         self._push(self.q + dq * DT, dq)
 
     def extrapolate(self) -> None:
         """What the robot does with a lost motion command: keep the acceleration."""
+        if self._k is not None:
+            q = self.q
+            self._k.joint_push(q, self.dq, self.ddq, self.dddq, q, self._k.EXTRAPOLATE, DT)
+            return
         dq = self.dq + self.ddq * DT
         self._push(self.q + dq * DT, dq)
 
@@ -64,6 +77,12 @@ class JointSignal:
         """Flags for a joint motion generator (or, with ``cartesian``, for the joint
         solution of a Cartesian one)."""
         limits = _joint_limits(spec)
+        names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
+        if self._k is not None:
+            bits = self._k.joint_limit_bits(
+                self.q, self.dq, self.ddq, self.dddq, limits.upper, limits.lower
+            )
+            return [n for i, n in enumerate(names) if bits >> i & 1] if bits else []
         # one comparison for position, velocity, acceleration and jerk of all joints
         values = np.concatenate(
             (self.q, self.q, np.abs(self.dq), np.abs(self.ddq), np.abs(self.dddq))
@@ -72,7 +91,6 @@ class JointSignal:
         bad[:7] = self.q < limits.lower
         if not bad.any():
             return []
-        names = _CARTESIAN_JOINT_FLAGS if cartesian else _JOINT_FLAGS
         rows = np.any(bad.reshape(5, 7), axis=1)
         below, above, vel, acc, jerk = (bool(rows[i]) for i in range(5))
         return [n for n, hit in zip(names, (below or above, vel, acc, jerk), strict=True) if hit]

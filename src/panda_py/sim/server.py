@@ -159,7 +159,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     self._dispatch(key.data, mask)
                 for client in backlog:
                     self._handle_backlog(client)
-                self._answer_models()
+                if self._model_requests:
+                    self._answer_models()
                 now = time.monotonic()
                 if waiting:
                     conn = self.robot_conn
@@ -220,7 +221,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     self.stats.commands_excused += 1
                 else:
                     self.stats.commands_lost += 1
-        self._follow_desk()
+        if self.desk is not None:
+            self._follow_desk()
         conn = self.robot_conn  # the Desk may have closed it
         if self.gripper is not None:
             self.gripper.tick()
@@ -241,8 +243,10 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             self._send_state(conn)
         elif self.core.pending_final is not None:
             self.core.pending_final = None
-        self._flush_gripper()
-        self._flush_vacuum()
+        if self.gripper is not None:
+            self._flush_gripper()
+        else:
+            self._flush_vacuum()
 
     def _dispatch(self, data: tuple[str, Any], mask: int = selectors.EVENT_READ) -> None:
         kind, conn = data

@@ -12,12 +12,16 @@ import numpy as np
 from panda_py import fci
 from panda_py.fci import ControllerMode, MotionGeneratorMode, RobotMode
 from panda_py.robots.params import GRAVITY, RobotSpec
+from panda_py.sim import fastpath
+from panda_py.sim.fastpath import TickKernels
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import CartesianSignal, JointSignal
 from panda_py.sim.settings import CollisionThresholds
 
 # First-order filter constant of tau_ext_hat_filtered (about 16 Hz at 1 kHz).
 _EXT_FILTER = 0.1
+_NO_TORQUE = np.zeros(7)  # tau_ext of no contact (read only)
+_NO_TORQUE.flags.writeable = False
 
 _JOINT_GENERATORS = (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY)
 _CARTESIAN_GENERATORS = (
@@ -70,6 +74,7 @@ class StateAssembly:
     def _new_state(self) -> None:
         """The state: named float64 views into one buffer laid out in the wire's field
         order (see :mod:`panda_py.sim.wire`), so a connection copies it in a few blocks."""
+        self._fast: TickKernels | None = None
         total = sum(_STATE_SIZES.values())
         self.state_buffer = np.zeros(total)
         self.state_offsets: dict[str, tuple[int, int]] = {}
@@ -86,6 +91,7 @@ class StateAssembly:
             for name in ("O_T_EE", "O_T_EE_d", "F_T_EE", "EE_T_K", "F_T_NE", "NE_T_EE",
                          "O_T_EE_c")
         }  # fmt: skip
+        self._fast = fastpath.load(self)
 
     def _fill_static(self) -> None:
         """The state fields only setters change (end effector, load, gravity)."""
@@ -110,7 +116,14 @@ class StateAssembly:
         return 1.0 if q4 > self.spec.elbow_flip_q else -1.0
 
     def _fill_state(self) -> None:
-        """The per-tick fields (the static ones are written by :meth:`_fill_static`)."""
+        """The per-tick fields (the static ones are written by :meth:`_fill_static`): the
+        compiled kernel where the kinematics run compiled, else the NumPy reference."""
+        fast = self._fast
+        if fast is None or not fast.fill(self):
+            self._fill_state_reference()
+
+    def _fill_state_reference(self) -> None:
+        """:meth:`_fill_state` in NumPy: the reference the compiled kernel equals."""
         ph, s, Tv = self.physics, self.state, self._T_view
         q, dq = ph.q, ph.dq
         mg = self.mg_mode
@@ -178,10 +191,11 @@ class StateAssembly:
     def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
         s, t = self.state, self.thresholds
         raw = self.physics.contact_torques()
-        if not self.contact_active and not raw.any():
+        touching = raw is not None and bool(raw.any())
+        if not self.contact_active and not touching:
             return  # no contact now or lately: the zeros written last time stand
-        self.tau_ext += _EXT_FILTER * (raw - self.tau_ext)
-        if not raw.any() and np.abs(self.tau_ext).max() < 1e-9:
+        self.tau_ext += _EXT_FILTER * ((_NO_TORQUE if raw is None else raw) - self.tau_ext)
+        if not touching and np.abs(self.tau_ext).max() < 1e-9:
             self.tau_ext[:] = 0.0
             self.contact_active = False
             for name in CONTACT_FIELDS:

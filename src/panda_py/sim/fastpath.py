@@ -1,0 +1,126 @@
+"""The compiled per-tick path of one simulated robot: its state fill, its command checks
+and its commanded joint signal on numba kernels (:mod:`._tick_jit`), on buffers allocated once.
+
+Used where the kinematics run compiled (numba installed, ``PANDA_PY_NO_JIT`` unset;
+``panda_py.kinematics``' choice, so the two never disagree); otherwise, and for the rare
+cases the kernels leave out (a NE_T_EE other than the identity, non-finite joints), the
+robot runs its NumPy reference, which the kernels equal value for value.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from panda_py import fci
+from panda_py.fci import MotionGeneratorMode
+from panda_py.kinematics import _backend
+from panda_py.robots.params import GRAVITY
+from panda_py.sim.physics import DT
+
+if TYPE_CHECKING:
+    from panda_py.sim.state import StateAssembly
+
+
+class TickKernels:
+    """The compiled kernels bound to one robot's state buffer and model."""
+
+    def __init__(self, jit: Any, kernels: Any, core: StateAssembly) -> None:
+        self._k = self.kernels = kernels
+        self._fk_one = jit.single("fk_one")
+        self._chain = core._kin._CF  # the nominal EE's chain, as core._kin.fk uses it
+        self._fk = np.zeros((2, 4, 4))
+        self._off = np.array([core.state_offsets[n][0] for n in kernels.FIELDS], dtype=np.int64)
+        ph = core.physics
+        links = ph._links_1_6
+        if isinstance(links, slice):
+            links = np.arange(links.start, links.stop)
+        self._links = np.asarray(links, dtype=np.int64)
+        self._const = np.array([core.spec.elbow_flip_q, 1.0 / DT, -GRAVITY[2]])
+        cart = (MotionGeneratorMode.CARTESIAN_POSITION, MotionGeneratorMode.CARTESIAN_VELOCITY)
+        joint = (MotionGeneratorMode.JOINT_POSITION, MotionGeneratorMode.JOINT_VELOCITY)
+        self._flags = {
+            mg: (kernels.MOVING_CARTESIAN if mg in cart else 0)
+            | (kernels.MOVING_JOINT if mg in joint else 0)
+            for mg in MotionGeneratorMode
+        }
+        self._cartesian = frozenset(cart)
+        self._warm()
+
+    def _warm(self) -> None:
+        """Compile (or load from the cache) the checks for the views they get in the loop
+        (each dialect's command buffer, read-only and possibly unaligned), now, not at a
+        motion's first command."""
+        from panda_py.sim.wire import CommandWire  # (wire imports the robot, which imports us)
+
+        k = self._k
+        z = np.zeros(7)
+        signal = [np.zeros(7) for _ in range(4)]
+        seen = set()
+        for version in fci.SUPPORTED_VERSIONS:
+            c = CommandWire(fci.dialect(version)).command
+            for x in (c.tau_J_d, c.q_c, c.dq_c):
+                kind = (x.flags.aligned, x.flags.c_contiguous)
+                if kind not in seen:
+                    seen.add(kind)
+                    k.torque_in_limits(x, z, z, z)
+                    k.all_finite(x)
+                    k.joint_push(*signal, x, k.PUSH_POSITION, DT)
+        k.measured_in_limits(z, z, z, z, z)
+        k.all_finite(z)
+        k.joint_push(*signal, z, k.PUSH_POSITION, DT)  # (the robot's own IK, generator)
+        k.joint_limit_bits(*signal, np.zeros(35), z)
+
+    def fill(self, core: StateAssembly) -> bool:
+        """The per-tick state fields; False (nothing written) where the reference must
+        do it: a NE_T_EE other than the identity, joints that are not finite."""
+        if not core._NE_identity:
+            return False
+        ph, fk = core.physics, self._fk
+        q = ph._qpos_arm
+        if not self._fk_one(q, self._chain, fk[0]):
+            return False
+        mg = core.mg_mode
+        joint = core.joint
+        if mg not in self._cartesian and not self._fk_one(joint.q, self._chain, fk[1]):
+            return False
+        flags = self._flags[mg]
+        if core._filled_mode != mg:
+            flags |= self._k.MODE_CHANGED
+            core._filled_mode = mg
+        cart = core.cart
+        self._k.fill_state(
+            core.state_buffer, self._off, q, ph._qvel_arm, ph.tau_applied, ph._gravcomp_arm,
+            core.tau_ext, core.tau_J_d, joint.q, joint.dq, joint.ddq, core.q_hold, cart.T,
+            cart.v, cart.a, core.elbow_c, core.delbow_c, core.ddelbow_c, fk, ph._xmat,
+            self._links, self._const, flags,
+        )  # fmt: skip
+        core._fill_contacts(core._T_view["O_T_EE"])
+        return True
+
+    def torque_in_limits(
+        self, tau: np.ndarray, tau_J_d: np.ndarray, tau_max: np.ndarray, dtau_step: np.ndarray
+    ) -> bool:
+        return bool(self._k.torque_in_limits(tau, tau_J_d, tau_max, dtau_step))
+
+    def all_finite(self, x: np.ndarray) -> bool:
+        return bool(self._k.all_finite(x))
+
+    def measured_in_limits(
+        self, q: np.ndarray, dq: np.ndarray, lo: np.ndarray, hi: np.ndarray, dq_hi: np.ndarray
+    ) -> bool:
+        return bool(self._k.measured_in_limits(q, dq, lo, hi, dq_hi))
+
+
+def load(core: StateAssembly) -> TickKernels | None:
+    """The compiled path for ``core``, or None where the kinematics run plain Python."""
+    jit = _backend.jit()
+    if jit is None:
+        return None
+    from panda_py.sim import _tick_jit
+
+    return TickKernels(jit, _tick_jit, core)
+
+
+__all__ = ["TickKernels", "load"]
