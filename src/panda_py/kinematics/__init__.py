@@ -52,6 +52,7 @@ __all__ = [
     "IKStatus",
     "Kinematics",
     "body_jacobian",
+    "compiled_kernels",
     "fk",
     "fk_frames",
     "get_kinematics",
@@ -62,6 +63,14 @@ __all__ = [
     "warmup",
     "zero_jacobian",
 ]
+
+
+def compiled_kernels() -> Any:
+    """The compiled kinematics kernels (numba), loaded from their cache on first use, or
+    None where the kinematics run as plain Python (numba missing, ``PANDA_PY_NO_JIT=1``):
+    for a loop that calls them on buffers of its own (the simulator's tick)."""
+    return _backend.jit()
+
 
 _DEFAULT = Kinematics("fer")
 _CACHE: dict[tuple[str, bytes | None], Kinematics] = {("fer", None): _DEFAULT}

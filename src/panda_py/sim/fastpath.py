@@ -13,9 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from panda_py import fci
+from panda_py import fci, kinematics
 from panda_py.fci import MotionGeneratorMode
-from panda_py.kinematics import _backend
 from panda_py.robots.params import GRAVITY
 from panda_py.sim.physics import DT
 
@@ -115,7 +114,7 @@ class TickKernels:
 
 def load(core: StateAssembly) -> TickKernels | None:
     """The compiled path for ``core``, or None where the kinematics run plain Python."""
-    jit = _backend.jit()
+    jit = kinematics.compiled_kernels()
     if jit is None:
         return None
     from panda_py.sim import _tick_jit
