@@ -41,6 +41,7 @@ class ControlModel(Model):
         self._grav: tuple[Any, FloatArray] | None = None
         self._mass: tuple[Any, FloatArray] | None = None
         self._arm_key: bytes | None = None
+        self._arm_state: Any = None
         self._arm_cached: dynamics.LoadedArm | None = None
         self._rotors = np.diag(self.spec.drives.armature)
         self._coulomb = np.array(self.spec.drives.coulomb)
@@ -67,6 +68,8 @@ class ControlModel(Model):
         """The arm with the state's total load, prepared once per load: keyed on the raw
         end-effector and payload fields, combined (``combine_load``) only when they
         change."""
+        if state is self._arm_state:  # Coriolis, gravity and the mass matrix of one tick
+            return self._arm_cached  # type: ignore[return-value]
         key = state.raw_fields(LOAD_FIELDS)
         if key != self._arm_key:
             m, c, inertia = combine_load(state.m_ee, state.F_x_Cee, state.I_ee, state.m_load,
@@ -74,6 +77,7 @@ class ControlModel(Model):
             self._arm_cached = dynamics.LoadedArm(self.spec, m_load=m, F_x_Cload=c, I_load=inertia)
             self._arm_key = key
         assert self._arm_cached is not None
+        self._arm_state = state
         return self._arm_cached
 
     def coriolis_of(self, state: Any) -> FloatArray:
