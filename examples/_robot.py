@@ -50,6 +50,43 @@ def robot_host(
         yield sim.host, args
 
 
+@contextlib.contextmanager
+def robot_hosts(
+    description: str | None,
+    count: int,
+    argv: Sequence[str] | None = None,
+    options: Callable[[argparse.ArgumentParser], None] | None = None,
+) -> Iterator[tuple[list[str], argparse.Namespace]]:
+    """:func:`robot_host` for ``count`` robots: ``--host A --host B`` (one per robot), or
+    that many simulated robots started here (each its own simulator, as each real arm
+    is its own robot)."""
+    parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
+    parser.add_argument(
+        "--host", action="append", default=[], help=f"a robot's FCI address, {count} times"
+    )
+    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robots")
+    parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
+    if options is not None:
+        options(parser)
+    args = parser.parse_args(argv)
+    if args.host:
+        if len(args.host) != count:
+            parser.error(f"--host: expected {count} robot addresses, got {len(args.host)}")
+        yield list(args.host), args
+        return
+    from panda_py.sim import Simulator, free_loopback_host
+
+    with contextlib.ExitStack() as stack:
+        hosts = []
+        for _ in range(count):
+            sim = stack.enter_context(
+                Simulator(free_loopback_host(), robot=args.robot, lockstep=not args.realtime)
+            )
+            hosts.append(sim.host)
+        print(f"({count} simulated {args.robot.upper()}s on {', '.join(hosts)})")
+        yield hosts, args
+
+
 def connect(hostname: str) -> panda_py.Panda:
     """``panda_py.Panda(hostname)``, or exit with a clear message if no robot answers."""
     try:

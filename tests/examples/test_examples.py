@@ -153,3 +153,13 @@ def test_no_robot_at_host_is_a_clear_error(tmp_path: Path) -> None:
                           env=env, capture_output=True, text=True, timeout=60)  # fmt: skip
     assert done.returncode != 0
     assert "No robot answers at 127.0.0.1" in done.stderr
+
+
+def test_13_two_arms_move_together_and_mirror(tmp_path: Path) -> None:
+    out = run_example("13", "--runtime", "3.2", cwd=tmp_path)
+    assert "both at the start pose: True" in out
+    assert number(r"(\d+) ticks", out) >= 3000
+    left = number(r"left y -?[\d.]+ to ([\d.]+) cm", out)
+    right = number(r"right y -?[\d.]+ to ([\d.]+) cm", out)
+    assert 3.5 < left < 6.0 and 3.5 < right < 6.0  # the 5 cm sines, both arms
+    assert number(r"mirror error at most ([\d.]+) mm", out) < 15.0
