@@ -117,3 +117,62 @@ def test_finalize_refuses_a_non_finite_torque_even_one_it_could_saturate(
     tau[3] = bad
     z = np.zeros(7)
     assert not walls.finalize(tau, z, z, z, np.full(7, 87.0), np.empty(7))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
+    seed: int, monkeypatch
+) -> None:
+    """PoseMove.step with the compiled feed-forward (M J^+ (a - dJ dq) + friction along
+    J^+ v) gives the NumPy branch's torques, tick after tick (dJ from the previous tick)."""
+    from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.moves import PoseMove, PosePlan
+
+    rng = np.random.default_rng(seed)
+    model = ControlModel("fr3")
+    n = 30
+    q0 = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.6, 0.8])
+    T0 = KIN.fk(q0).reshape(16, order="F")
+    p = T0[12:15] + rng.normal(scale=0.01, size=(n, 3))
+    quat = np.tile(laws.quat_from_matrix(T0), (n, 1))
+    twist, accel = rng.normal(scale=0.1, size=(n, 6)), rng.normal(scale=1.0, size=(n, 6))
+    plan = PosePlan(p, quat, twist, accel, q0, np.diag([800.0] * 3 + [40.0] * 3), 1.0, 15.0,
+                    1e-3, 2e-2, 0.1)  # fmt: skip
+    states = []
+    for _ in range(n):
+        q = q0 + rng.normal(scale=0.01, size=7)
+        s = types.SimpleNamespace(q=q, dq=rng.normal(scale=0.2, size=7),
+                                  O_T_EE=KIN.fk(q).reshape(16, order="F").copy(),
+                                  F_T_EE=np.eye(4).reshape(16), m_ee=0.0)  # fmt: skip
+        states.append(s)
+
+    class Model:  # the model terms the move reads, on namespaces for states
+        coulomb = model.coulomb
+
+        def ee_jacobian(self, s):  # type: ignore[no-untyped-def]
+            return KIN.zero_jacobian(s.q)
+
+        def driven_mass_of(self, s):  # type: ignore[no-untyped-def]
+            return np.eye(7) * 0.5 + 0.01
+
+        def friction_for(self, v):  # type: ignore[no-untyped-def]
+            return model.friction_for(v)
+
+        def coriolis_of(self, s):  # type: ignore[no-untyped-def]
+            return np.zeros(7)
+
+    def run(compiled: bool) -> list[np.ndarray]:
+        if not compiled:
+            monkeypatch.setattr(laws, "_KERNELS", None)
+        else:
+            monkeypatch.undo()
+        law, out = PoseMove(plan), []
+        for k, s in enumerate(states):
+            law.tick(0.0 if k == 0 else 1e-3)
+            out.append(np.array(law.step(s, Model())))
+        return out
+
+    fast, slow = run(True), run(False)
+    assert laws.compiled() is None  # the second run was the NumPy branch
+    for a, b in zip(fast, slow, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)

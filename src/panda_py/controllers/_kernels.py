@@ -14,7 +14,12 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["cartesian_impedance_torque", "finalize_torques", "impedance_torque"]
+__all__ = [
+    "cartesian_impedance_torque",
+    "finalize_torques",
+    "impedance_torque",
+    "pose_feedforward",
+]
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
 
@@ -199,3 +204,27 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
             finite = False
     flags[7] = 1
     return finite
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def pose_feedforward(J, J_prev, dq, dt, a_d, v_d, J_pinv, M, coulomb, friction_speed, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """A Cartesian move's feed-forward, added to ``tau`` (the reference: PoseMove.step's
+    NumPy branch): ``M J^+ (a_d - dJ dq)``, with ``dJ = (J - J_prev) / dt`` (left out when
+    ``dt`` is 0), plus the drives' dry friction along the planned joint velocity,
+    ``coulomb tanh(J^+ v_d / friction_speed)``."""
+    a = np.empty(6)
+    for r in range(6):
+        s = a_d[r]
+        if dt > 0.0:
+            d = 0.0
+            for c in range(7):
+                d += (J[r, c] - J_prev[r, c]) * dq[c]
+            s -= d / dt
+        a[r] = s
+    ddq = J_pinv @ a
+    dq_d = J_pinv @ v_d
+    for i in range(7):
+        f = 0.0
+        for c in range(7):
+            f += M[i, c] * ddq[c]
+        tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)

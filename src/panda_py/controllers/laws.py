@@ -75,7 +75,7 @@ def warmup() -> None:
         z7, K = np.zeros(7), np.eye(6)
         T = np.eye(4).reshape(16)
         z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        with progress.work("panda_py: compiling the control laws, once after installing", 3) as w:
+        with progress.work("panda_py: compiling the control laws, once after installing", 4) as w:
             k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
             w.advance()
             # move_to_pose's tracker (controllers.moves.PoseMove)
@@ -84,6 +84,9 @@ def warmup() -> None:
             w.advance()
             JointWalls(np.full(7, -1.0), np.full(7, 1.0)).finalize(z7, z7, z7, z7, z7 + 1.0,
                                                                    np.empty(7))  # fmt: skip
+            w.advance()
+            k.pose_feedforward(J, J, z7, 1e-3, np.zeros(6), np.zeros(6), np.zeros((7, 6)),
+                               np.eye(7), z7, 0.01, np.zeros(7))  # fmt: skip
             w.advance()
 
 

@@ -105,6 +105,11 @@ class ControlModel(Model):
         inertial feed-forward needs both."""
         return self.mass_of(state) + self._rotors
 
+    @property
+    def coulomb(self) -> FloatArray:
+        """The drives' dry friction the moves compensate (7,) [Nm] (``friction_for``)."""
+        return self._coulomb
+
     def friction_for(self, dq_planned: FloatArray) -> FloatArray:
         """The torque [Nm] that cancels the drives' dry friction (``JointDrives.coulomb``,
         what is left of it under torque commands on a robot) for joints moving at the

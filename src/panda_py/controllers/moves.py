@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from panda_py.controllers import laws
 from panda_py.controllers.law import ControlLaw
+from panda_py.controllers.model import FRICTION_SPEED
 from panda_py.fci import PERIOD
 
 __all__ = ["JointMove", "JointPlan", "MoveResult", "PoseMove", "PosePlan", "tracker_for"]
@@ -188,11 +189,19 @@ class PoseMove(ControlLaw):
             tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
             tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
             J_pinv = laws.damped_pinv(J)
-        a = self.a[k]
-        if self._J_prev is not None and self.dt > 0.0:
-            a = a - ((J - self._J_prev) @ dq) / self.dt
+        if kernels is not None:
+            J_prev = J if self._J_prev is None else self._J_prev
+            kernels.pose_feedforward(J, J_prev, dq, self.dt, self.a[k], self.v[k], J_pinv,
+                                     model.driven_mass_of(state), model.coulomb,
+                                     FRICTION_SPEED, tau)  # fmt: skip
+        else:
+            a = self.a[k]
+            if self._J_prev is not None and self.dt > 0.0:
+                a = a - ((J - self._J_prev) @ dq) / self.dt
+            tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(
+                J_pinv @ self.v[k]
+            )
         self._J_prev = J
-        tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(J_pinv @ self.v[k])
         if self.t > self.duration:  # remove what friction and model errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
