@@ -189,7 +189,12 @@ def matrix6(name: str, value: Any, unit: str = "") -> list[float]:
 def rigid_errors(T: Any) -> NDArray[np.float64]:
     """The largest deviation [-] of each 4x4 of ``T`` ((4, 4) or (N, 4, 4), finite) from a
     rigid transform (see :data:`RIGID_TOL`): one value, or one per matrix."""
-    a = np.asarray(T, dtype=np.float64)
+    try:
+        a = np.asarray(T, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"T: expected 4x4 transforms, got {T!r}") from exc
+    if a.shape[-2:] != (4, 4) or a.ndim not in (2, 3):
+        raise ValueError(f"T: expected shape (4, 4) or (N, 4, 4), got shape {a.shape}")
     m = a.reshape(-1, 4, 4)
     x, y, z = m[:, :3, 0], m[:, :3, 1], m[:, :3, 2]
     err = np.stack(

@@ -293,3 +293,44 @@ def test_read_once_after_a_setter_shows_the_new_value(sim_for_version, version):
             EE_T_K[2, 3] = k
             robot.set_k(EE_T_K)
             assert robot.read_once().EE_T_K[14] == pytest.approx(k, abs=1e-7)
+
+
+def test_the_owning_loop_api_takes_raw_states_and_refuses_bad_input(sim_for_version) -> None:
+    """Robot.fileno / receive_raw_state / decode_state (what Panda's control process
+    waits on), RobotState.raw_fields, and start_torque_control's state_type."""
+    import select
+
+    from panda_py.libfranka.state import TickState
+
+    sim = sim_for_version(10)
+    with lf.Robot(sim.host) as robot:
+        assert select.select([robot.fileno()], [], [], 1.0)[0]  # states arrive there
+        data = robot.receive_raw_state()
+        assert len(data) >= robot.state_dtype.itemsize
+        state = robot.decode_state(data, TickState)
+        assert isinstance(state, TickState) and state.raw == data
+        assert state.q is state.q and not state.q.flags.writeable  # decoded once, read-only
+        np.testing.assert_array_equal(robot.decode_state(data).q, state.q)
+        both = state.raw_fields(("m_ee", "m_load"))
+        assert both == state.raw_fields(("m_ee",)) + state.raw_fields(("m_load",))
+        with pytest.raises(ValueError, match=r"data: expected a RobotState v10 of \d+ bytes"):
+            robot.decode_state(data[:100])
+        with pytest.raises(ValueError, match="data: expected a raw state"):
+            robot.decode_state([1, 2, 3])  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="state_type: expected RobotState"):
+            robot.decode_state(data, dict)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="state_type: expected RobotState"):
+            robot.start_torque_control(state_type=int)  # type: ignore[arg-type]
+        with pytest.raises(ValueError, match="names: expected a tuple of the state's field"):
+            state.raw_fields(("q", "no_such_field"))
+
+
+def test_rigid_errors_refuses_what_is_not_a_transform() -> None:
+    from panda_py import checks
+
+    assert float(checks.rigid_errors(np.eye(4))) == 0.0
+    assert checks.rigid_errors(np.stack([np.eye(4)] * 3)).shape == (3,)
+    with pytest.raises(ValueError, match=r"T: expected shape \(4, 4\) or \(N, 4, 4\)"):
+        checks.rigid_errors(np.eye(3))
+    with pytest.raises(ValueError, match="T: expected 4x4 transforms"):
+        checks.rigid_errors("eye")

@@ -238,7 +238,17 @@ class Robot(NamedControlMixin):
     def decode_state(self, data: bytes, state_type: type[RobotState] = RobotState) -> RobotState:
         """A raw state of this robot (:meth:`receive_raw_state`, ``RobotState.raw``) as a
         :class:`RobotState` (or ``state_type``, a subclass such as ``TickState``)."""
-        return state_type(self._conn.dialect, data)
+        if not (isinstance(state_type, type) and issubclass(state_type, RobotState)):
+            raise ValueError(f"state_type: expected RobotState or a subclass, got {state_type!r}")
+        dialect = self._conn.dialect
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise ValueError(f"data: expected a raw state (bytes), got {type(data).__name__}")
+        if len(data) < dialect.state_size:
+            raise ValueError(
+                f"data: expected a RobotState v{dialect.version} of {dialect.state_size} bytes, "
+                f"got {len(data)} bytes"
+            )
+        return state_type(dialect, bytes(data))
 
     # --- commands -------------------------------------------------------------------------
 

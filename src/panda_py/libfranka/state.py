@@ -135,6 +135,12 @@ class RobotState:
         spans = _SPANS.get((self._layout.version, names))
         if spans is None:
             fields = self._layout.fields
+            unknown = [n for n in names if n not in fields]
+            if unknown or not isinstance(names, tuple):
+                raise ValueError(
+                    f"names: expected a tuple of the state's field names (e.g. ('q', 'dq')), "
+                    f"got {names!r}"
+                )
             spans = tuple(
                 (fields[n].offset, fields[n].offset + fields[n].count * fields[n].dtype.itemsize)
                 for n in names
