@@ -111,3 +111,16 @@ def test_replies_and_events_pickle() -> None:
                 rq.LoopError(InvalidOperationException("y"))):  # fmt: skip
         back = pickle.loads(pickle.dumps(msg))
         assert type(back) is type(msg)
+
+
+def test_peer_closed_sees_the_close_without_reading_or_waiting() -> None:
+    mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    user, loop = Channel(mine), Channel(theirs)
+    assert not loop.peer_closed()  # open, nothing sent: no wait
+    user.send(rq.Call(1, rq.Stop()))
+    assert not loop.peer_closed()  # a message waits: not closed, and still there
+    msg, _ = loop.recv()
+    assert isinstance(msg, rq.Call) and msg.rid == 1
+    user.close()
+    assert loop.peer_closed()
+    loop.close()

@@ -85,3 +85,13 @@ class Channel:
     def poll(self, timeout: float = 0.0) -> bool:
         """True if a message (or the close) is waiting."""
         return bool(select.select([self.sock], [], [], timeout)[0])
+
+    def peer_closed(self) -> bool:
+        """True if the other end closed the channel (and nothing is left to read); never
+        waits, and reads nothing."""
+        try:
+            return self.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
+        except (BlockingIOError, InterruptedError):
+            return False
+        except OSError:
+            return True

@@ -394,16 +394,16 @@ class ControlServer:
                 law.published()
                 if finished:
                     break
-                # a request waits when the user's process counted one more than were
-                # taken (one shared-memory read a tick, not a system call)
-                if header[HEADER.REQUESTS] != self.requests_taken:
+                # a request waits when the user's process counted more than were taken
+                # (one shared-memory read a tick, not a system call); it counts after
+                # its send, so the message is whole when the count says so
+                if header[HEADER.REQUESTS] > self.requests_taken:
                     self._receive(running=True)
                 ticks += 1
-                if ticks % PARENT_CHECK_TICKS == 0:
-                    if self._parent_gone():
-                        self.closing = self.stopping = True
-                    elif chan.poll(0.0) and header[HEADER.REQUESTS] == self.requests_taken:
-                        self._receive(running=True)  # the channel closed: nothing counted
+                if ticks % PARENT_CHECK_TICKS == 0 and (
+                    self._parent_gone() or chan.peer_closed()  # the user's side is gone
+                ):
+                    self.closing = self.stopping = True
         except BaseException as exc:
             active.cancel()
             error = _transferable(exc, law.name)
