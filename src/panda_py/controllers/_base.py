@@ -243,7 +243,8 @@ class TorqueController(ControlLaw):
     def step(self, state: Any, model: Any) -> Any:
         """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot);
         runs at 1 kHz in the control process. Inside it, ``self.t`` is the controller's
-        time and ``self.dt`` the time since the previous tick [s]."""
+        time and ``self.dt`` the time since the previous tick [s]; the state's arrays are
+        this tick's, decoded once and read-only (copy one to change it)."""
         raise NotImplementedError(f"{type(self).__name__} must implement step(state, model)")
 
     def signal(self, name: str) -> FloatArray:
