@@ -15,6 +15,18 @@ from collections.abc import Callable, Iterator, Sequence
 import panda_py
 
 
+def _parser(
+    description: str | None, options: Callable[[argparse.ArgumentParser], None] | None
+) -> argparse.ArgumentParser:
+    """The options every example shares (the simulated robot's), then the example's own."""
+    parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
+    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
+    parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
+    if options is not None:
+        options(parser)
+    return parser
+
+
 @contextlib.contextmanager
 def robot_host(
     description: str | None,
@@ -27,12 +39,8 @@ def robot_host(
     otherwise the address of a simulator started here (``--robot``, ``--realtime``).
     ``desk``: the simulator also serves its Desk, locked as after power-up, and
     ``args.desk_host`` is its address (a real robot's Desk is at ``--host``)."""
-    parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
+    parser = _parser(description, options)
     parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
-    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
-    parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
-    if options is not None:
-        options(parser)
     args = parser.parse_args(argv)
     if args.host:
         args.desk_host = args.host
@@ -60,14 +68,10 @@ def robot_hosts(
     """:func:`robot_host` for ``count`` robots: ``--host A --host B`` (one per robot), or
     that many simulated robots started here (each its own simulator, as each real arm
     is its own robot)."""
-    parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
+    parser = _parser(description, options)
     parser.add_argument(
         "--host", action="append", default=[], help=f"a robot's FCI address, {count} times"
     )
-    parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robots")
-    parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
-    if options is not None:
-        options(parser)
     args = parser.parse_args(argv)
     if args.host:
         if len(args.host) != count:

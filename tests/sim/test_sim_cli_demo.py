@@ -5,9 +5,9 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
+from cli_support import connect_when_serving
 
 from panda_py import fci
 from panda_py.sim import free_loopback_host
@@ -20,15 +20,7 @@ def test_panda_sim_cli_serves_until_interrupted():
     cmd = [sys.executable, "-m", "panda_py.sim.cli", "--host", host, "--lockstep", "--version", "5"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                client = RawClient(host, 5)
-                break
-            except OSError:
-                if time.monotonic() > deadline or proc.poll() is not None:
-                    raise
-                time.sleep(0.1)
+        client = connect_when_serving(proc, host, 5)
         assert client.status == fci.ConnectStatus.SUCCESS
         assert client.state()["robot_mode"] == fci.RobotMode.IDLE
         client.close()

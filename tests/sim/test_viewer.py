@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import connect_when_serving
 
 from panda_py.robots import START_POSE
 from panda_py.sim import Simulator, SimulatorError, free_loopback_host
@@ -109,15 +110,7 @@ def test_panda_sim_record_finishes_the_video_when_stopped(
     # A session of its own: Ctrl-C in a terminal signals the whole process group.
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 30
-        while True:
-            try:
-                client = RawClient(host, 5)
-                break
-            except OSError:
-                if time.monotonic() > deadline or proc.poll() is not None:
-                    raise
-                time.sleep(0.1)
+        client = connect_when_serving(proc, host, 5)
         start = int(client.state()["message_id"])  # one per tick; idle ticks run on the clock
         client.wait_state(lambda s: s["message_id"] > start + 250)
         client.close()
