@@ -117,16 +117,29 @@ def test_block6_cartesian_impedance(panda: panda_py.Panda) -> None:
     assert ctx.num_ticks > 1000
     y = np.array(log["O_T_EE"])[:, 13]
     assert y.max() - x0[1] > 0.07 and x0[1] - y.min() > 0.07  # swings +-0.1 m
-    # The arm follows the commanded sine: after the first second, the logged y fits
+    # The arm traces the sine: after the first second, the logged y fits
     # y0 + b sin(t) + c cos(t) (the robot's time t; the phase absorbs how far behind the
-    # user's loop runs) with an amplitude near 0.1 m and little left over.
+    # user's loop runs) with an amplitude near 0.1 m.
     t = (np.array(log["time"])[:, 0] - log["time"][0][0]) * 1e-3
     late = t > 1.0
     A = np.column_stack([np.ones(late.sum()), np.sin(t[late]), np.cos(t[late])])
     coef, *_ = np.linalg.lstsq(A, y[late], rcond=None)
     amplitude = float(np.hypot(coef[1], coef[2]))
-    residual = float(np.sqrt(np.mean((A @ coef - y[late]) ** 2)))
     assert 0.07 < amplitude < 0.13
+    # And it follows what was commanded, with little left over: y against the targets the
+    # loop sent (by the controller's time), at the one offset that best aligns the two
+    # clocks (where the controller's start falls before the log's ring, plus the tracking
+    # lag; searched over a period of the sine and a margin, coarse then fine). Compared
+    # with the commands, not with the ideal sine: a user loop the machine stalls holds its
+    # target while the lockstep robot runs on, and the arm rightly holds too.
+    tc = np.array([a for a, _ in targets])
+    yc = np.array([b for _, b in targets])
+
+    def rms(off: float) -> float:
+        return float(np.sqrt(np.mean((y[late] - np.interp(t[late] - off, tc, yc)) ** 2)))
+
+    coarse = min(np.arange(-8.0, 8.0, 0.02), key=rms)
+    residual = min(rms(off) for off in np.arange(coarse - 0.02, coarse + 0.02, 0.001))
     assert residual < 0.02
     assert len(targets) == ctx.num_ticks - 1
 
