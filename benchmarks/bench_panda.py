@@ -29,6 +29,8 @@ import numpy as np
 
 import panda_py
 from panda_py import constants, controllers, libfranka
+from panda_py.motion.online import OnlineLimits
+from panda_py.robots.params import get_robot
 from panda_py.sim import Simulator, free_loopback_host
 
 sys.path.append(str(Path(__file__).resolve().parents[1] / "tests"))
@@ -284,10 +286,11 @@ def _law_costs(n: int) -> dict[str, list[float]]:
     p = np.tile(np.asarray(state.O_T_EE)[12:15], (k, 1))
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (k, 1))
     pose = PoseMove(PosePlan(p, quat, np.zeros((k, 6)), np.zeros((k, 6)), np.asarray(state.q),
-                             np.diag([600.0] * 3 + [30.0] * 3), 1.0, 10.0, 0.01, 0.01, 0.05))  # fmt: skip  # noqa: E501
+                             np.diag([600.0] * 3 + [30.0] * 3), 1.0, 10.0, 0.01, 0.01, 0.05,
+                             OnlineLimits.cartesian(get_robot('fer'), 1.0)))  # fmt: skip
     joint = JointMove(JointPlan(np.tile(np.asarray(state.q), (k, 1)), np.zeros((k, 7)),
                                 np.zeros((k, 7)), np.full(7, 600.0), np.full(7, 50.0), 0.01,
-                                0.01))  # fmt: skip
+                                0.01, OnlineLimits.joints(get_robot('fer'), 1.0)))  # fmt: skip
     pose.t = joint.t = 0.5
     pose.dt = joint.dt = 1e-3
     out = {}

@@ -21,6 +21,9 @@ _LAZY: dict[str, str] = {
     "Panda": "panda_py.panda",
     "PandaContext": "panda_py.panda",
     "realtime_priority_available": "panda_py.panda",
+    "MotionHandle": "panda_py.panda",
+    "JointMotion": "panda_py.panda",
+    "PoseMotion": "panda_py.panda",
     "ControlProcessError": "panda_py.rt.process",
     # panda-py's name for a robot speaking a protocol version no client here speaks
     "IncompatibleVersionError": "panda_py.libfranka.errors",

@@ -12,6 +12,8 @@ import pytest
 
 from panda_py import controllers, kinematics
 from panda_py.controllers import laws
+from panda_py.motion.online import OnlineLimits
+from panda_py.robots.params import get_robot
 
 KIN = kinematics.get_kinematics("fr3")
 
@@ -137,7 +139,7 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     quat = np.tile(laws.quat_from_matrix(T0), (n, 1))
     twist, accel = rng.normal(scale=0.1, size=(n, 6)), rng.normal(scale=1.0, size=(n, 6))
     plan = PosePlan(p, quat, twist, accel, q0, np.diag([800.0] * 3 + [40.0] * 3), 1.0, 15.0,
-                    1e-3, 2e-2, 0.1)  # fmt: skip
+                    1e-3, 2e-2, 0.1, OnlineLimits.cartesian(get_robot('fer'), 1.0))  # fmt: skip
     states = []
     for _ in range(n):
         q = q0 + rng.normal(scale=0.01, size=7)

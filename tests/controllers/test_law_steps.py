@@ -17,7 +17,8 @@ from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import JointMove, JointPlan, PoseMove, PosePlan, tracker_for
 from panda_py.libfranka import RobotState
-from panda_py.robots.params import START_POSE
+from panda_py.motion.online import OnlineLimits
+from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt.shm import SharedBlock
 
 VERSION = 5  # a FER's states (float64 fields: exact comparisons)
@@ -169,7 +170,7 @@ def _joint_plan(n: int = 50) -> JointPlan:
     dq = np.gradient(q, 1e-3, axis=0)
     ddq = np.gradient(dq, 1e-3, axis=0)
     K, D = np.full(7, 600.0), np.full(7, 50.0)
-    return JointPlan(q, dq, ddq, K, D, 1e-3, 1e-2)
+    return JointPlan(q, dq, ddq, K, D, 1e-3, 1e-2, OnlineLimits.joints(get_robot("fer"), 1.0))
 
 
 def test_joint_move_tracks_its_samples_with_the_model_feed_forward() -> None:
@@ -214,7 +215,7 @@ def test_pose_move_at_its_goal_and_at_rest_commands_only_the_model_terms() -> No
     quat = np.tile(ctrl_quat(KIN.fk(Q0)), (n, 1))
     z = np.zeros((n, 6))
     plan = PosePlan(p, quat, z, z, Q0, np.diag([800.0] * 3 + [40.0] * 3), 1.0, 15.0,
-                    1e-3, 2e-2, 0.1)  # fmt: skip
+                    1e-3, 2e-2, 0.1, OnlineLimits.cartesian(get_robot('fer'), 1.0))  # fmt: skip
     law = tracker_for(plan)
     assert isinstance(law, PoseMove)
     taus = run(law, [STATE0] * 5)

@@ -15,6 +15,8 @@ import pytest
 
 from panda_py.controllers.moves import JointPlan
 from panda_py.libfranka import InvalidOperationException
+from panda_py.motion.online import OnlineLimits
+from panda_py.robots.params import get_robot
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel
 from panda_py.rt.child import ControlServer
@@ -27,9 +29,17 @@ REQUESTS = [
     rq.StartController(b"payload"),
     rq.Move(
         JointPlan(
-            np.zeros((2, 7)), np.zeros((2, 7)), np.zeros((2, 7)), np.ones(7), np.ones(7), 1e-3, 1e-2
+            np.zeros((2, 7)),
+            np.zeros((2, 7)),
+            np.zeros((2, 7)),
+            np.ones(7),
+            np.ones(7),
+            1e-3,
+            1e-2,
+            OnlineLimits.joints(get_robot("fer"), 1.0),
         )
     ),
+    rq.Cancel(7),
     rq.Stop(),
     rq.RobotCall("set_load", (0.5, [0.0, 0.0, 0.1], [0.0] * 9)),
     rq.Recover(),
@@ -89,7 +99,7 @@ def test_an_unknown_request_is_refused_by_name(server) -> None:  # type: ignore[
 
 def test_requests_that_need_the_loop_idle_are_refused_while_it_runs(server) -> None:  # type: ignore[no-untyped-def]
     srv, user = server
-    for rid, request in enumerate([rq.Recover(), rq.RobotCall("set_load"), REQUESTS[2]]):
+    for rid, request in enumerate([rq.Recover(), rq.RobotCall("set_load"), REQUESTS[1]]):
         user.send(rq.Call(rid, request))
         srv._receive(running=True)
         reply, _ = user.recv()

@@ -6,6 +6,12 @@ The user's process plans the time-optimal trajectory and samples it at the robot
 period; the loop only indexes the samples (no planning or sampling inside a tick). A move
 ends when the trajectory is over and the arm has settled at the goal (at rest within
 ``dq_threshold`` and within the settle tolerance), or 1 s after the trajectory's end.
+
+A move that replaces a running one (:meth:`Tracker.handover`) leads in from that one's
+reference with an online, jerk-limited generator (:mod:`panda_py.motion.online`) and joins
+its own plan; a cancelled move, or one whose ``until`` condition holds, comes to rest
+through the same generator. Either way the reference stays continuous in position,
+velocity and acceleration.
 """
 
 from __future__ import annotations
@@ -21,8 +27,12 @@ from panda_py.controllers import laws
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import FRICTION_SPEED
 from panda_py.fci import PERIOD
+from panda_py.motion.online import OnlineGenerator, OnlineLimits, OnlinePose
 
-__all__ = ["JointMove", "JointPlan", "MoveResult", "PoseMove", "PosePlan", "tracker_for"]
+__all__ = [
+    "JointMove", "JointPlan", "MoveResult", "PoseMove", "PosePlan", "Progress", "Tracker",
+    "tracker_for",
+]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 
@@ -35,11 +45,29 @@ SETTLE_INTEGRAL_POSE = 2.0
 SETTLE_POSITION = 2e-3  # [m]
 SETTLE_ORIENTATION = 2e-3  # [rad]
 SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
+# a move whose arm is farther than this from its plan's start at its first tick was planned
+# while another move ran: it leads in from where the arm is (the plan's own start is the
+# arm's state when it was planned, within the robot's joint limits)
+START_JOINT = 1e-2  # [rad]
+BLEND_TIME = 0.05  # [s] from one space's law to the other's (see Tracker._blend_from)
+START_POSITION = 5e-3  # [m]
+START_ORIENTATION = 1e-2  # [rad]
+
+
+@dataclass(frozen=True)
+class Progress:
+    """How far a move is, for its ``until`` condition: ``elapsed`` [s] since it started,
+    ``distance`` to its goal ([rad], the largest joint's, for a joint move; [m] for a
+    Cartesian one)."""
+
+    elapsed: float
+    distance: float
 
 
 @dataclass
 class MoveResult:
-    """How a move ended: ``success`` as panda-py judges it and why not."""
+    """How a move ended: ``success`` as panda-py judges it and why not; for a move ended
+    by its ``until`` condition, which one and when."""
 
     success: bool
     reason: str  # "" on success
@@ -49,12 +77,20 @@ class MoveResult:
     duration: float = 0.0  # [s] the trajectory's
     elapsed: float = 0.0  # [s] until the move ended
     error: BaseException | None = None  # what aborted it
+    condition: str = ""  # the until condition that ended it ("" if none did)
+    condition_time: float = math.nan  # [s] into the move when it held
+    cancelled: bool = False  # cancelled, or replaced by another move (reason says which)
 
 
 @dataclass(frozen=True)
 class JointPlan:
     """A joint move as the user's process planned it: the trajectory sampled at the
-    robot's 1 ms period and how to track and judge it (``Panda.move_to_joint_position``)."""
+    robot's 1 ms period and how to track and judge it (``Panda.move_to_joint_position``).
+
+    ``limits`` bound the online generator (the joints' velocity, acceleration and jerk,
+    scaled by the speed factor) that leads in when this move replaces a running one and
+    that brings the arm to rest when it is cancelled; a lead-in joins the plan at sample
+    ``join`` (the goal when it is the last)."""
 
     q: FloatArray  # (N, 7) [rad]
     dq: FloatArray  # (N, 7) [rad/s]
@@ -63,13 +99,16 @@ class JointPlan:
     damping: FloatArray  # (7,) [Nm s/rad]
     dq_threshold: float  # [rad/s] at rest below this
     success_threshold: float  # [rad] success within this of the goal
+    limits: OnlineLimits
+    join: int = -1
 
 
 @dataclass(frozen=True)
 class PosePlan:
     """A Cartesian move as the user's process planned it: positions, orientations, twists
     and their derivatives sampled at 1 ms, and how to track and judge it
-    (``Panda.move_to_pose``)."""
+    (``Panda.move_to_pose``); ``limits`` (translation x, y, z, rotation x, y, z) and
+    ``join`` as :class:`JointPlan`'s."""
 
     position: FloatArray  # (N, 3) [m]
     orientation: FloatArray  # (N, 4) unit quaternions (x, y, z, w)
@@ -82,6 +121,8 @@ class PosePlan:
     dq_threshold: float  # [rad/s]
     success_threshold: float  # [m]
     orientation_threshold: float  # [rad]
+    limits: OnlineLimits
+    join: int = -1
 
 
 def tracker_for(plan: JointPlan | PosePlan) -> JointMove | PoseMove:
@@ -99,38 +140,207 @@ def rotation_angle(q0: FloatArray, q1: FloatArray) -> float:
     return 2.0 * math.acos(d)
 
 
-class JointMove(ControlLaw):
+class Tracker(ControlLaw):
+    """What both moves share: the reference's end, a gentle stop (cancel, or the
+    ``until`` condition), a successor to continue with, and how the result says so.
+
+    The reference is the plan's samples, or, while ``lead`` runs, the online generator's:
+    leading in from the move this one replaced, or decelerating to rest."""
+
+    def __init__(self, n: int, dq_threshold: float) -> None:
+        super().__init__()
+        self.last = n - 1
+        self.duration = self.last * PERIOD  # [s] of the reference (known after a lead-in)
+        self.t_end = self.duration  # [s] when the reference ends
+        self.dq_threshold = dq_threshold
+        self.k0 = 0  # the plan's sample at plan time 0
+        self.t0 = 0.0  # [s] the law's time at plan time 0
+        self.leading = False  # the reference is the online generator's
+        self.stopping = False  # it is coming to rest (cancelled or its condition held)
+        self.stop_reason = ""
+        self.until: Any = None  # a condition (panda_py.controllers.conditions), or None
+        self.then: JointPlan | PosePlan | None = None  # what follows when it holds
+        self.condition = ""
+        self.condition_time = math.nan
+        self.successor: Tracker | None = None  # set when the condition hands over
+        self.previous: Tracker | None = None  # the law it blends from (see _blend_from)
+
+    def sample(self) -> int:
+        """The plan's sample at this tick."""
+        return min(self.k0 + round((self.t - self.t0) / PERIOD), self.last)
+
+    def cancel(self, reason: str) -> None:
+        """Come to rest as fast as the limits allow (from the reference as it is), hold
+        there and end; ``reason`` says why in the result."""
+        if self.stopping:
+            return
+        self.stopping = True
+        self.stop_reason = reason
+        self.t_end = math.inf
+        self._begin_rest()
+
+    def _begin_rest(self) -> None:
+        raise NotImplementedError
+
+    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+        """Take over from ``prev`` mid-motion (see the subclasses)."""
+        raise NotImplementedError
+
+    def _blend_from(self, prev: Tracker | None) -> None:
+        """Across a change of space (joint <-> Cartesian) the laws' tracking terms differ
+        even on one reference: blend from the previous law's torques to this one's over
+        BLEND_TIME, so the torque (and the arm's acceleration) changes smoothly."""
+        same = prev is None or type(prev) is type(self)
+        self.previous = None if same else prev
+        if prev is not None:
+            prev.previous = None  # a chain of blends ends here
+
+    def _blended(self, tau: FloatArray, state: Any, model: Any) -> FloatArray:
+        prev = self.previous
+        if prev is None:
+            return tau
+        if self.t >= BLEND_TIME:
+            self.previous = None
+            return tau
+        prev.tick(self.dt)
+        s = self.t / BLEND_TIME
+        s = s * s * (3.0 - 2.0 * s)  # smoothstep: no step in the rate either
+        return s * tau + (1.0 - s) * np.asarray(prev.step(state, model), dtype=np.float64)
+
+    def off_start(self, state: Any) -> bool:
+        """Whether the arm is away from where the plan starts (beyond what panda-py's
+        planning from the current state leaves: the clip to the joint limits)."""
+        raise NotImplementedError
+
+    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The reference of the last tick as joint positions, velocities, accelerations."""
+        raise NotImplementedError
+
+    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+        """The reference of the last tick as position, orientation, twist, acceleration."""
+        raise NotImplementedError
+
+    def _lead_finished(self) -> None:
+        """The online generator reached its target this tick: join the plan, or (at the
+        goal, or at rest after a stop) the reference ends here."""
+        if self.stopping or self.k0 >= self.last:
+            self.t_end = self.t
+            self.duration = self.t
+        else:
+            self.leading = False
+            self.t0 = self.t
+            self.duration = self.t + (self.last - self.k0) * PERIOD
+            self.t_end = self.duration
+
+    def check_until(self, state: Any, progress: Any) -> None:
+        """Stop gently (or hand over to ``then``) once the condition holds."""
+        if self.until is None or self.stopping or self.successor is not None:
+            return
+        if self.until.holds(state, progress):
+            self.condition = repr(self.until)
+            self.condition_time = self.t
+            if self.then is None:
+                self.cancel(f"stopped after {self.t:.3f} s: {self.condition} held")
+            else:
+                self.successor = tracker_for(self.then)
+
+    def finished(self, state: Any) -> bool:
+        if self.successor is not None:
+            return True
+        over = self.t - self.t_end
+        if over <= 0.0:
+            return False
+        at_rest = float(np.abs(state.dq).max()) <= self.dq_threshold
+        if self.stopping:
+            return at_rest or over >= SETTLE_TIMEOUT
+        return (at_rest and self.at_goal(state)) or over >= SETTLE_TIMEOUT
+
+    def at_goal(self, state: Any) -> bool:
+        raise NotImplementedError
+
+    def _finish(self, result: MoveResult) -> MoveResult:
+        result.condition, result.condition_time = self.condition, self.condition_time
+        if self.stopping and not self.condition:
+            result.success, result.reason, result.cancelled = False, self.stop_reason, True
+        elif self.condition:  # ended by its condition, as asked: a success
+            result.success, result.reason = True, ""
+        return result
+
+
+class JointMove(Tracker):
     """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
     ``dq_d``, ``ddq_d`` (the inertial and friction feed-forward keep the arm on the planned
     path instead of lagging behind it). Once the trajectory has ended, an integral of the error
     to the goal removes what friction and model errors leave (panda-py stops there)."""
 
     def __init__(self, plan: JointPlan) -> None:
-        super().__init__()
+        super().__init__(len(plan.q), plan.dq_threshold)
         self.q, self.dq, self.ddq = plan.q, plan.dq, plan.ddq
         self.K, self.D = plan.stiffness, plan.damping
-        self.dq_threshold = plan.dq_threshold
         self.success_threshold = plan.success_threshold
-        self.duration = (len(plan.q) - 1) * PERIOD
         self.goal = plan.q[-1]
+        self.join = plan.join % len(plan.q)
         self.integral = np.zeros(7)
+        self.gen = OnlineGenerator(plan.limits)
+        self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
+
+    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+        """Replace ``prev`` mid-motion: lead in from its reference (from the arm at rest
+        where it is, without one) to this plan's sample ``join`` (its goal for a single
+        target), jerk-limited, then follow the plan."""
+        if prev is None:
+            self.gen.reset(np.array(state.q), np.zeros(7), np.zeros(7))
+        else:
+            self.gen.reset(*prev.joint_reference(state, model))
+        gen = self.gen
+        # until its first step the reference is where it takes over, not the plan's start
+        self.ref = (gen.position.copy(), gen.velocity.copy(), gen.acceleration.copy())
+        j = self.join
+        self.gen.set_target(self.q[j], self.dq[j], self.ddq[j])
+        self.k0, self.leading = j, True
+        self.t_end = self.duration = math.inf
+        self._blend_from(prev)
+
+    def off_start(self, state: Any) -> bool:
+        return float(np.abs(self.q[0] - state.q).max()) > START_JOINT
+
+    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The reference of the last tick: joint positions, velocities, accelerations."""
+        return self.ref[0].copy(), self.ref[1].copy(), self.ref[2].copy()
+
+    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+        """The pose the arm is at, with the reference's twist and acceleration."""
+        J = model.ee_jacobian(state)
+        T = state.O_T_EE
+        return T[12:15].copy(), laws.quat_from_matrix(T), J @ self.ref[1], J @ self.ref[2]
+
+    def _begin_rest(self) -> None:
+        self.gen.reset(*(r.copy() for r in self.ref))
+        self.gen.set_rest()
+        self.leading = True
+
+    def _reference(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        gen = self.gen
+        if self.leading:
+            if not gen.finished and gen.step():
+                self._lead_finished()
+            return gen.position, gen.velocity, gen.acceleration
+        k = self.sample()
+        return self.q[k], self.dq[k], self.ddq[k]
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        k = min(round(self.t / PERIOD), len(self.q) - 1)
-        tau = self.K * (self.q[k] - state.q) + self.D * (self.dq[k] - state.dq)
-        if self.t > self.duration:
+        q_d, dq_d, ddq_d = self.ref = self._reference()
+        tau = self.K * (q_d - state.q) + self.D * (dq_d - state.dq)
+        if self.t > self.t_end and not self.stopping:
             self.integral += self.dt * (self.goal - state.q)
             tau += SETTLE_INTEGRAL * self.K * self.integral
-        tau += model.driven_mass_of(state) @ self.ddq[k] + model.friction_for(self.dq[k])
-        return tau + model.coriolis_of(state)
+        tau += model.driven_mass_of(state) @ ddq_d + model.friction_for(dq_d)
+        if self.until is not None:
+            self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
+        return self._blended(tau + model.coriolis_of(state), state, model)
 
-    def finished(self, state: Any) -> bool:
-        over = self.t - self.duration
-        if over <= 0.0:
-            return False
-        at_rest = float(np.abs(state.dq).max()) <= self.dq_threshold
-        at_goal = float(np.abs(self.goal - state.q).max()) <= SETTLE_JOINT
-        return (at_rest and at_goal) or over >= SETTLE_TIMEOUT
+    def at_goal(self, state: Any) -> bool:
+        return float(np.abs(self.goal - state.q).max()) <= SETTLE_JOINT
 
     def result(self, state: Any) -> MoveResult:
         err = float(np.abs(self.goal - state.q).max())
@@ -144,10 +354,12 @@ class JointMove(ControlLaw):
                 "speed_factor"
             )
         )
-        return MoveResult(ok, reason, joint_error=err, duration=self.duration, elapsed=self.t)
+        return self._finish(
+            MoveResult(ok, reason, joint_error=err, duration=self.duration, elapsed=self.t)
+        )
 
 
-class PoseMove(ControlLaw):
+class PoseMove(Tracker):
     """Cartesian impedance along sampled positions, orientations, twists and their
     derivatives, with a joint impedance toward the start configuration in the task's
     nullspace and an inertial feed-forward of the planned acceleration:
@@ -157,7 +369,7 @@ class PoseMove(ControlLaw):
     of the error to the goal (as :class:`JointMove`)."""
 
     def __init__(self, plan: PosePlan) -> None:
-        super().__init__()
+        super().__init__(len(plan.position), plan.dq_threshold)
         self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
         self._J_prev: FloatArray | None = None
         self.qn = plan.q_nullspace
@@ -165,15 +377,61 @@ class PoseMove(ControlLaw):
         w, v = np.linalg.eigh(plan.impedance)
         self.D = 2.0 * plan.damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
         self.kn = plan.nullspace_stiffness
-        self.dq_threshold = plan.dq_threshold
         self.success_threshold = plan.success_threshold
         self.orientation_threshold = plan.orientation_threshold
-        self.duration = (len(plan.position) - 1) * PERIOD
+        self.join = plan.join % len(plan.position)
         self.integral = np.zeros(6)
         self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
+        self.gen = OnlinePose(plan.limits)
+        self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
+
+    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+        """As :meth:`JointMove.handover`, in Cartesian space."""
+        if prev is None:
+            T = state.O_T_EE
+            z = np.zeros(6)
+            self.gen.reset(T[12:15].copy(), laws.quat_from_matrix(T), z, z)
+        else:
+            self.gen.reset(*prev.pose_reference(state, model))
+        g = self.gen
+        self.ref = (g.position.copy(), g.orientation.copy(), g.twist.copy(), g.accel.copy())
+        j = self.join
+        self.gen.set_target(self.p[j], self.quat[j], self.v[j], self.a[j])
+        self.k0, self.leading = j, True
+        self.t_end = self.duration = math.inf
+        self._blend_from(prev)
+
+    def off_start(self, state: Any) -> bool:
+        pos = float(np.linalg.norm(state.O_T_EE[12:15] - self.p[0]))
+        rot = rotation_angle(laws.quat_from_matrix(state.O_T_EE), self.quat[0])
+        return pos > START_POSITION or rot > START_ORIENTATION
+
+    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+        """The reference of the last tick: position, orientation, twist, acceleration."""
+        return tuple(r.copy() for r in self.ref)
+
+    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The joints where they are, with the reference's acceleration mapped to them."""
+        J_pinv = laws.damped_pinv(model.ee_jacobian(state))
+        return np.array(state.q), np.array(state.dq), J_pinv @ self.ref[3]
+
+    def _begin_rest(self) -> None:
+        p, quat, v, a = (r.copy() for r in self.ref)
+        self.gen.reset(p, quat, v, a)
+        self.gen.set_rest()
+        self.leading = True
+
+    def _reference(self) -> tuple[FloatArray, ...]:
+        gen = self.gen
+        if self.leading:
+            if not gen.finished and gen.step():
+                self._lead_finished()
+            return gen.position, gen.orientation, gen.twist, gen.accel
+        k = self.sample()
+        return self.p[k], self.quat[k], self.v[k], self.a[k]
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        k = min(round(self.t / PERIOD), len(self.p) - 1)
+        p_d, quat_d, v_d, a_d = self.ref = self._reference()
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
         kn = self.kn
@@ -181,45 +439,41 @@ class PoseMove(ControlLaw):
         if kernels is not None:  # the same terms, compiled
             tau, err, J_pinv = np.empty(7), self._err, self._J_pinv
             kernels.impedance_torque(
-                state.O_T_EE, J, q, dq, self.p[k], self.quat[k], self.v[k], self.K, self.D,
+                state.O_T_EE, J, q, dq, p_d, quat_d, v_d, self.K, self.D,
                 self.qn, kn, tau, err, J_pinv,
             )  # fmt: skip
         else:
-            err = laws.cartesian_error(state.O_T_EE, self.p[k], self.quat[k])
-            tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - self.v[k]))
+            err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
+            tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - v_d))
             tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
             J_pinv = laws.damped_pinv(J)
         if kernels is not None:
             J_prev = J if self._J_prev is None else self._J_prev
-            kernels.pose_feedforward(J, J_prev, dq, self.dt, self.a[k], self.v[k], J_pinv,
+            kernels.pose_feedforward(J, J_prev, dq, self.dt, a_d, v_d, J_pinv,
                                      model.driven_mass_of(state), model.coulomb,
                                      FRICTION_SPEED, tau)  # fmt: skip
         else:
-            a = self.a[k]
+            a = a_d
             if self._J_prev is not None and self.dt > 0.0:
                 a = a - ((J - self._J_prev) @ dq) / self.dt
-            tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(
-                J_pinv @ self.v[k]
-            )
+            tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(J_pinv @ v_d)
         self._J_prev = J
-        if self.t > self.duration:  # remove what friction and model errors leave
+        if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
-        return tau + model.coriolis_of(state)
+        if self.until is not None:
+            T = state.O_T_EE
+            self.check_until(state, Progress(self.t, float(np.linalg.norm(T[12:15] - self.p[-1]))))
+        return self._blended(tau + model.coriolis_of(state), state, model)
 
     def _errors(self, state: Any) -> tuple[float, float]:
         T = state.O_T_EE
         pos = float(np.linalg.norm(T[12:15] - self.p[-1]))
         return pos, rotation_angle(laws.quat_from_matrix(T), self.quat[-1])
 
-    def finished(self, state: Any) -> bool:
-        over = self.t - self.duration
-        if over <= 0.0:
-            return False
-        at_rest = float(np.abs(state.dq).max()) <= self.dq_threshold
+    def at_goal(self, state: Any) -> bool:
         pos, rot = self._errors(state)
-        at_goal = pos <= SETTLE_POSITION and rot <= SETTLE_ORIENTATION
-        return (at_rest and at_goal) or over >= SETTLE_TIMEOUT
+        return pos <= SETTLE_POSITION and rot <= SETTLE_ORIENTATION
 
     def result(self, state: Any) -> MoveResult:
         pos, rot = self._errors(state)
@@ -234,7 +488,7 @@ class PoseMove(ControlLaw):
                 "impedance or a lower speed_factor"
             )
         )
-        return MoveResult(
+        return self._finish(MoveResult(
             ok, reason, position_error=pos, orientation_error=rot,
             duration=self.duration, elapsed=self.t,
-        )  # fmt: skip
+        ))  # fmt: skip

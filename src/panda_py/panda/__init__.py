@@ -11,6 +11,16 @@ from __future__ import annotations
 
 from panda_py.panda.context import PandaContext
 from panda_py.panda.core import Panda, realtime_priority_available
+from panda_py.panda.handle import MotionHandle
+from panda_py.panda.planning import JointMotion, PoseMotion
 from panda_py.panda.proxy import RobotProxy
 
-__all__ = ["Panda", "PandaContext", "RobotProxy", "realtime_priority_available"]
+__all__ = [
+    "JointMotion",
+    "MotionHandle",
+    "Panda",
+    "PandaContext",
+    "PoseMotion",
+    "RobotProxy",
+    "realtime_priority_available",
+]

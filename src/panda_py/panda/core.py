@@ -30,17 +30,19 @@ from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.panda import planning as _moves
 from panda_py.panda.context import PandaContext
+from panda_py.panda.handle import MotionHandle
 from panda_py.panda.proxy import RobotProxy
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import byvalue
 from panda_py.rt import requests as rq
-from panda_py.rt.process import ControlProcess, ControlProcessError
+from panda_py.rt.process import ControlProcess, ControlProcessError, Pending
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, anonymous_file
 
 __all__ = ["Panda", "realtime_priority_available"]
 
 FloatArray = NDArray[np.float64]
 CONNECT_TIMEOUT = 5.0  # [s] for the robot to answer the connection
+CLOSE_MOTION_TIMEOUT = 5.0  # [s] close() waits this long for a cancelled move to rest
 LOG_MAX_BYTES = 8 << 30  # [bytes] the largest log buffer enable_logging allocates
 _warned_realtime = False
 
@@ -86,6 +88,7 @@ class Panda:
         self._name = name
         self._logger = logging.getLogger(name)
         self._controller: TorqueController | None = None
+        self._motion: MotionHandle | None = None  # the newest move (it may be running)
         self._log_ring: LogRing | None = None
         self._proc = ControlProcess(hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger)
         self._info: rq.Connected = self._proc.info
@@ -134,6 +137,13 @@ class Panda:
         proc = getattr(self, "_proc", None)
         if proc is not None:
             self._unbind()
+            motion = getattr(self, "_motion", None)
+            if motion is not None and not motion.done() and not proc.dead and not proc.closed:
+                try:  # a running move ends gently, not with the connection
+                    motion.cancel()
+                    motion.wait(CLOSE_MOTION_TIMEOUT)
+                except Exception:
+                    pass
             proc.close()
         ring, self._log_ring = getattr(self, "_log_ring", None), None
         if ring is not None:
@@ -290,7 +300,12 @@ class Panda:
         self._controller = controller
 
     def stop_controller(self) -> None:
-        """Stop the running controller (the robot holds its position)."""
+        """Stop the running controller (the robot holds its position); a running move
+        (``asynchronous=True``) is cancelled: it comes gently to rest first."""
+        motion = self._motion
+        if motion is not None and not motion.done():
+            motion.cancel()
+            motion.wait()
         if self._controller is not None:
             self._logger.info("Stopping active controller (%s).", self._controller.name)
         self._proc.call(rq.Stop())
@@ -308,25 +323,70 @@ class Panda:
 
     # --- moves -------------------------------------------------------------------------
 
-    def _move(self, plan: JointPlan | PosePlan | None) -> bool:
-        if plan is None:
-            self._logger.info("Already at goal.")
-            return True
-        result: MoveResult = self._proc.call(rq.Move(plan))
+    def _moving(self) -> bool:
+        """Whether a move of ours runs (one started with ``asynchronous=True``)."""
+        return self._motion is not None and not self._motion.done()
+
+    def _prepare_move(self, what: str) -> None:
+        """Before a move: stop a controller and recover, as panda-py; a running move is
+        left running, for the new one to replace mid-motion."""
+        if not self._moving():
+            self.stop_controller()
+            self.recover()
+        self._logger.info("Initializing motion generation (%s).", what)
+
+    def _move_result(self, result: MoveResult) -> None:
         if result.error is not None:
             self._proc.errors.append(result.error)
             self._logger.error("Control loop interrupted: %s", result.error)
         if not result.success:
             self._logger.warning("Motion %s", result.reason)
-        return bool(result.success)
 
-    def move_to_joint_position(self, *args: Any, **kwargs: Any) -> bool:
+    def _move(
+        self, plan: JointPlan | PosePlan | None, what: str, asynchronous: bool,
+        until: Any = None, then: JointPlan | PosePlan | None = None,
+    ) -> Any:  # fmt: skip
+        """Run ``plan``: block and return the success flag, or return a handle."""
+        if plan is None:
+            self._logger.info("Already at goal.")
+            if not asynchronous:
+                return True
+            pending = Pending(0)
+            pending.set_result(MoveResult(True, ""))
+        else:
+            until_bytes = None if until is None else byvalue.dumps(until)
+            pending = self._proc.submit(rq.Move(plan, until_bytes, then))
+        handle = MotionHandle(self._proc, pending, what, self._move_result)
+        self._motion = handle
+        if asynchronous:
+            return handle
+        return handle.wait()
+
+    def move_to_joint_position(
+        self, *args: Any, asynchronous: bool = False, until: Any = None, then: Any = None,
+        **kwargs: Any,
+    ) -> Any:  # fmt: skip
         """Move through joint positions (``positions`` (7,) or ``waypoints``, a sequence
         of them) on a time-optimal trajectory tracked by joint impedance; True if the arm
         ends within ``success_threshold`` [rad] of the goal. Keywords as panda-py:
         ``speed_factor=0.2, stiffness, damping, dq_threshold=0.001,
-        success_threshold=0.01``."""
+        success_threshold=0.01``.
+
+        Beyond panda-py: ``asynchronous=True`` returns a :class:`MotionHandle` at once; a
+        move started while another runs replaces it mid-motion (continuously, within the
+        robot's limits); ``until`` a condition (:mod:`panda_py.conditions`) evaluated every
+        tick in the control process that ends the move gently when it holds, or hands over
+        to ``then`` (a :class:`JointMotion` or :class:`PoseMotion`)."""
         waypoints, opts = _moves.parse_joint_targets(args, kwargs)
+        self._check_in_limits(waypoints)
+        flag, until, then = self._guard(asynchronous, until, then)
+        self._prepare_move("moveToJointPosition")
+        q_now = np.clip(self.q, self.get_joint_limits_lower(), self.get_joint_limits_upper())
+        plan = _moves.joint_move(q_now, waypoints, opts, self._limits)
+        return self._move(plan, "move_to_joint_position", flag, until,
+                          self._plan_then(then, plan))  # fmt: skip
+
+    def _check_in_limits(self, waypoints: FloatArray) -> None:
         lower, upper = self.get_joint_limits_lower(), self.get_joint_limits_upper()
         for i, q in enumerate(waypoints):
             bad = np.flatnonzero((q < lower) | (q > upper))
@@ -336,11 +396,44 @@ class Panda:
                     f"waypoints[{i}]: joint {j + 1} at {q[j]:.4f} rad is outside the "
                     f"{self._limits.name} joint limits [{lower[j]}, {upper[j]}] rad"
                 )
-        self.stop_controller()
-        self.recover()
-        self._logger.info("Initializing motion generation (moveToJointPosition).")
-        q_now = np.clip(self.q, lower, upper)
-        return self._move(_moves.joint_move(q_now, waypoints, opts, self._limits))
+
+    def _guard(self, asynchronous: Any, until: Any, then: Any) -> tuple[bool, Any, Any]:
+        """The checked ``asynchronous``, ``until`` and ``then`` of a move."""
+        if not isinstance(asynchronous, (bool, np.bool_)):
+            raise ValueError(f"asynchronous: expected True or False, got {asynchronous!r}")
+        if until is not None and not callable(getattr(until, "holds", None)):
+            raise ValueError(
+                "until: expected a condition of panda_py.conditions (e.g. Force.z < -10.0), "
+                f"got {type(until).__name__}"
+            )
+        if then is not None:
+            if until is None:
+                raise ValueError("then: a move continues with another only after its until "
+                                 "condition held; give until as well")  # fmt: skip
+            if not isinstance(then, (_moves.JointMotion, _moves.PoseMotion)):
+                raise ValueError(
+                    f"then: expected a JointMotion or a PoseMotion, got {type(then).__name__}"
+                )
+            if isinstance(then, _moves.JointMotion):
+                self._check_in_limits(then.waypoints)
+        return bool(asynchronous), until, then
+
+    def _plan_then(self, then: Any, first: JointPlan | PosePlan | None) -> Any:
+        """The plan of ``then``, from where the first move ends (the lead-in bridges the
+        gap from wherever its condition holds)."""
+        if then is None:
+            return None
+        state = self.get_state()
+        if isinstance(then, _moves.JointMotion):
+            start = first.q[-1] if isinstance(first, JointPlan) else state.q
+            return _moves.joint_move(start, then.waypoints, then.options, self._limits,
+                                     at_rest=True)  # fmt: skip
+        if isinstance(first, PosePlan):
+            p, quat = first.position[-1], first.orientation[-1]
+        else:
+            p, quat = state.O_T_EE[12:15].copy(), laws.quat_from_matrix(state.O_T_EE)
+        return _moves.pose_move(p, quat, then.positions, then.orientations, then.options,
+                                state.q.copy(), self._limits, at_rest=True)  # fmt: skip
 
     def move_to_start(
         self,
@@ -349,8 +442,13 @@ class Panda:
         damping: Any = _moves.JOINT_MOVE_DEFAULTS["damping"],
         dq_threshold: float = 0.001,
         success_threshold: float = 0.01,
-    ) -> bool:
-        """Move to panda-py's start pose (``constants.JOINT_POSITION_START``)."""
+        *,
+        asynchronous: bool = False,
+        until: Any = None,
+        then: Any = None,
+    ) -> Any:
+        """Move to panda-py's start pose (``constants.JOINT_POSITION_START``);
+        ``asynchronous``, ``until``, ``then`` as :meth:`move_to_joint_position`."""
         return self.move_to_joint_position(
             np.array(START_POSE),
             speed_factor=speed_factor,
@@ -358,24 +456,33 @@ class Panda:
             damping=damping,
             dq_threshold=dq_threshold,
             success_threshold=success_threshold,
+            asynchronous=asynchronous,
+            until=until,
+            then=then,
         )
 
-    def move_to_pose(self, *args: Any, **kwargs: Any) -> bool:
+    def move_to_pose(self, *args: Any, asynchronous: bool = False, until: Any = None,
+                     then: Any = None, **kwargs: Any) -> Any:  # fmt: skip
         """Move the end effector through poses on straight, time-optimal segments
         tracked by Cartesian impedance: ``(positions, orientations)``, ``(position,
         orientation)`` (quaternions x, y, z, w), ``(poses)`` or ``(pose)`` (4x4). True if
         it ends within ``success_threshold`` [m] and ``orientation_threshold`` [rad].
         Keywords as panda-py: ``speed_factor=0.2, impedance, damping_ratio=1.0,
         nullspace_stiffness=15.0, dq_threshold=0.001, success_threshold=0.02,
-        orientation_threshold=0.1``."""
+        orientation_threshold=0.1``; ``asynchronous``, ``until``, ``then`` as
+        :meth:`move_to_joint_position`."""
         positions, quats, opts = _moves.parse_pose_targets(args, kwargs)
+        flag, until, then = self._guard(asynchronous, until, then)
+        if opts.joint_space is not None and (flag or until is not None):
+            raise ValueError(
+                "stiffness, damping: panda-py < 1.0's joint-space form of move_to_pose "
+                "blocks and has no until; give impedance instead for asynchronous=True or until"
+            )
         state = self.get_state()
         q_now = state.q
         F_T_EE = state.F_T_EE.reshape(4, 4, order="F")
         _moves.check_reachable(positions, quats, q_now, self._limits, F_T_EE)
-        self.stop_controller()
-        self.recover()
-        self._logger.info("Initializing motion generation (moveToPose).")
+        self._prepare_move("moveToPose")
         state = self.get_state()
         p_now = state.O_T_EE[12:15].copy()
         quat_now = laws.quat_from_matrix(state.O_T_EE)
@@ -383,10 +490,10 @@ class Panda:
             p_now, quat_now, positions, quats, opts, state.q.copy(), self._limits
         )
         if opts.joint_space is None or plan is None:
-            return self._move(plan)
+            return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))
         # panda-py < 1.0's form: the straight path tracked in joint space
         joint_plan = _moves.pose_move_in_joint_space(plan, opts, state.q, self._limits, F_T_EE)
-        if not self._move(joint_plan):
+        if not self._move(joint_plan, "move_to_pose", False):
             return False
         T = self.get_pose()
         pos_err = float(np.linalg.norm(T[:3, 3] - positions[-1]))

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,12 +20,15 @@ from panda_py.controllers.moves import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import parse_poses, stack_rows
+from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import RobotSpec
 
 __all__ = [
     "JOINT_MOVE_DEFAULTS",
     "POSE_MOVE_DEFAULTS",
+    "JointMotion",
     "JointMoveOptions",
+    "PoseMotion",
     "PoseMoveOptions",
     "joint_move",
     "parse_joint_targets",
@@ -244,17 +247,66 @@ def _times(duration: float) -> FloatArray:
     return t
 
 
+class JointMotion:
+    """A joint move described now and run later: ``then=`` of a guarded move (the
+    arguments of ``Panda.move_to_joint_position``, checked here)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.waypoints, self.options = parse_joint_targets(args, kwargs)
+
+    def __repr__(self) -> str:
+        return f"JointMotion({np.round(self.waypoints[-1], 4).tolist()})"
+
+
+class PoseMotion:
+    """A Cartesian move described now and run later (the arguments of
+    ``Panda.move_to_pose``, checked here; the joint-space form is not taken)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.positions, self.orientations, self.options = parse_pose_targets(args, kwargs)
+        if self.options.joint_space is not None:
+            raise ValueError("PoseMotion: expected impedance options, not panda-py < 1.0's "
+                             "joint stiffness and damping")  # fmt: skip
+
+    def __repr__(self) -> str:
+        return f"PoseMotion({np.round(self.positions[-1], 4).tolist()})"
+
+
+@overload
 def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
-               spec: RobotSpec) -> JointPlan | None:  # fmt: skip
-    """The sampled plan from ``q_now`` through ``waypoints``; None if already there."""
+               spec: RobotSpec, *, at_rest: Literal[True]) -> JointPlan: ...  # fmt: skip
+@overload
+def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
+               spec: RobotSpec, *, at_rest: bool = False) -> JointPlan | None: ...  # fmt: skip
+def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
+               spec: RobotSpec, *, at_rest: bool = False) -> JointPlan | None:  # fmt: skip
+    """The sampled plan from ``q_now`` through ``waypoints``; None if already there
+    (``at_rest``: then a plan that rests there)."""
     traj = JointTrajectory(np.vstack([q_now, waypoints]), opts.speed_factor, robot=spec)
     if traj.get_duration() == 0.0:
-        return None
+        if not at_rest:
+            return None
+        z = np.zeros((2, 7))
+        goal = np.tile(waypoints[-1], (2, 1))
+        limits = OnlineLimits.joints(spec, opts.speed_factor)
+        return JointPlan(goal, z, z, opts.stiffness, opts.damping, opts.dq_threshold,
+                         opts.success_threshold, limits)  # fmt: skip
     s = traj.sample(_times(traj.get_duration()))
     return JointPlan(
         s.positions, s.velocities, s.accelerations, opts.stiffness, opts.damping,
         opts.dq_threshold, opts.success_threshold,
+        limits=OnlineLimits.joints(spec, opts.speed_factor),
+        join=_join(s.positions, waypoints),
     )  # fmt: skip
+
+
+def _join(samples: FloatArray, waypoints: FloatArray) -> int:
+    """Where a lead-in joins the plan when the move replaces another mid-motion: the
+    sample nearest the first waypoint (-1, the goal, for a single target), so the rest of
+    the path through the waypoints stays the planned, time-optimal one."""
+    if len(waypoints) < 2:
+        return -1
+    return int(np.argmin(np.linalg.norm(samples - waypoints[0], axis=1)))
 
 
 def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
@@ -313,20 +365,40 @@ def pose_move_in_joint_space(
     ddq = np.gradient(dq, PERIOD, axis=0)
     assert opts.joint_space is not None
     stiffness, damping = opts.joint_space
-    return JointPlan(q, dq, ddq, stiffness, damping, opts.dq_threshold, math.inf)
+    return JointPlan(
+        q, dq, ddq, stiffness, damping, opts.dq_threshold, math.inf,
+        limits=OnlineLimits.joints(spec, opts.speed_factor),
+    )  # fmt: skip
 
 
+@overload
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
-              spec: RobotSpec) -> PosePlan | None:  # fmt: skip
+              spec: RobotSpec, *, at_rest: Literal[True]) -> PosePlan: ...  # fmt: skip
+@overload
+def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
+              quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
+              spec: RobotSpec, *, at_rest: bool = False) -> PosePlan | None: ...  # fmt: skip
+def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
+              quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
+              spec: RobotSpec, *, at_rest: bool = False) -> PosePlan | None:  # fmt: skip
     """The sampled Cartesian plan from the current pose through the targets, its
-    nullspace resting at ``q_nullspace``."""
+    nullspace resting at ``q_nullspace``; None if already there (``at_rest``: then a plan
+    that rests there)."""
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
         robot=spec,
     )  # fmt: skip
     if traj.get_duration() == 0.0:
-        return None
+        if not at_rest:
+            return None
+        z = np.zeros((2, 6))
+        return PosePlan(
+            np.tile(positions[-1], (2, 1)), np.tile(quats[-1], (2, 1)), z, z, q_nullspace,
+            opts.impedance, opts.damping_ratio, opts.nullspace_stiffness, opts.dq_threshold,
+            opts.success_threshold, opts.orientation_threshold,
+            OnlineLimits.cartesian(spec, opts.speed_factor),
+        )  # fmt: skip
     s = traj.sample(_times(traj.get_duration()))
     # the angular acceleration, by central differences of the sampled angular velocity
     alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
@@ -342,4 +414,6 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         dq_threshold=opts.dq_threshold,
         success_threshold=opts.success_threshold,
         orientation_threshold=opts.orientation_threshold,
+        limits=OnlineLimits.cartesian(spec, opts.speed_factor),
+        join=_join(s.positions, positions),
     )

@@ -35,11 +35,10 @@ from panda_py.controllers import TorqueController, laws
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import (
-    JointMove,
     JointPlan,
     MoveResult,
-    PoseMove,
     PosePlan,
+    Tracker,
     tracker_for,
 )
 from panda_py.fci import PERIOD
@@ -56,6 +55,7 @@ from panda_py.libfranka import (
 from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
+from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
@@ -119,6 +119,9 @@ class ControlServer:
         self.logging = False
         self.closing = False
         self.pending: tuple[ControlLaw, int | None] | None = None  # (law, move's request id)
+        # while the loop runs: its law and the id of the move request it answers
+        self.current: tuple[ControlLaw, int | None] | None = None
+        self.replacement: tuple[Tracker, int] | None = None  # a move replacing the current
         self.stopping = False
         self.stop_waiters: list[int] = []
         self._current_rid = 0
@@ -126,6 +129,7 @@ class ControlServer:
         self._handlers: dict[rq.Kind, Any] = {
             rq.Kind.START: self._start,
             rq.Kind.MOVE: self._move,
+            rq.Kind.CANCEL: self._cancel,
             rq.Kind.STOP: self._stop,
             rq.Kind.ROBOT: self._robot_call,
             rq.Kind.RECOVER: self._recover,
@@ -200,13 +204,23 @@ class ControlServer:
         self.model.gravity_of(state)
         q = state.q
         z = np.zeros((2, 7))
-        joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2)
+        assert self.robot is not None
+        spec = get_robot(limits_spec_for_version(self.robot.server_version()))
+        joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
+                          OnlineLimits.joints(spec, 1.0))  # fmt: skip
         p = np.array([state.O_T_EE[12:15]] * 2)
         quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
         six = np.zeros((2, 6))
-        pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1)
-        for plan in (joint, pose):
-            tracker_for(plan).step(state, self.model)
+        pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1,
+                        OnlineLimits.cartesian(spec, 1.0))  # fmt: skip
+        for plan in (joint, pose):  # and their lead-ins and stops
+            law = tracker_for(plan)
+            law.step(state, self.model)
+            other = tracker_for(pose if plan is joint else joint)
+            other.handover(law, state, self.model)
+            other.step(state, self.model)
+            other.cancel("warm-up")
+            other.step(state, self.model)
 
     # --- the idle loop -------------------------------------------------------------------
 
@@ -296,9 +310,31 @@ class ControlServer:
         return values
 
     def _move(self, request: rq.Move, fds: list[int], running: bool) -> Any:
-        self._not_running(running, "move")
-        self.pending = (tracker_for(request.plan), self._current_rid)
+        law = tracker_for(request.plan)
+        if request.until is not None:
+            law.until = pickle.loads(request.until)
+            if not callable(getattr(law.until, "holds", None)):
+                raise ValueError(f"until: expected a condition, got {type(law.until).__name__}")
+            law.then = request.then
+        if running:
+            current = self.current
+            if current is None or not isinstance(current[0], Tracker):
+                raise InvalidOperationException("move: not while a controller runs (stop it first)")
+            if self.replacement is not None:  # two in one tick: the newer wins
+                self._answer_replaced(self.replacement[0], self.replacement[1], None)
+            self.replacement = (law, self._current_rid)
+        else:
+            self.pending = (law, self._current_rid)
         return DEFERRED
+
+    def _cancel(self, request: rq.Cancel, fds: list[int], running: bool) -> Any:
+        current = self.current
+        if not running or current is None or current[1] != request.move:
+            return False
+        law = current[0]
+        assert isinstance(law, Tracker)
+        law.cancel(f"cancelled after {law.t:.3f} s")
+        return True
 
     def _stop(self, request: rq.Stop, fds: list[int], running: bool) -> Any:
         if not running:
@@ -377,16 +413,31 @@ class ControlServer:
         error: BaseException | None = None
         state: RobotState | None = None
         header[HEADER.RUNNING] = 1
-        active = robot.start_torque_control(
-            limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY, state_type=TickState
-        )
+        self.current = (law, move_rid)
         ticks = 0
+        active = None
         try:
+            active = robot.start_torque_control(
+                limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY, state_type=TickState
+            )
             while True:
                 state, dt = active.readOnce()
+                if ticks == 0 and isinstance(law, Tracker) and law.off_start(state):
+                    # planned while another move ran, which ended before it arrived: the
+                    # arm is not where the plan starts, so lead in from where it rests
+                    law.handover(None, state, model)
                 law.tick(dt.to_sec())
                 tau = self._finalize(law.step(state, model), state)
                 finished = self.stopping or law.finished(state)
+                if finished and not self.stopping and isinstance(law, Tracker):
+                    successor = law.successor
+                    if successor is not None:  # its condition held: go on with the next
+                        successor.handover(law, state, model)
+                        successor.condition = law.condition
+                        successor.condition_time = law.condition_time
+                        law = successor
+                        self.current = (law, move_rid)
+                        finished = False
                 cmd = Torques(tau)
                 cmd.motion_finished = finished
                 active.writeOnce(cmd)
@@ -399,32 +450,65 @@ class ControlServer:
                 # its send, so the message is whole when the count says so
                 if header[HEADER.REQUESTS] > self.requests_taken:
                     self._receive(running=True)
+                    if self.replacement is not None:
+                        law, move_rid = self._replace(law, move_rid, state)
                 ticks += 1
                 if ticks % PARENT_CHECK_TICKS == 0 and (
                     self._parent_gone() or chan.peer_closed()  # the user's side is gone
                 ):
                     self.closing = self.stopping = True
-        except BaseException as exc:
-            active.cancel()
+        except BaseException as exc:  # the robot refused to start, or the loop ended
+            if active is not None:
+                active.cancel()
             error = _transferable(exc, law.name)
+        self.current = None
         try:
             law.stop(state, model)
         except Exception as exc:
             error = error or _transferable(exc, f"{law.name}.stop")
+        if self.replacement is not None:  # arrived as the loop ended
+            new, rid = self.replacement
+            self.replacement = None
+            if error is None:  # it starts from where the arm rests (see _run)
+                self.pending = (new, rid)
+            else:  # what ended the loop ends it too (the user recovers, then moves)
+                result = MoveResult(False, f"not started: {error}", error=error)
+                self.reply(rid, True, result)
         if error is not None and move_rid is None:
             self.event(rq.LoopError(error))
         # the error is posted before the loop shows as stopped: whoever sees is_moving()
         # turn False finds it in raise_error()
         header[HEADER.RUNNING] = 0
-        if move_rid is not None and isinstance(law, (JointMove, PoseMove)):
+        if move_rid is not None and isinstance(law, Tracker):
             self._finish_move(law, move_rid, error)
         for rid in self.stop_waiters:
             self.reply(rid, True, None)
         self.stop_waiters.clear()
 
-    def _finish_move(
-        self, law: JointMove | PoseMove, rid: int, error: BaseException | None
-    ) -> None:
+    def _replace(
+        self, law: ControlLaw, move_rid: int | None, state: RobotState
+    ) -> tuple[ControlLaw, int | None]:
+        """Hand over from the running move to the one that replaces it, mid-motion."""
+        assert self.replacement is not None and isinstance(law, Tracker)
+        new, rid = self.replacement
+        self.replacement = None
+        new.handover(law, state, self.model)
+        if move_rid is not None:
+            self._answer_replaced(law, move_rid, state)
+        self.current = (new, rid)
+        return new, rid
+
+    def _answer_replaced(self, law: Tracker, rid: int, state: RobotState | None) -> None:
+        """Answer a move that another replaced (judged on this tick's state)."""
+        if state is not None:
+            result = law.result(state)
+        else:
+            result = MoveResult(False, "", elapsed=law.t)
+        result.success, result.cancelled = False, True
+        result.reason = f"replaced by a new move after {law.t:.3f} s"
+        self.reply(rid, True, result)
+
+    def _finish_move(self, law: Tracker, rid: int, error: BaseException | None) -> None:
         try:
             state = self._fresh_state()
             result: MoveResult = law.result(state)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import atexit
 import collections
+import concurrent.futures
 import itertools
 import logging
 import os
@@ -33,7 +34,7 @@ from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, SharedBlock
 
-__all__ = ["ControlProcess", "ControlProcessError"]
+__all__ = ["ControlProcess", "ControlProcessError", "Pending"]
 
 CLOSE_TIMEOUT = 5.0  # [s] for the control process to finish a motion and exit
 READY_TIMEOUT = 300.0  # [s] after connecting: first-run JIT compilation can take this long
@@ -48,13 +49,14 @@ class ControlProcessError(FrankaException):
         self.exitcode = exitcode
 
 
-class _Waiter:
-    __slots__ = ("event", "ok", "value")
+class Pending(concurrent.futures.Future[Any]):
+    """The reply to a request on its way: a ``concurrent.futures.Future`` the reader
+    thread completes (the value, or the exception the control process raised), with the
+    request's id (``rid``)."""
 
-    def __init__(self) -> None:
-        self.event = threading.Event()
-        self.ok = False
-        self.value: Any = None
+    def __init__(self, rid: int) -> None:
+        super().__init__()
+        self.rid = rid
 
 
 _LIVE: weakref.WeakSet[ControlProcess] = weakref.WeakSet()
@@ -108,7 +110,7 @@ class ControlProcess:
             theirs.close()
             os.close(shm_fd)
         self._ids = itertools.count(1)
-        self._waiters: dict[int, _Waiter] = {}
+        self._waiters: dict[int, Pending] = {}
         self._send_lock = threading.Lock()
         self._state_lock = threading.Lock()
         self.errors: collections.deque[BaseException] = collections.deque()
@@ -138,9 +140,11 @@ class ControlProcess:
                     os.close(fd)
                 if isinstance(msg, rq.Reply):
                     waiter = self._waiters.pop(msg.rid, None)
-                    if waiter is not None:
-                        waiter.ok, waiter.value = msg.ok, msg.value
-                        waiter.event.set()
+                    if waiter is not None and not waiter.done():
+                        if msg.ok:
+                            waiter.set_result(msg.value)
+                        else:
+                            waiter.set_exception(msg.value)
                 elif isinstance(msg, (rq.LoopError, rq.LogLine)):
                     self._event(msg)
                     self.events_seen += 1
@@ -149,7 +153,10 @@ class ControlProcess:
         finally:
             self.dead = True
             for waiter in list(self._waiters.values()):
-                waiter.event.set()
+                if not waiter.done():
+                    waiter.set_exception(
+                        ControlProcessError("the control process is gone before it answered")
+                    )
             self._waiters.clear()
 
     def _event(self, event: rq.LoopError | rq.LogLine) -> None:
@@ -176,15 +183,14 @@ class ControlProcess:
             exitcode=code,
         )
 
-    def call(self, request: rq.Request, *, fds: tuple[int, ...] = (),
-             timeout: float | None = None) -> Any:  # fmt: skip
-        """Send a request and wait for its reply; raises what the control process raised."""
+    def submit(self, request: rq.Request, *, fds: tuple[int, ...] = ()) -> Pending:
+        """Send a request; its reply arrives in the returned :class:`Pending`."""
         if self.closed:
             raise ControlProcessError("this Panda is closed")
         if self.dead:
             raise self.gone()
         rid = next(self._ids)
-        waiter = _Waiter()
+        waiter = Pending(rid)
         self._waiters[rid] = waiter
         try:
             with self._send_lock:
@@ -194,16 +200,30 @@ class ControlProcess:
         except (ChannelClosed, OSError):
             self._waiters.pop(rid, None)
             raise self.gone() from None
-        if not waiter.event.wait(timeout):
+        if self.dead and not waiter.done():  # the reader ended before it could answer
             self._waiters.pop(rid, None)
+            raise self.gone()
+        return waiter
+
+    def call(self, request: rq.Request, *, fds: tuple[int, ...] = (),
+             timeout: float | None = None) -> Any:  # fmt: skip
+        """Send a request and wait for its reply; raises what the control process raised."""
+        waiter = self.submit(request, fds=fds)
+        return self.wait(waiter, request, timeout)
+
+    def wait(self, waiter: Pending, request: rq.Request, timeout: float | None = None) -> Any:
+        """The reply in ``waiter`` (``request`` names it in a timeout's message)."""
+        try:
+            return waiter.result(timeout)
+        except concurrent.futures.TimeoutError:
+            self._waiters.pop(waiter.rid, None)
             raise ControlProcessError(
                 f"the control process did not answer {request.kind.value!r} in time"
-            )
-        if not waiter.ok and waiter.value is None and self.dead:
-            raise self.gone()
-        if not waiter.ok:
-            raise waiter.value
-        return waiter.value
+            ) from None
+        except ControlProcessError:
+            if self.dead:
+                raise self.gone() from None
+            raise
 
     def check(self) -> None:
         """Raise the oldest pending error of the loop, or that the process is gone."""

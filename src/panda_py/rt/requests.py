@@ -20,6 +20,7 @@ from panda_py.controllers.moves import JointPlan, PosePlan
 
 __all__ = [
     "Call",
+    "Cancel",
     "Close",
     "Connect",
     "Connected",
@@ -44,6 +45,7 @@ class Kind(enum.Enum):
     CONNECT = "connect"
     START = "start_controller"
     MOVE = "move"
+    CANCEL = "cancel"
     STOP = "stop"
     ROBOT = "robot"
     RECOVER = "recover"
@@ -83,10 +85,24 @@ class StartController:
 @dataclass(frozen=True)
 class Move:
     """Track a planned move; answers a :class:`~panda_py.controllers.moves.MoveResult`
-    when it ends."""
+    when it ends. While a move runs, this one replaces it mid-motion (that one answers
+    that it was replaced). ``until``: a condition (:mod:`panda_py.conditions`, pickled by
+    value: it may hold a function of the user's script) that ends the move gently when it
+    holds, or hands over to ``then``."""
 
     kind: ClassVar[Kind] = Kind.MOVE
     plan: JointPlan | PosePlan
+    until: bytes | None = None
+    then: JointPlan | PosePlan | None = None
+
+
+@dataclass(frozen=True)
+class Cancel:
+    """Bring the move started by request ``move`` gently to rest (answers whether it was
+    still running); it then answers its own request, cancelled."""
+
+    kind: ClassVar[Kind] = Kind.CANCEL
+    move: int
 
 
 @dataclass(frozen=True)
@@ -136,7 +152,16 @@ class Close:
 
 
 Request = (
-    Connect | StartController | Move | Stop | RobotCall | Recover | EnableLog | DisableLog | Close
+    Connect
+    | StartController
+    | Move
+    | Cancel
+    | Stop
+    | RobotCall
+    | Recover
+    | EnableLog
+    | DisableLog
+    | Close
 )
 
 

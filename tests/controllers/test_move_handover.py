@@ -1,0 +1,185 @@
+"""The move trackers' references across a handover (a move replacing another mid-motion),
+a cancel and an ``until`` condition: continuous in position, velocity and acceleration,
+within the limits, on recorded states (no simulator)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from test_law_steps import KIN, MODEL, Q0, ctrl_quat, make_state
+
+from panda_py.controllers import laws
+from panda_py.controllers.moves import JointMove, PoseMove, Progress, Tracker, tracker_for
+from panda_py.fci import PERIOD
+from panda_py.panda import planning
+from panda_py.robots.params import get_robot
+
+FER = get_robot("fer")
+OFFSET = np.array([0.3, 0.2, -0.2, 0.2, 0.3, 0.3, 0.5])
+
+
+def joint_law(start: np.ndarray, *targets: np.ndarray, speed: float = 0.2) -> JointMove:
+    waypoints, opts = planning.parse_joint_targets((np.array(targets),), {"speed_factor": speed})
+    plan = planning.joint_move(start, waypoints, opts, FER)
+    assert plan is not None
+    law = tracker_for(plan)
+    assert isinstance(law, JointMove)
+    return law
+
+
+def pose_law(start_q: np.ndarray, dp: np.ndarray) -> PoseMove:
+    T = KIN.fk(start_q)
+    target = T.copy()
+    target[:3, 3] += dp
+    positions, quats, opts = planning.parse_pose_targets((target,), {})
+    flat = T.reshape(16, order="F")
+    plan = planning.pose_move(T[:3, 3], laws.quat_from_matrix(flat), positions, quats, opts,
+                              start_q, FER)  # fmt: skip
+    assert plan is not None
+    law = tracker_for(plan)
+    assert isinstance(law, PoseMove)
+    return law
+
+
+def follow(law: JointMove, ticks: int) -> list[np.ndarray]:
+    """Step a joint move whose arm follows its reference exactly; the references."""
+    refs = []
+    state = make_state(law.ref[0], law.ref[1])
+    for _ in range(ticks):
+        law.tick(PERIOD)
+        law.step(state, MODEL)
+        refs.append(np.concatenate([law.ref[0], law.ref[1], law.ref[2]]))
+        state = make_state(law.ref[0], law.ref[1])
+        if law.finished(state):
+            break
+    return refs
+
+
+def assert_continuous(refs: np.ndarray, speed: float = 0.2) -> None:
+    j = FER.joints
+    a, jerk = speed * np.array(j.ddq_max), speed * np.array(j.dddq_max)
+    q, dq, ddq = refs[:, :7], refs[:, 7:14], refs[:, 14:]
+    tol = 1.0 + 1e-6
+    assert np.all(np.abs(np.diff(q, axis=0)) <= (np.abs(dq[1:]) + a * PERIOD) * PERIOD * tol)
+    assert np.all(np.abs(np.diff(dq, axis=0)) <= a * PERIOD * tol)  # no velocity step
+    assert np.all(np.abs(np.diff(ddq, axis=0)) <= jerk * PERIOD * tol)
+
+
+def test_a_joint_move_takes_over_mid_motion_continuously_and_reaches_its_goal() -> None:
+    first = joint_law(Q0, Q0 + OFFSET)
+    before = np.array(follow(first, 400))
+    state = make_state(first.ref[0], first.ref[1])
+    goal = Q0 - 0.5 * OFFSET
+    second = joint_law(first.ref[0], goal)
+    second.handover(first, state, MODEL)
+    after = np.array(follow(second, 10_000))
+    refs = np.vstack([before, after])
+    # across the handover the lead-in's bounds are the plan's (speed 0.2), and the plan's
+    # time-optimal profile steps its acceleration only where it switches
+    q, dq = refs[:, :7], refs[:, 7:14]
+    a = 0.2 * np.array(FER.joints.ddq_max)
+    assert np.all(np.abs(np.diff(dq[len(before) - 1 :], axis=0)) <= a * PERIOD * (1 + 1e-6))
+    np.testing.assert_allclose(q[-1], goal, atol=1e-9)
+    assert second.finished(make_state(goal))
+    assert second.result(make_state(goal)).success
+
+
+def test_a_lead_in_joins_a_multi_waypoint_plan_and_follows_its_samples() -> None:
+    first = joint_law(Q0, Q0 + OFFSET)
+    follow(first, 300)
+    mid, goal = Q0 + 0.5 * OFFSET * np.array([1, -1, 1, -1, 1, -1, 1]), Q0 - 0.3 * OFFSET
+    second = joint_law(first.ref[0], mid, goal)
+    join = second.join
+    assert 0 < join < second.last  # near the first waypoint, not its goal
+    second.handover(first, make_state(first.ref[0], first.ref[1]), MODEL)
+    refs = np.array(follow(second, 20_000))
+    assert_continuous(refs[: round(second.t0 / PERIOD)])
+    # after the lead-in, the reference is the plan's samples from the join on
+    k = round(second.t0 / PERIOD)
+    np.testing.assert_allclose(refs[k + 4, :7], second.q[join + 5], atol=1e-12)  # t0 + 5 ticks
+    np.testing.assert_allclose(refs[-1, :7], goal, atol=1e-9)
+
+
+def test_a_cancelled_move_decelerates_within_its_limits_and_ends_at_rest() -> None:
+    law = joint_law(Q0, Q0 + OFFSET)
+    before = follow(law, 400)
+    speed_then = np.abs(law.ref[1]).max()
+    assert speed_then > 0.1
+    law.cancel("cancelled after 0.400 s")
+    after = follow(law, 10_000)
+    refs = np.array(before[-1:] + after)
+    assert_continuous(refs)
+    assert np.abs(refs[-1, 7:14]).max() < 1e-9  # at rest
+    rest = make_state(law.ref[0])
+    assert law.finished(rest)
+    result = law.result(rest)
+    assert not result.success and result.cancelled and result.reason == "cancelled after 0.400 s"
+    assert np.abs(law.ref[0] - Q0).max() < np.abs(OFFSET).max()  # short of the goal
+
+
+def test_joint_and_cartesian_moves_take_over_from_each_other() -> None:
+    first = joint_law(Q0, Q0 + OFFSET)
+    follow(first, 300)
+    state = make_state(first.ref[0], first.ref[1])
+    pose = pose_law(first.ref[0], np.array([0.1, 0.0, -0.1]))
+    pose.handover(first, state, MODEL)
+    # the pose's reference starts where the arm is, moving as the joints' reference moved
+    T = state.O_T_EE
+    np.testing.assert_allclose(pose.ref[0], T[12:15], atol=1e-12)
+    np.testing.assert_allclose(pose.ref[2], MODEL.ee_jacobian(state) @ first.ref[1], atol=1e-12)
+    pose.tick(PERIOD)
+    pose.step(state, MODEL)
+    assert np.linalg.norm(pose.ref[0] - T[12:15]) < 1e-3  # one tick's travel
+    back = joint_law(first.ref[0], Q0)
+    back.handover(pose, state, MODEL)
+    np.testing.assert_allclose(back.ref[0], state.q)
+    np.testing.assert_allclose(back.ref[1], state.dq)
+
+
+@dataclass(frozen=True)
+class AfterTime:
+    seconds: float
+
+    def holds(self, state: Any, progress: Progress) -> bool:
+        return progress.elapsed > self.seconds
+
+    def __repr__(self) -> str:
+        return f"Elapsed > {self.seconds}"
+
+
+def test_a_move_whose_condition_holds_stops_gently_and_says_which_and_when() -> None:
+    law = joint_law(Q0, Q0 + OFFSET)
+    law.until = AfterTime(0.3)
+    refs = np.array(follow(law, 10_000))
+    assert_continuous(refs[299:])  # from where it held (the plan before steps its acceleration)
+    rest = make_state(law.ref[0])
+    result = law.result(rest)
+    assert result.success and result.condition == "Elapsed > 0.3"
+    assert 0.3 < result.condition_time < 0.3 + 2 * PERIOD
+
+
+def test_a_condition_with_a_successor_hands_over_to_it() -> None:
+    law = joint_law(Q0, Q0 + OFFSET)
+    then = joint_law(Q0 + OFFSET, Q0)
+    law.until, law.then = AfterTime(0.2), tracker_plan(then)
+    follow(law, 10_000)
+    assert isinstance(law.successor, Tracker) and law.finished(make_state(law.ref[0]))
+
+
+def tracker_plan(law: JointMove) -> Any:
+    from panda_py.controllers.moves import JointPlan
+
+    return JointPlan(law.q, law.dq, law.ddq, law.K, law.D, 1e-3, 1e-2,
+                     law.gen.limits)  # fmt: skip
+
+
+def test_a_move_knows_when_the_arm_is_away_from_its_start() -> None:
+    law = joint_law(Q0, Q0 + OFFSET)
+    assert not law.off_start(make_state(Q0))
+    assert law.off_start(make_state(Q0 + 0.05))
+    pose = pose_law(Q0, np.array([0.0, 0.0, -0.1]))
+    assert not pose.off_start(make_state(Q0))
+    assert pose.off_start(make_state(Q0 + 0.05))
+    assert ctrl_quat(KIN.fk(Q0)).shape == (4,)

@@ -1,0 +1,205 @@
+"""Moves that never block: asynchronous handles, gentle cancels, and moves that replace a
+running one mid-motion (joint and Cartesian, in any order) without a velocity step, with
+accelerations and jerks within the robot's limits on every logged tick."""
+
+from __future__ import annotations
+
+import asyncio
+import time
+
+import numpy as np
+import pytest
+
+import panda_py
+from panda_py.rt.process import ControlProcessError
+
+pytestmark = pytest.mark.timeout(300)
+
+OFFSET = np.array([0.3, 0.2, -0.2, 0.2, 0.3, 0.3, 0.5])  # [rad] a move of about 1 s
+
+
+def robot_ms(panda: panda_py.Panda) -> int:
+    return panda.get_state().time.to_msec()
+
+
+def wait_robot(panda: panda_py.Panda, ms: float) -> None:
+    """Wait until ``ms`` of the robot's time passed (the lockstep clock runs at its own
+    pace)."""
+    start = robot_ms(panda)
+    deadline = time.monotonic() + 30.0
+    while robot_ms(panda) - start < ms:
+        assert time.monotonic() < deadline, "the robot's clock stopped"
+        time.sleep(2e-4)
+
+
+def wait_moving(panda: panda_py.Panda, speed: float = 0.1) -> None:
+    deadline = time.monotonic() + 30.0
+    while np.abs(panda.get_state().dq).max() < speed:
+        assert time.monotonic() < deadline, "the arm never moved"
+        time.sleep(2e-4)
+
+
+JERK_WINDOW = 5  # [ticks] jerk is judged on accelerations averaged over this window
+
+
+def motion_limits(panda: panda_py.Panda, log: dict[str, list[np.ndarray]]) -> tuple[float, float]:
+    """The largest logged joint acceleration and jerk, each as a fraction of the robot's
+    limit. The acceleration is the measured velocities' change over each tick (a velocity
+    step shows as one); the jerk the change of accelerations averaged over JERK_WINDOW
+    ticks (a tick's own jerk is dominated by the joints' dry friction switching sign as a
+    joint reverses, which a real robot's sensors would not resolve either)."""
+    from panda_py.robots.params import get_robot
+
+    spec = get_robot("fer")  # the simulator's default robot
+    dq = np.array(log["dq"])
+    t = np.array(log["time"]).ravel() * 1e-3
+    assert np.all(np.diff(t) > 0.0)
+    ddq = np.diff(dq, axis=0) / np.diff(t)[:, None]
+    w = JERK_WINDOW
+    mean_ddq = (dq[w:] - dq[:-w]) / (t[w:] - t[:-w])[:, None]
+    jerk = (mean_ddq[w:] - mean_ddq[:-w]) / (t[2 * w :] - t[w:-w])[:, None]
+    return (
+        float((np.abs(ddq) / np.array(spec.joints.ddq_max)).max()),
+        float((np.abs(jerk) / np.array(spec.joints.dddq_max)).max()),
+    )
+
+
+def test_an_asynchronous_move_returns_at_once_and_its_handle_waits_for_it(
+    panda: panda_py.Panda,
+) -> None:
+    panda.move_to_start()
+    goal = panda.q + OFFSET
+    handle = panda.move_to_joint_position(goal, asynchronous=True)
+    assert isinstance(handle, panda_py.MotionHandle)
+    assert not handle.done() and handle.result is None
+    assert handle.wait(timeout=0.0) is False  # not over yet: the move still runs
+    wait_moving(panda)
+    assert handle.wait() is True
+    assert handle.done() and handle.result is not None and handle.result.success
+    np.testing.assert_allclose(panda.q, goal, atol=0.01)
+    assert not panda.is_moving()
+
+
+def test_a_move_is_awaitable_from_asyncio(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    pose = panda.get_pose()
+    pose[2, 3] -= 0.1
+
+    async def main() -> tuple[bool, float]:
+        handle = panda.move_to_pose(pose, asynchronous=True)
+        ticks = 0
+        while not handle.done():  # the event loop keeps running meanwhile
+            ticks += 1
+            await asyncio.sleep(0.001)
+        return await handle, ticks
+
+    ok, ticks = asyncio.run(main())
+    assert ok and ticks > 10
+    assert np.linalg.norm(panda.get_position() - pose[:3, 3]) < 0.02
+
+
+def test_cancel_brings_the_arm_gently_to_rest_short_of_the_goal(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    start = panda.q
+    panda.enable_logging(20_000)
+    handle = panda.move_to_joint_position(start + OFFSET, asynchronous=True)
+    wait_moving(panda, 0.2)
+    at_cancel = np.abs(panda.q - start).max()
+    assert handle.cancel() is True
+    assert handle.wait() is False
+    result = handle.result
+    assert result is not None and result.cancelled and "cancelled" in result.reason
+    state = panda.get_state()
+    assert np.abs(state.dq).max() < 0.01
+    travelled = np.abs(state.q - start).max()
+    # it decelerated on its way (no abrupt stop) and stopped well short of the goal
+    assert at_cancel + 0.002 < travelled < 0.5 * np.abs(OFFSET).max()
+    acc, jerk = motion_limits(panda, panda.get_log())
+    assert acc <= 1.0 and jerk <= 1.0
+    assert handle.cancel() is False  # over: nothing to cancel
+
+
+def test_a_new_move_replaces_a_running_one_mid_motion(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    start = panda.q
+    panda.enable_logging(20_000)
+    first = panda.move_to_joint_position(start + OFFSET, asynchronous=True)
+    wait_moving(panda, 0.2)
+    goal = start - 0.5 * OFFSET
+    assert panda.move_to_joint_position(goal) is True  # blocking, and it replaces the first
+    assert first.done()
+    result = first.result
+    assert result is not None and not result.success and result.cancelled
+    assert "replaced by a new move" in result.reason
+    np.testing.assert_allclose(panda.q, goal, atol=0.01)
+    acc, jerk = motion_limits(panda, panda.get_log())
+    assert acc <= 1.0 and jerk <= 1.0
+    assert not panda.get_state().current_errors
+
+
+def test_stop_controller_cancels_a_running_move_gently(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    handle = panda.move_to_joint_position(panda.q + OFFSET, asynchronous=True)
+    wait_moving(panda, 0.2)
+    panda.stop_controller()
+    assert handle.done() and handle.result is not None and handle.result.cancelled
+    assert np.abs(panda.get_state().dq).max() < 0.01
+
+
+def test_preempting_at_random_instants_keeps_every_tick_within_the_limits(
+    panda: panda_py.Panda,
+) -> None:
+    """Moves replaced at random instants by random joint and Cartesian targets: no reflex,
+    no velocity step, accelerations and jerks within the robot's limits on every logged
+    tick, and the last target reached."""
+    rng = np.random.default_rng(7)
+    panda.move_to_start()
+    start, pose0 = panda.q, panda.get_pose()
+    panda.enable_logging(120_000)
+    handles = []
+    for _ in range(100):
+        if rng.random() < 0.5:
+            target = start + rng.uniform(-0.3, 0.3, 7)
+            handles.append(panda.move_to_joint_position(target, asynchronous=True))
+        else:
+            pose = pose0.copy()
+            pose[:3, 3] += rng.uniform(-0.12, 0.12, 3)
+            handles.append(panda.move_to_pose(pose, asynchronous=True))
+        wait_robot(panda, rng.uniform(5.0, 250.0))
+    final = panda.move_to_joint_position(start)
+    assert final is True
+    replaced = sum(1 for h in handles if h.result is not None and "replaced" in h.result.reason)
+    assert replaced > 50  # most were replaced while they ran
+    assert all(h.done() for h in handles)
+    assert not any(h.result is not None and h.result.error for h in handles)
+    assert not panda.get_state().current_errors
+    acc, jerk = motion_limits(panda, panda.get_log())
+    assert acc <= 1.0, f"acceleration at {acc:.2f} of the limit"
+    assert jerk <= 1.0, f"jerk at {jerk:.2f} of the limit"
+    np.testing.assert_allclose(panda.q, start, atol=0.01)
+
+
+def test_bad_arguments_are_refused_before_anything_moves(panda: panda_py.Panda) -> None:
+    q = panda.q
+    with pytest.raises(ValueError, match="asynchronous: expected True or False"):
+        panda.move_to_joint_position(q, asynchronous="yes")
+    with pytest.raises(ValueError, match="until: expected a condition"):
+        panda.move_to_joint_position(q, until=lambda s: True)
+    with pytest.raises(ValueError, match=r"then: .*give until as well"):
+        panda.move_to_joint_position(q, then=panda_py.JointMotion(q))
+    with pytest.raises(ValueError, match=r"stiffness, damping: .*asynchronous"):
+        panda.move_to_pose(panda.get_pose(), stiffness=[600.0] * 7, asynchronous=True)
+    assert not panda.is_moving()
+
+
+def test_a_handle_outlives_its_panda_with_a_clear_error(sim: object) -> None:
+    from panda_py.sim import Simulator
+
+    assert isinstance(sim, Simulator)
+    panda = panda_py.Panda(sim.host)
+    handle = panda.move_to_joint_position(panda.q + OFFSET, asynchronous=True)
+    panda.close()  # a running move ends gently first
+    assert handle.done() and handle.result is not None and handle.result.cancelled
+    with pytest.raises(ControlProcessError, match="closed"):
+        panda.move_to_start(asynchronous=True)
+    assert handle.cancel() is False  # over already
