@@ -126,11 +126,13 @@ def test_a_new_move_replaces_a_running_one_mid_motion(panda: panda_py.Panda) -> 
     first = panda.move_to_joint_position(start + OFFSET, asynchronous=True)
     wait_moving(panda, 0.2)
     goal = start - 0.5 * OFFSET
+    called = time.monotonic()
     assert panda.move_to_joint_position(goal) is True  # blocking, and it replaces the first
     assert first.done()
     result = first.result
     assert result is not None and not result.success and result.cancelled
     assert "replaced by a new move" in result.reason
+    assert called < result.end_time < time.monotonic()  # when it handed over, on our clock
     np.testing.assert_allclose(panda.q, goal, atol=0.01)
     acc, jerk = motion_limits(panda, panda.get_log())
     assert acc <= 1.0 and jerk <= 1.0

@@ -80,6 +80,9 @@ class MoveResult:
     condition: str = ""  # the until condition that ended it ("" if none did)
     condition_time: float = math.nan  # [s] into the move when it held
     cancelled: bool = False  # cancelled, or replaced by another move (reason says which)
+    # time.monotonic() in the control process when it ended (or another took over): the
+    # same clock as the user's process on one machine
+    end_time: float = math.nan
 
 
 @dataclass(frozen=True)

@@ -380,9 +380,14 @@ class Panda:
         waypoints, opts = _moves.parse_joint_targets(args, kwargs)
         self._check_in_limits(waypoints)
         flag, until, then = self._guard(asynchronous, until, then)
+        replacing = self._moving()
         self._prepare_move("moveToJointPosition")
-        q_now = np.clip(self.q, self.get_joint_limits_lower(), self.get_joint_limits_upper())
-        plan = _moves.joint_move(q_now, waypoints, opts, self._limits)
+        plan: JointPlan | None
+        if replacing and len(waypoints) == 1:  # the control process leads in to the goal
+            plan = _moves.joint_goal(waypoints[0], opts, self._limits)
+        else:
+            q_now = np.clip(self.q, self.get_joint_limits_lower(), self.get_joint_limits_upper())
+            plan = _moves.joint_move(q_now, waypoints, opts, self._limits)
         return self._move(plan, "move_to_joint_position", flag, until,
                           self._plan_then(then, plan))  # fmt: skip
 
@@ -482,13 +487,18 @@ class Panda:
         q_now = state.q
         F_T_EE = state.F_T_EE.reshape(4, 4, order="F")
         _moves.check_reachable(positions, quats, q_now, self._limits, F_T_EE)
+        replacing = self._moving()
         self._prepare_move("moveToPose")
-        state = self.get_state()
-        p_now = state.O_T_EE[12:15].copy()
-        quat_now = laws.quat_from_matrix(state.O_T_EE)
-        plan = _moves.pose_move(
-            p_now, quat_now, positions, quats, opts, state.q.copy(), self._limits
-        )
+        plan: PosePlan | None
+        if replacing and len(positions) == 1 and opts.joint_space is None:
+            plan = _moves.pose_goal(positions[0], quats[0], opts, q_now.copy(), self._limits)
+        else:
+            state = self.get_state()
+            p_now = state.O_T_EE[12:15].copy()
+            quat_now = laws.quat_from_matrix(state.O_T_EE)
+            plan = _moves.pose_move(
+                p_now, quat_now, positions, quats, opts, state.q.copy(), self._limits
+            )
         if opts.joint_space is None or plan is None:
             return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))
         # panda-py < 1.0's form: the straight path tracked in joint space

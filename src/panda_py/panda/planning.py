@@ -8,6 +8,7 @@ motion.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, Literal, overload
@@ -30,9 +31,11 @@ __all__ = [
     "JointMoveOptions",
     "PoseMotion",
     "PoseMoveOptions",
+    "joint_goal",
     "joint_move",
     "parse_joint_targets",
     "parse_pose_targets",
+    "pose_goal",
     "pose_move",
 ]
 
@@ -206,6 +209,12 @@ def parse_pose_targets(
         raise TypeError("move_to_pose() missing the target: pose(s) or position(s) and "
                         "orientation(s)")  # fmt: skip
     joint_opts = {k: kwargs.pop(k) for k in POSE_MOVE_JOINT_OPTIONS if k in kwargs}
+    if not kwargs and not joint_opts:  # panda-py's defaults, checked once
+        return positions, quats, _default_pose_options()
+    return positions, quats, _pose_options(kwargs, joint_opts)
+
+
+def _pose_options(kwargs: dict[str, Any], joint_opts: dict[str, Any]) -> PoseMoveOptions:
     opts = _options(POSE_MOVE_DEFAULTS, kwargs, "move_to_pose")
     joint_space = None
     if joint_opts:
@@ -215,7 +224,7 @@ def parse_pose_targets(
             np.array(checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]")),
             np.array(checks.nonnegative("damping", damping, 7, "[Nm s/rad]")),
         )
-    checked = PoseMoveOptions(
+    return PoseMoveOptions(
         speed_factor=_speed(opts["speed_factor"]),
         impedance=np.array(checks.matrix6("impedance", opts["impedance"])).reshape(6, 6),
         damping_ratio=checks.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
@@ -229,7 +238,14 @@ def parse_pose_targets(
         ),
         joint_space=joint_space,
     )
-    return positions, quats, checked
+
+
+@functools.cache
+def _default_pose_options() -> PoseMoveOptions:
+    """The defaults' options, shared by every move that gives none (read-only arrays)."""
+    options = _pose_options({}, {})
+    options.impedance.setflags(write=False)
+    return options
 
 
 def _numeric(value: Any) -> bool:
@@ -297,6 +313,27 @@ def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
         opts.dq_threshold, opts.success_threshold,
         limits=OnlineLimits.joints(spec, opts.speed_factor),
         join=_join(s.positions, waypoints),
+    )  # fmt: skip
+
+
+def joint_goal(goal: FloatArray, opts: JointMoveOptions, spec: RobotSpec) -> JointPlan:
+    """A single-target joint move that replaces a running one: only its goal. The control
+    process's online generator leads in to it from the running move's state (time-optimal
+    under jerk limits); nothing to plan or sample here, so it takes effect sooner."""
+    z = np.zeros((1, 7))
+    limits = OnlineLimits.joints(spec, opts.speed_factor)
+    return JointPlan(goal.reshape(1, 7), z, z, opts.stiffness, opts.damping, opts.dq_threshold,
+                     opts.success_threshold, limits)  # fmt: skip
+
+
+def pose_goal(position: FloatArray, quat: FloatArray, opts: PoseMoveOptions,
+              q_nullspace: FloatArray, spec: RobotSpec) -> PosePlan:  # fmt: skip
+    """:func:`joint_goal` for a Cartesian move."""
+    z = np.zeros((1, 6))
+    return PosePlan(
+        position.reshape(1, 3), quat.reshape(1, 4), z, z, q_nullspace, opts.impedance,
+        opts.damping_ratio, opts.nullspace_stiffness, opts.dq_threshold, opts.success_threshold,
+        opts.orientation_threshold, OnlineLimits.cartesian(spec, opts.speed_factor),
     )  # fmt: skip
 
 

@@ -506,9 +506,11 @@ class ControlServer:
             result = MoveResult(False, "", elapsed=law.t)
         result.success, result.cancelled = False, True
         result.reason = f"replaced by a new move after {law.t:.3f} s"
+        result.end_time = time.monotonic()
         self.reply(rid, True, result)
 
     def _finish_move(self, law: Tracker, rid: int, error: BaseException | None) -> None:
+        end_time = time.monotonic()
         try:
             state = self._fresh_state()
             result: MoveResult = law.result(state)
@@ -522,6 +524,7 @@ class ControlServer:
         elif self.stopping and law.t < law.duration:
             result.success = False
             result.reason = f"stopped after {law.t:.3f} s of {law.duration:.3f} s"
+        result.end_time = end_time
         self.reply(rid, True, result)
 
 
