@@ -140,3 +140,18 @@ def test_a_synchronization_ruckig_cannot_solve_falls_back_to_the_next(
     gen.reset(q, noise, np.zeros(7))
     assert gen.step()  # phase synchronization raised inside ruckig; the next one solved it
     np.testing.assert_allclose(gen.position, q, atol=1e-12)
+
+
+def test_the_scalar_jacobians_equal_the_vectorized_ones() -> None:
+    from panda_py.motion import online
+
+    rng = np.random.default_rng(3)
+    for scale in (1e-6, 0.3, 2.5):
+        for _ in range(20):
+            x, y = rng.normal(size=3) * scale, rng.normal(size=3)
+            right = rotation.right_jacobian_times(x[None], y[None])[0]
+            left = rotation.right_jacobian_times(-x[None], y[None])[0]  # J_l(x) = J_r(-x)
+            np.testing.assert_allclose(online._jacobian_times(list(x), list(y), -1.0), right,
+                                       atol=1e-12)  # fmt: skip
+            np.testing.assert_allclose(online._jacobian_times(list(x), list(y), 1.0), left,
+                                       atol=1e-12)  # fmt: skip

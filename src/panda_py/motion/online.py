@@ -264,9 +264,11 @@ class OnlinePose:
         if not x.any():
             return
         q = rotation.multiply(self._q0, rotation.exp(x))
-        # the body rates of R0 exp(x) are the new anchor's coordinate rates at x = 0
-        w = rotation.right_jacobian_times(x[None], xd[None])[0]
-        wd = rotation.right_jacobian_times(x[None], xdd[None])[0]
+        # the body rates of R0 exp(x) (J_r(x) times the coordinates' rates) are the new
+        # anchor's coordinate rates at x = 0
+        xs = x.tolist()
+        w = _jacobian_times(xs, xd.tolist(), -1.0)
+        wd = _jacobian_times(xs, xdd.tolist(), -1.0)
         self._anchor(q)
         g.reset(
             np.concatenate([g.position[:3], np.zeros(3)]),
@@ -309,15 +311,14 @@ class OnlinePose:
         # scalar arithmetic: numpy's per-call cost on 3-vectors would be most of a tick
         g = self.gen
         p, v, a = g.position, g.velocity, g.acceleration
-        x0, x1, x2 = p[3:].tolist()
+        xs = p[3:].tolist()
+        x0, x1, x2 = xs
         th2 = x0 * x0 + x1 * x1 + x2 * x2
         th = math.sqrt(th2)
         if th < 1e-4:  # series expansions
             k, c = 0.5 - th2 / 48.0, 1.0 - th2 / 8.0
-            ca, cb = 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
         else:
             k, c = math.sin(0.5 * th) / th, math.cos(0.5 * th)
-            ca, cb = (1.0 - math.cos(th)) / th2, (th - math.sin(th)) / (th2 * th)
         ex, ey, ez, ew = k * x0, k * x1, k * x2, c
         qx, qy, qz, qw = self._q0.tolist()
         o = self.orientation
@@ -325,18 +326,33 @@ class OnlinePose:
         o[1] = qw * ey - qx * ez + qy * ew + qz * ex
         o[2] = qw * ez + qx * ey - qy * ex + qz * ew
         o[3] = qw * ew - qx * ex - qy * ey - qz * ez
-        # world angular velocity of R0 exp(x) is R0 J_l(x) xd, with
-        # J_l(x) y = y + ca (x × y) + cb x × (x × y); the acceleration likewise, without
-        # the Jacobian's rate (small for the small x the re-anchoring keeps)
+        # the world angular velocity of R0 exp(x) is R0 J_l(x) xd; the acceleration
+        # likewise, without the Jacobian's rate (small for the small x the re-anchoring
+        # keeps)
         (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R0_rows
         tw, ac = self.twist, self.accel
-        for src, dst in ((v.tolist(), tw), (a.tolist(), ac)):
-            y0, y1, y2 = src[3], src[4], src[5]
-            c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
-            d0, d1, d2 = x1 * c2 - x2 * c1, x2 * c0 - x0 * c2, x0 * c1 - x1 * c0
-            z0, z1, z2 = y0 + ca * c0 + cb * d0, y1 + ca * c1 + cb * d1, y2 + ca * c2 + cb * d2
+        for src, dst in ((v, tw), (a, ac)):
+            z0, z1, z2 = _jacobian_times(xs, src[3:].tolist(), 1.0)
             dst[:3] = src[:3]
             dst[3] = r00 * z0 + r01 * z1 + r02 * z2
             dst[4] = r10 * z0 + r11 * z1 + r12 * z2
             dst[5] = r20 * z0 + r21 * z1 + r22 * z2
         self.position[:] = p[:3]
+
+
+def _jacobian_times(x: list[float], y: list[float], sign: float) -> tuple[float, float, float]:
+    """``J(x) y`` for SO(3)'s left (``sign`` 1) or right (-1) Jacobian of the rotation
+    vector ``x``: ``y + sign a (x × y) + b x × (x × y)``, in scalars (numpy's per-call cost
+    on 3-vectors would be most of the time)."""
+    x0, x1, x2 = x
+    y0, y1, y2 = y
+    th2 = x0 * x0 + x1 * x1 + x2 * x2
+    if th2 < 1e-8:  # series expansions
+        a, b = 0.5 - th2 / 24.0, 1.0 / 6.0 - th2 / 120.0
+    else:
+        th = math.sqrt(th2)
+        a, b = (1.0 - math.cos(th)) / th2, (th - math.sin(th)) / (th2 * th)
+    a *= sign
+    c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
+    d0, d1, d2 = x1 * c2 - x2 * c1, x2 * c0 - x0 * c2, x0 * c1 - x1 * c0
+    return y0 + a * c0 + b * d0, y1 + a * c1 + b * d1, y2 + a * c2 + b * d2
