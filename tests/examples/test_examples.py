@@ -163,3 +163,10 @@ def test_13_two_arms_move_together_and_mirror(tmp_path: Path) -> None:
     right = number(r"right y -?[\d.]+ to ([\d.]+) cm", out)
     assert 3.5 < left < 6.0 and 3.5 < right < 6.0  # the 5 cm sines, both arms
     assert number(r"mirror error at most ([\d.]+) mm", out) < 15.0
+
+
+def test_15_a_move_is_replaced_half_way_without_a_velocity_step(tmp_path: Path) -> None:
+    out = run_example("15", cwd=tmp_path)
+    assert "first move: False (replaced by a new move after" in out
+    assert number(r"second move: True, ([\d.]+) mm from its goal", out) < 5.0
+    assert number(r"largest joint acceleration: (\d+) % of the FER's limit", out) <= 100

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py import fci
+from panda_py import fci, kinematics
 from panda_py.controllers import TorqueController, laws
 from panda_py.controllers.moves import JointPlan, MoveResult, PosePlan, rotation_angle
 from panda_py.libfranka.model import Model
@@ -90,7 +91,17 @@ class Panda:
         self._controller: TorqueController | None = None
         self._motion: MotionHandle | None = None  # the newest move (it may be running)
         self._log_ring: LogRing | None = None
-        self._proc = ControlProcess(hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger)
+        # the moves' checks (inverse kinematics) compile or load their kernels on first use,
+        # a third of a second: done here while the control process starts, so the first
+        # move (an asynchronous one in particular) takes effect at once
+        warm = threading.Thread(target=kinematics.warmup, name="panda_py-warmup", daemon=True)
+        warm.start()
+        try:
+            self._proc = ControlProcess(
+                hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger
+            )
+        finally:
+            warm.join()
         self._info: rq.Connected = self._proc.info
         self._hostname = hostname
         self._dialect = fci.dialect(self._info.server_version)
@@ -339,7 +350,9 @@ class Panda:
         if result.error is not None:
             self._proc.errors.append(result.error)
             self._logger.error("Control loop interrupted: %s", result.error)
-        if not result.success:
+        if result.cancelled:  # as asked: cancelled, or replaced by a newer move
+            self._logger.info("Motion %s", result.reason)
+        elif not result.success:
             self._logger.warning("Motion %s", result.reason)
 
     def _move(
