@@ -36,7 +36,9 @@ if __name__ == "__main__":
         log = panda.get_log()
         ddq = np.abs(np.diff(np.array(log["dq"]), axis=0)).max(axis=0) / 1e-3  # [rad/s^2]
         limit = np.array(get_robot(args.robot).joints.ddq_max)  # --robot: fer or fr3
-        print(f"largest joint acceleration: {(ddq / limit).max() * 100:.0f} % of the "
-              f"{args.robot.upper()}'s limit")
+        print(
+            f"largest joint acceleration: {(ddq / limit).max() * 100:.0f} % of the "
+            f"{args.robot.upper()}'s limit"
+        )
         panda.move_to_start()
         panda.close()
