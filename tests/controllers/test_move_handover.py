@@ -110,7 +110,7 @@ def test_a_cancelled_move_decelerates_within_its_limits_and_ends_at_rest() -> No
     law.cancel("cancelled after 0.400 s")
     after = follow(law, 10_000)
     refs = np.array(before[-1:] + after)
-    assert_continuous(refs)
+    assert_continuous(refs, planning.STOP_SPEED_FACTOR)  # a stop brakes at least that hard
     assert np.abs(refs[-1, 7:14]).max() < 1e-9  # at rest
     rest = make_state(law.ref[0])
     assert law.finished(rest)
@@ -153,7 +153,8 @@ def test_a_move_whose_condition_holds_stops_gently_and_says_which_and_when() -> 
     law = joint_law(Q0, Q0 + OFFSET)
     law.until = AfterTime(0.3)
     refs = np.array(follow(law, 10_000))
-    assert_continuous(refs[299:])  # from where it held (the plan before steps its acceleration)
+    # from where it held (the plan before steps its acceleration), at a stop's limits
+    assert_continuous(refs[299:], planning.STOP_SPEED_FACTOR)
     rest = make_state(law.ref[0])
     result = law.result(rest)
     assert result.success and result.condition == "Elapsed > 0.3"

@@ -91,9 +91,11 @@ class JointPlan:
     robot's 1 ms period and how to track and judge it (``Panda.move_to_joint_position``).
 
     ``limits`` bound the online generator (the joints' velocity, acceleration and jerk,
-    scaled by the speed factor) that leads in when this move replaces a running one and
-    that brings the arm to rest when it is cancelled; a lead-in joins the plan at sample
-    ``join`` (the goal when it is the last)."""
+    scaled by the speed factor) that leads in when this move replaces a running one;
+    ``stop_limits`` (the same at no less than half the robot's) when it brings the arm to
+    rest (cancelled, or its ``until`` condition held: a stop must not take as long as a
+    slow move's own acceleration would); a lead-in joins the plan at sample ``join`` (the
+    goal when it is the last)."""
 
     q: FloatArray  # (N, 7) [rad]
     dq: FloatArray  # (N, 7) [rad/s]
@@ -104,6 +106,7 @@ class JointPlan:
     success_threshold: float  # [rad] success within this of the goal
     limits: OnlineLimits
     join: int = -1
+    stop_limits: OnlineLimits | None = None  # None: ``limits``
 
 
 @dataclass(frozen=True)
@@ -111,7 +114,7 @@ class PosePlan:
     """A Cartesian move as the user's process planned it: positions, orientations, twists
     and their derivatives sampled at 1 ms, and how to track and judge it
     (``Panda.move_to_pose``); ``limits`` (translation x, y, z, rotation x, y, z) and
-    ``join`` as :class:`JointPlan`'s."""
+    ``join``, ``stop_limits`` as :class:`JointPlan`'s."""
 
     position: FloatArray  # (N, 3) [m]
     orientation: FloatArray  # (N, 4) unit quaternions (x, y, z, w)
@@ -126,6 +129,7 @@ class PosePlan:
     orientation_threshold: float  # [rad]
     limits: OnlineLimits
     join: int = -1
+    stop_limits: OnlineLimits | None = None
 
 
 def tracker_for(plan: JointPlan | PosePlan) -> JointMove | PoseMove:
@@ -285,6 +289,7 @@ class JointMove(Tracker):
         self.join = plan.join % len(plan.q)
         self.integral = np.zeros(7)
         self.gen = OnlineGenerator(plan.limits)
+        self.stop_limits = plan.stop_limits or plan.limits
         self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
 
     def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
@@ -319,6 +324,7 @@ class JointMove(Tracker):
 
     def _begin_rest(self) -> None:
         self.gen.reset(*(r.copy() for r in self.ref))
+        self.gen.set_limits(self.stop_limits)
         self.gen.set_rest()
         self.leading = True
 
@@ -386,6 +392,7 @@ class PoseMove(Tracker):
         self.integral = np.zeros(6)
         self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
         self.gen = OnlinePose(plan.limits)
+        self.stop_limits = plan.stop_limits or plan.limits
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
 
     def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
@@ -421,6 +428,7 @@ class PoseMove(Tracker):
     def _begin_rest(self) -> None:
         p, quat, v, a = (r.copy() for r in self.ref)
         self.gen.reset(p, quat, v, a)
+        self.gen.set_limits(self.stop_limits)
         self.gen.set_rest()
         self.leading = True
 

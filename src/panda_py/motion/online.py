@@ -116,22 +116,28 @@ class OnlineGenerator:
     def __init__(self, limits: OnlineLimits) -> None:
         n = len(limits.velocity)
         self.n = n
-        self.limits = limits
-        self._vmax = np.array(limits.velocity)
-        self._amax = np.array(limits.acceleration)
         self._otg = Ruckig(n, PERIOD)
         self._inp = InputParameter(n)
         self._out = OutputParameter(n)
-        inp = self._inp
-        inp.max_velocity = list(limits.velocity)
-        inp.max_acceleration = list(limits.acceleration)
-        inp.max_jerk = list(limits.jerk)
-        inp.synchronization = Synchronization.Phase  # straight lines where it can
+        self._inp.synchronization = Synchronization.Phase  # straight lines where it can
+        self.set_limits(limits)
         self.position = np.zeros(n)
         self.velocity = np.zeros(n)
         self.acceleration = np.zeros(n)
         self.finished = True
         self.duration = 0.0  # [s] of the trajectory computed for the newest target
+
+    def set_limits(self, limits: OnlineLimits) -> None:
+        """Bound what follows by ``limits`` (same coordinates); the current target stays."""
+        if len(limits.velocity) != self.n:
+            raise ValueError(f"limits: expected {self.n} coordinates, got {len(limits.velocity)}")
+        self.limits = limits
+        self._vmax = np.array(limits.velocity)
+        self._amax = np.array(limits.acceleration)
+        inp = self._inp
+        inp.max_velocity = list(limits.velocity)
+        inp.max_acceleration = list(limits.acceleration)
+        inp.max_jerk = list(limits.jerk)
 
     def reset(self, position: FloatArray, velocity: FloatArray, acceleration: FloatArray) -> None:
         """Start from this state (each (n,)); the target becomes this position at rest."""
@@ -300,6 +306,10 @@ class OnlinePose:
     def set_rest(self) -> None:
         """Come to rest as fast as the limits allow."""
         self.gen.set_rest()
+
+    def set_limits(self, limits: OnlineLimits) -> None:
+        """Bound what follows by ``limits`` (6 coordinates)."""
+        self.gen.set_limits(limits)
 
     def step(self) -> bool:
         """Advance one period; True once the target (or rest) is reached."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any, Literal, overload
+from typing import Any, Literal, NamedTuple, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -304,16 +304,45 @@ def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
             return None
         z = np.zeros((2, 7))
         goal = np.tile(waypoints[-1], (2, 1))
-        limits = OnlineLimits.joints(spec, opts.speed_factor)
+        online = joint_online(spec, opts.speed_factor)._asdict()
         return JointPlan(goal, z, z, opts.stiffness, opts.damping, opts.dq_threshold,
-                         opts.success_threshold, limits)  # fmt: skip
+                         opts.success_threshold, **online)  # fmt: skip
     s = traj.sample(_times(traj.get_duration()))
     return JointPlan(
         s.positions, s.velocities, s.accelerations, opts.stiffness, opts.damping,
         opts.dq_threshold, opts.success_threshold,
-        limits=OnlineLimits.joints(spec, opts.speed_factor),
         join=_join(s.positions, waypoints),
+        **joint_online(spec, opts.speed_factor)._asdict(),
     )  # fmt: skip
+
+
+# a stop (cancel, a guarded move's condition) decelerates with no less than this share of
+# the robot's limits, whatever the move's speed factor: a guarded descent at 5 cm/s
+# (speed factor 0.05) would otherwise brake 11 mm further into what it touched
+STOP_SPEED_FACTOR = 0.5
+
+
+class Online(NamedTuple):
+    """The online generator's limits of a plan (its fields' names)."""
+
+    limits: OnlineLimits
+    stop_limits: OnlineLimits
+
+
+def joint_online(spec: RobotSpec, speed_factor: float) -> Online:
+    """The online generator's limits of a joint plan."""
+    return Online(
+        OnlineLimits.joints(spec, speed_factor),
+        OnlineLimits.joints(spec, max(speed_factor, STOP_SPEED_FACTOR)),
+    )
+
+
+def pose_online(spec: RobotSpec, speed_factor: float) -> Online:
+    """The online generator's limits of a Cartesian plan."""
+    return Online(
+        OnlineLimits.cartesian(spec, speed_factor),
+        OnlineLimits.cartesian(spec, max(speed_factor, STOP_SPEED_FACTOR)),
+    )
 
 
 def joint_goal(goal: FloatArray, opts: JointMoveOptions, spec: RobotSpec) -> JointPlan:
@@ -321,9 +350,9 @@ def joint_goal(goal: FloatArray, opts: JointMoveOptions, spec: RobotSpec) -> Joi
     process's online generator leads in to it from the running move's state (time-optimal
     under jerk limits); nothing to plan or sample here, so it takes effect sooner."""
     z = np.zeros((1, 7))
-    limits = OnlineLimits.joints(spec, opts.speed_factor)
+    online = joint_online(spec, opts.speed_factor)._asdict()
     return JointPlan(goal.reshape(1, 7), z, z, opts.stiffness, opts.damping, opts.dq_threshold,
-                     opts.success_threshold, limits)  # fmt: skip
+                     opts.success_threshold, **online)  # fmt: skip
 
 
 def pose_goal(position: FloatArray, quat: FloatArray, opts: PoseMoveOptions,
@@ -333,7 +362,7 @@ def pose_goal(position: FloatArray, quat: FloatArray, opts: PoseMoveOptions,
     return PosePlan(
         position.reshape(1, 3), quat.reshape(1, 4), z, z, q_nullspace, opts.impedance,
         opts.damping_ratio, opts.nullspace_stiffness, opts.dq_threshold, opts.success_threshold,
-        opts.orientation_threshold, OnlineLimits.cartesian(spec, opts.speed_factor),
+        opts.orientation_threshold, **pose_online(spec, opts.speed_factor)._asdict(),
     )  # fmt: skip
 
 
@@ -404,7 +433,7 @@ def pose_move_in_joint_space(
     stiffness, damping = opts.joint_space
     return JointPlan(
         q, dq, ddq, stiffness, damping, opts.dq_threshold, math.inf,
-        limits=OnlineLimits.joints(spec, opts.speed_factor),
+        **joint_online(spec, opts.speed_factor)._asdict(),
     )  # fmt: skip
 
 
@@ -434,7 +463,7 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
             np.tile(positions[-1], (2, 1)), np.tile(quats[-1], (2, 1)), z, z, q_nullspace,
             opts.impedance, opts.damping_ratio, opts.nullspace_stiffness, opts.dq_threshold,
             opts.success_threshold, opts.orientation_threshold,
-            OnlineLimits.cartesian(spec, opts.speed_factor),
+            **pose_online(spec, opts.speed_factor)._asdict(),
         )  # fmt: skip
     s = traj.sample(_times(traj.get_duration()))
     # the angular acceleration, by central differences of the sampled angular velocity
@@ -451,6 +480,6 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         dq_threshold=opts.dq_threshold,
         success_threshold=opts.success_threshold,
         orientation_threshold=opts.orientation_threshold,
-        limits=OnlineLimits.cartesian(spec, opts.speed_factor),
         join=_join(s.positions, positions),
+        **pose_online(spec, opts.speed_factor)._asdict(),
     )
