@@ -1,0 +1,118 @@
+"""Guarded moves: a condition on the robot's state, evaluated every tick in the control
+process, ends the move gently when it holds (or hands over to another motion), and the
+result says which condition and when."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+import panda_py
+from panda_py.robots.params import START_POSE, get_robot
+
+pytestmark = pytest.mark.timeout(300)
+
+FER = get_robot("fer")
+ABOVE_TABLE = (0.45, 0.25, 0.04)  # [m] the TCP 4 cm above the table, away from the cube
+
+
+class PressingDown:
+    """The robot presses down with more than ``newtons``: libfranka's O_F_ext_hat_K is
+    the robot's force on the environment, so its z is negative then. A user's own
+    condition class, sent to the control process by value like a user's controller."""
+
+    def __init__(self, newtons: float) -> None:
+        self.newtons = newtons
+
+    def holds(self, state: Any, progress: Any) -> bool:
+        return bool(state.O_F_ext_hat_K[2] < -self.newtons)
+
+    def __repr__(self) -> str:
+        return f"pressing down > {self.newtons} N"
+
+
+def above_table() -> np.ndarray:
+    pose = panda_py.fk(np.array(START_POSE))
+    pose[:3, 3] = ABOVE_TABLE
+    return pose
+
+
+IMPACT = 0.03  # [s] the impact's transient, over before the contact force is judged
+
+
+def allow_contact(panda: panda_py.Panda) -> None:
+    """Collision thresholds for a contact task, as on a real robot: touching a rigid
+    table at 5 cm/s is an impact (the simulated table and pads are hard: the estimated
+    force peaks at about 47 N for a tick, whatever the controller), above the default
+    reflex thresholds (20 N)."""
+    panda.get_robot().set_collision_behavior(
+        [80.0] * 7, [80.0] * 7, [80.0] * 7, [80.0] * 7,
+        [80.0] * 6, [80.0] * 6, [80.0] * 6, [80.0] * 6,
+    )  # fmt: skip
+
+
+def test_a_guarded_descent_stops_on_contact_gently(panda: panda_py.Panda) -> None:
+    """Down at 5 cm/s toward a point 3 cm inside the table until the robot presses with
+    10 N: once the impact is over it presses with at most 15 N, and it stops at most 5 mm
+    past first contact."""
+    panda.move_to_start()
+    allow_contact(panda)
+    start = above_table()
+    assert panda.move_to_pose(start)
+    panda.enable_logging(30_000)
+    goal = start.copy()
+    goal[2, 3] = -0.03
+    speed = 0.05 / FER.cartesian.translation_velocity  # 5 cm/s on a straight line
+    handle = panda.move_to_pose(goal, speed_factor=speed, until=PressingDown(10.0),
+                                asynchronous=True)  # fmt: skip
+    assert handle.wait() is True  # ended by its condition, as asked
+    result = handle.result
+    assert result is not None and result.condition == "pressing down > 10.0 N"
+    assert 0.3 < result.condition_time < 2.0
+    assert result.position_error > 0.02  # it did not go on to the goal inside the table
+    log = panda.get_log()
+    force = -np.array(log["O_F_ext_hat_K"])[:, 2]  # [N] the robot's push on the table
+    z = np.array(log["O_T_EE"])[:, 14]
+    touching = np.flatnonzero(force > 1.0)
+    assert touching.size, "never touched the table"
+    first = touching[0]
+    after = force[first + round(IMPACT * 1e3) :]
+    assert after.size > 100 and after.max() <= 15.0, f"pressed with {after.max():.1f} N"
+    assert z[first] - z[-1] <= 0.005, f"{(z[first] - z[-1]) * 1000:.1f} mm past first contact"
+    assert not panda.get_state().current_errors
+
+
+def test_a_condition_can_hand_over_to_another_motion(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    allow_contact(panda)
+    start = above_table()
+    assert panda.move_to_pose(start)
+    goal = start.copy()
+    goal[2, 3] = -0.03
+    back_up = panda_py.PoseMotion(start)
+    speed = 0.05 / FER.cartesian.translation_velocity
+    ok = panda.move_to_pose(goal, speed_factor=speed, until=PressingDown(5.0), then=back_up)
+    assert ok is True
+    np.testing.assert_allclose(panda.get_position(), ABOVE_TABLE, atol=0.003)
+    force = -panda.get_state().O_F_ext_hat_K[2]
+    assert abs(force) < 2.0  # lifted off the table again
+
+
+class Broken:
+    def holds(self, state: Any, progress: Any) -> bool:
+        raise RuntimeError("my condition is broken")
+
+
+def test_a_condition_that_raises_aborts_the_move_with_its_error(
+    panda: panda_py.Panda,
+) -> None:
+    panda.move_to_start()
+    handle = panda.move_to_joint_position(panda.q + 0.1, until=Broken(), asynchronous=True)
+    assert handle.wait() is False
+    result = handle.result
+    assert result is not None and isinstance(result.error, RuntimeError)
+    assert "my condition is broken" in result.reason
+    panda.recover()
+    assert panda.move_to_start()
