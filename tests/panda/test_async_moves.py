@@ -191,7 +191,20 @@ def test_bad_arguments_are_refused_before_anything_moves(panda: panda_py.Panda) 
         panda.move_to_joint_position(q, then=panda_py.JointMotion(q))
     with pytest.raises(ValueError, match=r"stiffness, damping: .*asynchronous"):
         panda.move_to_pose(panda.get_pose(), stiffness=[600.0] * 7, asynchronous=True)
+    nan = q.copy()
+    nan[3] = np.nan
+    with pytest.raises(ValueError, match="waypoints"):
+        panda.move_to_joint_position(nan, asynchronous=True)
+    far = panda.get_pose()
+    far[:3, 3] = (1.5, 0.0, 0.5)  # beyond the arm's reach
+    with pytest.raises(ValueError, match="out of reach"):
+        panda.move_to_pose(far, asynchronous=True)
     assert not panda.is_moving()
+    # and while a move runs, a bad one leaves it running
+    handle = panda.move_to_joint_position(q + OFFSET, asynchronous=True)
+    with pytest.raises(ValueError, match="out of reach"):
+        panda.move_to_pose(far, asynchronous=True)
+    assert handle.wait() is True
 
 
 def test_a_handle_outlives_its_panda_with_a_clear_error(sim: object) -> None:
