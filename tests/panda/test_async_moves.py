@@ -218,3 +218,35 @@ def test_a_handle_outlives_its_panda_with_a_clear_error(sim: object) -> None:
     with pytest.raises(ControlProcessError, match="closed"):
         panda.move_to_start(asynchronous=True)
     assert handle.cancel() is False  # over already
+
+
+def test_a_waypoint_path_with_max_deviation_passes_its_corners_without_stopping(
+    panda: panda_py.Panda,
+) -> None:
+    panda.move_to_start()
+    T = panda.get_pose()
+    poses = []
+    for dx, dy, dz in ((0.12, 0.0, 0.0), (0.12, 0.12, 0.0), (0.0, 0.12, 0.05)):
+        pose = T.copy()
+        pose[:3, 3] += (dx, dy, dz)
+        poses.append(pose)
+    timings = {}
+    for deviation in (0.0, 0.02):
+        panda.move_to_start()
+        panda.enable_logging(20_000)
+        assert panda.move_to_pose(poses, max_deviation=deviation) is True
+        log = panda.get_log()
+        p = np.array(log["O_T_EE"])[:, 12:15]
+        speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / 1e-3
+        timings[deviation] = np.array(log["time"])[-1, 0] - np.array(log["time"])[0, 0]
+        for w in poses[:2]:  # the slowest the arm went near each corner
+            gap = np.linalg.norm(p[1:] - w[:3, 3], axis=1)
+            assert gap.min() <= deviation + 0.003
+            slowest = speed[gap <= deviation + 0.005].min()
+            if deviation == 0.0:  # panda-py's: at rest at the corner
+                assert slowest < 0.01
+            else:  # through it, at speed
+                assert slowest > 0.05
+    assert timings[0.02] < timings[0.0] - 300  # [ms]
+    with pytest.raises(ValueError, match="max_deviation: expected a number >= 0"):
+        panda.move_to_pose(poses, max_deviation=-1.0)

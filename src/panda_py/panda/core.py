@@ -385,7 +385,9 @@ class Panda:
         ``speed_factor=0.2, stiffness, damping, dq_threshold=0.001,
         success_threshold=0.01``.
 
-        Beyond panda-py: ``asynchronous=True`` returns a :class:`MotionHandle` at once; a
+        Beyond panda-py: ``max_deviation`` [rad] (keyword) lets the path cut each
+        intermediate waypoint's corner by up to that much instead of stopping there (0,
+        panda-py's, stops); ``asynchronous=True`` returns a :class:`MotionHandle` at once; a
         move started while another runs replaces it mid-motion (continuously, within the
         robot's limits); ``until`` a condition (:mod:`panda_py.conditions`) evaluated every
         tick in the control process that ends the move gently when it holds, or hands over
@@ -487,8 +489,8 @@ class Panda:
         it ends within ``success_threshold`` [m] and ``orientation_threshold`` [rad].
         Keywords as panda-py: ``speed_factor=0.2, impedance, damping_ratio=1.0,
         nullspace_stiffness=15.0, dq_threshold=0.001, success_threshold=0.02,
-        orientation_threshold=0.1``; ``asynchronous``, ``until``, ``then`` as
-        :meth:`move_to_joint_position`."""
+        orientation_threshold=0.1``; ``max_deviation`` [m], ``asynchronous``, ``until``,
+        ``then`` as :meth:`move_to_joint_position`."""
         positions, quats, opts = _moves.parse_pose_targets(args, kwargs)
         flag, until, then = self._guard(asynchronous, until, then)
         if opts.joint_space is not None and (flag or until is not None):

@@ -48,6 +48,7 @@ JOINT_MOVE_DEFAULTS: dict[str, Any] = {
     "damping": (50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0),
     "dq_threshold": 0.001,
     "success_threshold": 0.01,
+    "max_deviation": 0.0,  # ours (keyword only): panda-py stops at every waypoint
 }
 POSE_MOVE_DEFAULTS: dict[str, Any] = {
     "speed_factor": 0.2,
@@ -57,6 +58,7 @@ POSE_MOVE_DEFAULTS: dict[str, Any] = {
     "dq_threshold": 0.001,
     "success_threshold": 0.02,
     "orientation_threshold": 0.1,
+    "max_deviation": 0.0,  # ours (keyword only), as above
 }
 
 
@@ -75,6 +77,7 @@ class JointMoveOptions:
     damping: FloatArray  # (7,) [Nm s/rad]
     dq_threshold: float  # [rad/s]
     success_threshold: float  # [rad]
+    max_deviation: float = 0.0  # [rad] how far the path may cut a waypoint's corner
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,7 @@ class PoseMoveOptions:
     success_threshold: float  # [m]
     orientation_threshold: float  # [rad]
     joint_space: tuple[FloatArray, FloatArray] | None = None
+    max_deviation: float = 0.0  # [m] how far the path may cut a waypoint's corner
 
 
 def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict[str, Any]:
@@ -103,6 +107,13 @@ def _speed(value: Any) -> float:
     v = checks.scalar("speed_factor", value)
     if not 0.0 < v <= 1.0:
         raise ValueError(f"speed_factor: expected a number in (0, 1], got {v}")
+    return v
+
+
+def _nonnegative(name: str, value: Any, unit: str) -> float:
+    v = checks.scalar(name, value, unit)
+    if v < 0.0:
+        raise ValueError(f"{name}: expected a number >= 0 {unit}, got {v}")
     return v
 
 
@@ -150,6 +161,7 @@ def parse_joint_targets(
         damping=np.array(checks.nonnegative("damping", opts["damping"], 7, "[Nm s/rad]")),
         dq_threshold=_positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
         success_threshold=_positive("success_threshold", opts["success_threshold"], "[rad]"),
+        max_deviation=_nonnegative("max_deviation", opts["max_deviation"], "[rad]"),
     )
     return waypoints, checked
 
@@ -237,6 +249,7 @@ def _pose_options(kwargs: dict[str, Any], joint_opts: dict[str, Any]) -> PoseMov
             "orientation_threshold", opts["orientation_threshold"], "[rad]"
         ),
         joint_space=joint_space,
+        max_deviation=_nonnegative("max_deviation", opts["max_deviation"], "[m]"),
     )
 
 
@@ -298,7 +311,9 @@ def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
                spec: RobotSpec, *, at_rest: bool = False) -> JointPlan | None:  # fmt: skip
     """The sampled plan from ``q_now`` through ``waypoints``; None if already there
     (``at_rest``: then a plan that rests there)."""
-    traj = JointTrajectory(np.vstack([q_now, waypoints]), opts.speed_factor, robot=spec)
+    traj = JointTrajectory(
+        np.vstack([q_now, waypoints]), opts.speed_factor, opts.max_deviation, robot=spec
+    )
     if traj.get_duration() == 0.0:
         if not at_rest:
             return None
@@ -453,7 +468,7 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     that rests there)."""
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
-        robot=spec,
+        opts.max_deviation, robot=spec,
     )  # fmt: skip
     if traj.get_duration() == 0.0:
         if not at_rest:
