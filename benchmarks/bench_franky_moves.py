@@ -25,7 +25,7 @@ from the state each library gives the user, ``panda.get_state()`` and ``robot.st
 every joint slower than 0.005 rad/s and the end effector within ``--rest-mm`` (2 mm) of
 the goal, held for 50 ms; the time is the start of that stretch. Also printed: the final
 distance; when the library itself ended the move (our ``MotionHandle.done()``, franky's
-``is_in_control`` turning False; "-" if not before the arm was at rest); our path's planned
+``is_in_control`` turning False; "-" if not within the 50 ms the test holds); our path's planned
 trajectory duration; per intermediate waypoint, the lowest joint speed seen within 5 mm of
 it (about 0: the arm stopped there).
 
