@@ -1,0 +1,303 @@
+"""Benchmark our non-blocking Cartesian moves side by side with franky-control 2.0.0, both
+against panda-sim (FR3, protocol v10) in real time (``lockstep=False``).
+
+Run: ``python benchmarks/bench_franky_moves.py [--quick] [--runs 5] [--factor 0.2]``.
+
+Cases (each run: a fresh simulator per library, the libraries alternating which goes first;
+both start from the start pose at rest and read the start pose from the robot's state):
+
+* **path**: three waypoints (offsets ``WAYPOINTS`` [m] from the start position, 12-13 cm
+  apart, the start orientation kept; the last one 5 cm up: 5 cm down, franky's waypoint
+  motion trips the simulated FR3's joint 4 acceleration limit even at factor 0.15). Ours:
+  one ``move_to_pose(positions, orientations, asynchronous=True)`` (a time-optimal path
+  through them; as panda-py's, it has no blends, so it also stops at each); franky: one
+  ``CartesianWaypointMotion`` of three ``CartesianWaypoint`` with its defaults (it comes to
+  rest at each waypoint). Measured: from the call until the arm is at rest at the last
+  waypoint.
+* **preempt**: a move to goal A (``GOAL_A``) started asynchronously and, ``--preempt-ms``
+  later, replaced by a move to goal B (``GOAL_B``): ours ``move_to_pose(B,
+  asynchronous=True)`` while the first runs, franky ``robot.move(CartesianMotion(B),
+  asynchronous=True)`` while its first runs. Measured: from the replacing call until the arm
+  is at rest at B; also the distance to B at the call and the largest after it.
+
+"At rest" is the same for both (``sim_client_franky_moves.watch_rest``, polled every 0.5 ms
+from the state each library gives the user, ``panda.get_state()`` and ``robot.state``):
+every joint slower than 0.005 rad/s and the end effector within ``--rest-mm`` (2 mm) of
+the goal, held for 50 ms; the time is the start of that stretch. Also printed: the final
+distance; when the library itself ended the move (our ``MotionHandle.done()``, franky's
+``is_in_control`` turning False; "-" if not within the 50 ms the test holds); our path's planned
+trajectory duration; per intermediate waypoint, the lowest joint speed seen within 5 mm of
+it (about 0: the arm stopped there).
+
+Speed settings: the same factor (``--factor``, default 0.2) for both, our ``speed_factor``
+and franky's ``relative_dynamics_factor``. They scale different things: ours the robot's
+Cartesian velocity and acceleration limits (panda-py's FR3 ones: 3.0 m/s, 9.0 m/s^2), franky
+velocity, acceleration and jerk of its own Cartesian limits (libfranka's constants, 1.7 m/s,
+13 m/s^2, 6500 m/s^3, the same for every robot); the limits in effect are printed.
+``--franky-factor`` sets franky's apart. At 0.3 franky's start on this path asks the
+simulated FR3's joints for more than their 10 rad/s^2 (reflex
+``cartesian_motion_generator_joint_velocity_discontinuity``), hence the default 0.2.
+
+Targets (from the issue): our three-waypoint path at rest sooner than franky's (ratio
+ours/franky < 1), our preempted move at rest at its new goal no later than franky's (<= 1).
+franky runs in its own venv (``tests/peer_envs.py``, installed on first use), driven by
+``sim_client_franky_moves.py``; only one client is ever connected to a simulator.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+sys.path.insert(0, str(REPO / "tests"))
+sys.path.insert(0, str(HERE))
+
+from peer_envs import PeerUnavailable, peer_environ, peer_python  # noqa: E402
+from sim_client_franky_moves import watch_rest  # noqa: E402
+
+from panda_py import MotionHandle, Panda  # noqa: E402
+from panda_py.robots.params import get_robot  # noqa: E402
+from panda_py.sim import Simulator, free_loopback_host  # noqa: E402
+
+WAYPOINTS = [[0.12, 0.0, 0.0], [0.12, 0.12, 0.0], [0.0, 0.12, 0.05]]  # [m] from the start
+GOAL_A = [0.15, 0.0, 0.0]  # [m] from the start
+GOAL_B = [0.0, 0.15, 0.0]  # [m] from the start
+CASES = ("path", "preempt")
+
+
+def running(handle: MotionHandle) -> bool:
+    """Whether the move of ``handle`` still runs; raises the error that aborted it."""
+    result = handle.result
+    if result is not None and result.error is not None:
+        raise RuntimeError(f"the move was aborted: {result.error}")
+    return result is None
+
+
+def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
+    """Both cases with our Panda, in this process (its control process beside it)."""
+    factor, rest = spec["factor"], spec["rest_distance"]
+    out: dict[str, Any] = {}
+    with Panda(host) as panda:
+        q_start = panda.q
+        p0 = panda.get_position()
+        quat = panda.get_orientation()  # x, y, z, w
+
+        def read() -> tuple[np.ndarray, np.ndarray]:
+            s = panda.get_state()
+            return s.dq, s.O_T_EE[12:15]
+
+        def path() -> dict[str, Any]:
+            points = [p0 + np.array(o) for o in spec["waypoints"]]
+            t0 = time.monotonic()
+            handle = panda.move_to_pose(points, [quat] * len(points), speed_factor=factor,
+                                        asynchronous=True)  # fmt: skip
+            r = watch_rest(read, points[-1], t0, points[:-1], lambda: running(handle), rest)
+            handle.wait()
+            assert handle.result is not None
+            r["planned"] = handle.result.duration  # [s] the trajectory's
+            return r
+
+        def preempt() -> dict[str, Any]:
+            panda.move_to_pose(p0 + np.array(spec["goal_a"]), quat, speed_factor=factor,
+                               asynchronous=True)  # fmt: skip
+            time.sleep(spec["preempt_ms"] * 1e-3)
+            t0 = time.monotonic()
+            handle = panda.move_to_pose(p0 + np.array(spec["goal_b"]), quat,
+                                        speed_factor=factor, asynchronous=True)  # fmt: skip
+            goal = p0 + np.array(spec["goal_b"])
+            r = watch_rest(read, goal, t0, None, lambda: running(handle), rest)
+            handle.wait()
+            return r
+
+        for name, case in (("path", path), ("preempt", preempt)):
+            try:
+                out[name] = case()
+            except Exception as exc:  # report it; the other case still runs
+                out[name] = {"error": f"{type(exc).__name__}: {exc}"}
+            panda.move_to_joint_position(q_start)
+    return out
+
+
+def run_franky(python: Path, host: str, spec: dict[str, Any]) -> dict[str, Any]:
+    cmd = [str(python), str(HERE / "sim_client_franky_moves.py"), host, json.dumps(spec)]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=peer_environ())
+    try:
+        result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
+    except (IndexError, json.JSONDecodeError):
+        err = f"client failed (exit {out.returncode}): {out.stderr.strip()[-600:]}"
+        return {name: {"error": err} for name in CASES}
+    return result
+
+
+def one_run(library: str, spec: dict[str, Any], python: Path | None) -> dict[str, Any]:
+    """A fresh simulator, one library's client, both cases."""
+    with Simulator(host=free_loopback_host(), robot="fr3", lockstep=False, versions=(10,)) as sim:
+        if library == "ours":
+            return run_ours(sim.host, spec)
+        assert python is not None
+        return run_franky(python, sim.host, spec)
+
+
+# --- report ---------------------------------------------------------------------------
+
+
+def summary(values: list[float]) -> str:
+    if not values:
+        return "n/a"
+    a = np.asarray(values) * 1e3
+    return (f"median {np.median(a):7.0f}  p99 {np.percentile(a, 99):7.0f}  "
+            f"worst {a.max():7.0f} ms  (n={a.size})")  # fmt: skip
+
+
+def ms_list(values: list[float | None]) -> str:
+    """Milliseconds, "-" for a value not seen."""
+    return ", ".join("-" if v is None else f"{v * 1e3:.0f}" for v in values) or "-"
+
+
+def report(rows: dict[str, list[dict[str, Any]]], spec: dict[str, Any]) -> None:
+    ours_limits = get_robot("fr3").cartesian
+    f_ours = spec["factor"]
+    print(
+        f"\nlimits in effect: ours (speed_factor {f_ours}) "
+        f"{f_ours * ours_limits.translation_velocity:.2f} m/s, "
+        f"{f_ours * ours_limits.translation_acceleration:.2f} m/s^2 (jerk: the impedance's); "
+        f"franky (relative_dynamics_factor {spec['franky_factor']})",
+        end="",
+    )
+    lim = next((r["limits"] for r in rows["franky"] if "limits" in r), None)
+    if lim:
+        print(f" {lim['translation_velocity']:.2f} m/s, "
+              f"{lim['translation_acceleration']:.2f} m/s^2, "
+              f"{lim['translation_jerk']:.0f} m/s^3")  # fmt: skip
+    else:
+        print(" (no run reported them)")
+    medians: dict[tuple[str, str], float] = {}
+    for case in CASES:
+        if case == "path":
+            label = "path: call -> at rest at the last of 3 waypoints"
+        else:
+            label = f"preempt: replacing call ({spec['preempt_ms']:g} ms in) -> at rest at B"
+        print(f"\n{label}")
+        for lib in ("ours", "franky"):
+            results = [r.get(case, {}) for r in rows[lib]]
+            ok = [r for r in results if "at_rest" in r]
+            times = [r["at_rest"] for r in ok]
+            print(f"  {lib:7s} {summary(times)}")
+            if times:
+                medians[(case, lib)] = float(np.median(times))
+                each = ms_list(times)
+                err = max(r["error_m"] for r in ok) * 1e3
+                print(f"          each [ms]: {each}; worst final error {err:.2f} mm")
+                ended = [r.get("ended") for r in ok]
+                line = f"          the library's own end of the move [ms]: {ms_list(ended)}"
+                if case == "preempt":
+                    first = np.median([r["first_m"] for r in ok]) * 1e3
+                    far = np.median([r["farthest_m"] for r in ok]) * 1e3
+                    line += f"; from B at the call {first:.0f} mm, farthest {far:.0f} mm"
+                if case == "path" and lib == "ours":
+                    line += f"; planned trajectory {ms_list([r['planned'] for r in ok])}"
+                print(line)
+            if case == "path" and ok:
+                slow = np.array([r["slowest_at_marks"] for r in ok])
+                print("          lowest joint speed near waypoints 1, 2 [rad/s] (median): "
+                      + ", ".join(f"{v:.3f}" for v in np.median(slow, axis=0)))  # fmt: skip
+            for r in results:
+                if "error" in r:
+                    print(f"          ERROR {r['error'][:300]}")
+    print("\nratios ours/franky (medians), targets:")
+    for case, target, op in (("path", "< 1", float.__lt__), ("preempt", "<= 1", float.__le__)):
+        a, b = medians.get((case, "ours")), medians.get((case, "franky"))
+        if a is None or b is None:
+            print(f"  {case:8s} n/a (a library has no successful run)")
+            continue
+        ratio = a / b
+        verdict = "ok" if op(ratio, 1.0) else "MISSED"
+        print(f"  {case:8s} {ratio:.2f}  ({a * 1e3:.0f} vs {b * 1e3:.0f} ms)  "
+              f"target {target} [{verdict}]")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--quick", action="store_true", help="2 runs per library")
+    parser.add_argument("--runs", type=int, default=None, help="runs per library (5)")
+    parser.add_argument(
+        "--factor", type=float, default=0.2,
+        help="our speed_factor and franky's relative_dynamics_factor (0.2)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--franky-factor", type=float, default=None,
+        help="franky's relative_dynamics_factor apart (default: --factor)",
+    )  # fmt: skip
+    parser.add_argument("--preempt-ms", type=float, default=300.0,
+                        help="when the move to B replaces the one to A [ms] (300)")  # fmt: skip
+    parser.add_argument(
+        "--rest-mm", type=float, default=2.0,
+        help="at rest: this close to the goal [mm] (2)",
+    )  # fmt: skip
+    parser.add_argument("--no-franky", action="store_true", help="our side only")
+    parser.add_argument("--json", type=Path, default=None, help="write all results here")
+    args = parser.parse_args()
+    runs = args.runs or (2 if args.quick else 5)
+    franky_factor = args.franky_factor if args.franky_factor is not None else args.factor
+    if runs < 1:
+        parser.error(f"--runs must be >= 1, got {runs}")
+    for name, value in (("--factor", args.factor), ("--franky-factor", franky_factor)):
+        if not 0.0 < value <= 1.0:
+            parser.error(f"{name} must be in (0, 1], got {value}")
+    if not args.rest_mm > 0.0:
+        parser.error(f"--rest-mm must be > 0, got {args.rest_mm}")
+    if not args.preempt_ms >= 0.0:
+        parser.error(f"--preempt-ms must be >= 0, got {args.preempt_ms}")
+    spec: dict[str, Any] = {
+        "factor": args.factor, "franky_factor": franky_factor, "waypoints": WAYPOINTS,
+        "goal_a": GOAL_A, "goal_b": GOAL_B, "preempt_ms": args.preempt_ms,
+        "rest_distance": args.rest_mm * 1e-3,
+    }  # fmt: skip
+    python: Path | None = None
+    if not args.no_franky:
+        try:
+            python = peer_python("franky")
+        except PeerUnavailable as exc:
+            print(f"(franky skipped: {exc})")
+    libraries = ["ours"] + (["franky"] if python is not None else [])
+    print(
+        f"bench_franky_moves: {platform.node()}, {os.cpu_count()} CPUs, load average "
+        f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, Python {platform.python_version()}; "
+        f"{runs} runs per library, factor {args.factor} (franky {franky_factor}), "
+        f"preempt at {args.preempt_ms:g} ms"
+    )
+    rows: dict[str, list[dict[str, Any]]] = {"ours": [], "franky": []}
+    for i in range(runs):
+        order = libraries if i % 2 == 0 else libraries[::-1]
+        for lib in order:
+            lib_spec = {**spec, "factor": franky_factor} if lib == "franky" else spec
+            print(f"  run {i + 1}/{runs} {lib:7s} ...", end=" ", flush=True)
+            try:
+                result = one_run(lib, lib_spec, python)
+            except Exception as exc:  # one broken run must not lose the others
+                result = {name: {"error": f"{type(exc).__name__}: {exc}"} for name in CASES}
+            rows[lib].append(result)
+            print(", ".join(
+                f"{c} {result[c]['at_rest'] * 1e3:.0f} ms" if "at_rest" in result.get(c, {})
+                else f"{c} ERROR" for c in CASES))  # fmt: skip
+    report(rows, spec)
+    if args.json is not None:
+        args.json.write_text(json.dumps(rows, indent=1))
+        print(f"\nraw results: {args.json}")
+
+
+if __name__ == "__main__":
+    main()
