@@ -9,8 +9,9 @@ both start from the start pose at rest and read the start pose from the robot's 
 * **path**: three waypoints (offsets ``WAYPOINTS`` [m] from the start position, 12-13 cm
   apart, the start orientation kept; the last one 5 cm up: 5 cm down, franky's waypoint
   motion trips the simulated FR3's joint 4 acceleration limit even at factor 0.15). Ours:
-  one ``move_to_pose(positions, orientations, asynchronous=True)`` (a time-optimal path
-  through them; as panda-py's, it has no blends, so it also stops at each); franky: one
+  one ``move_to_pose(positions, orientations, max_deviation=0.02, asynchronous=True)`` (a
+  time-optimal path through them that cuts each corner by up to ``--max-deviation``
+  instead of stopping there; 0, panda-py's, stops at each); franky: one
   ``CartesianWaypointMotion`` of three ``CartesianWaypoint`` with its defaults (it comes to
   rest at each waypoint). Measured: from the call until the arm is at rest at the last
   waypoint.
@@ -101,6 +102,7 @@ def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
             points = [p0 + np.array(o) for o in spec["waypoints"]]
             t0 = time.monotonic()
             handle = panda.move_to_pose(points, [quat] * len(points), speed_factor=factor,
+                                        max_deviation=spec["max_deviation"],
                                         asynchronous=True)  # fmt: skip
             r = watch_rest(read, points[-1], t0, points[:-1], lambda: running(handle), rest)
             handle.wait()
@@ -247,6 +249,10 @@ def main() -> None:
         "--rest-mm", type=float, default=2.0,
         help="at rest: this close to the goal [mm] (2)",
     )  # fmt: skip
+    parser.add_argument(
+        "--max-deviation", type=float, default=0.02,
+        help="our path's corner cut at each waypoint [m] (0.02; 0 stops there, as franky)",
+    )  # fmt: skip
     parser.add_argument("--no-franky", action="store_true", help="our side only")
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
     args = parser.parse_args()
@@ -264,7 +270,7 @@ def main() -> None:
     spec: dict[str, Any] = {
         "factor": args.factor, "franky_factor": franky_factor, "waypoints": WAYPOINTS,
         "goal_a": GOAL_A, "goal_b": GOAL_B, "preempt_ms": args.preempt_ms,
-        "rest_distance": args.rest_mm * 1e-3,
+        "rest_distance": args.rest_mm * 1e-3, "max_deviation": args.max_deviation,
     }  # fmt: skip
     python: Path | None = None
     if not args.no_franky:

@@ -5,17 +5,19 @@ gentle stop, targets streamed by a policy).
 :class:`OnlineGenerator` advances one robot period per :meth:`~OnlineGenerator.step`
 from the current position, velocity and acceleration toward a target state (or to rest),
 under per-coordinate velocity, acceleration and jerk limits. It runs on ruckig (Berscheid
-& Kröger, RSS 2021), a library made for exactly this: a new target costs it 2-3 us for 7
-joints and a step on an unchanged target 0.3 us (``benchmarks/bench_online.py``), well under
-what an own generator in Python would. Inputs and outputs are allocated once.
+& Kröger, RSS 2021), a library made for exactly this: with this wrapper, a step on 7
+joints costs 1.6 us toward an unchanged target and 5 us toward a new one
+(``benchmarks/bench_online.py``), well under the 20 us budget and what a generator of our
+own in Python would cost.
+Inputs and outputs are allocated once.
 
 :class:`OnlinePose` runs one for a Cartesian pose: the position and the orientation as a
 rotation vector ``x`` about an anchor orientation ``R0`` (``R = R0 exp(x)``), re-anchored
 at every new target so the rotation vector stays small.
 
-Cartesian limits bound the norm of the translational and rotational velocity,
-acceleration and jerk; the generator bounds each coordinate, so each gets the norm's
-limit over sqrt(3) (the norm can then never exceed it, whatever the direction).
+Cartesian limits bound the norms of the translational and rotational velocity,
+acceleration and jerk; the generator bounds each coordinate, so :class:`OnlinePose` works
+in frames aligned with where the motion must go (see there).
 """
 
 from __future__ import annotations
@@ -43,12 +45,6 @@ from panda_py.robots.params import RobotSpec
 __all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose"]
 
 FloatArray = NDArray[np.float64]
-_AXES = math.sqrt(3.0)  # a norm limit split over three coordinates
-# A Cartesian acceleration reaches the joints through the inverse Jacobian: with the
-# robot's whole Cartesian acceleration a lead-in from a joint motion drove joint 2 of an
-# FER to 1.13x its acceleration limit (tests/panda/test_async_moves.py, 100 preemptions);
-# with half, 0.77x.
-CARTESIAN_ACCELERATION_SHARE = 0.5
 # below these a velocity [unit/s] or an acceleration [unit/s^2] is rest: ruckig 0.19 fails
 # to synchronize on velocities of 1e-14 (measurement noise of an arm at rest)
 _REST_VELOCITY = 1e-9
@@ -88,16 +84,24 @@ class OnlineLimits:
 
     @staticmethod
     def cartesian(spec: RobotSpec, speed_factor: float) -> OnlineLimits:
-        """The robot's end-effector limits (translation x, y, z [m], rotation x, y, z
-        [rad]), each scaled by ``speed_factor`` and split over the three axes; the
-        accelerations also by CARTESIAN_ACCELERATION_SHARE."""
-        s = _factor(speed_factor) / _AXES
-        h = CARTESIAN_ACCELERATION_SHARE * s
+        """The robot's end-effector limits, each scaled by ``speed_factor``: the norms'
+        limits of the translation ([m], x, y, z) and the rotation ([rad], x, y, z), each
+        repeated for its three coordinates (:class:`OnlinePose` spreads them over its
+        frame)."""
+        s = _factor(speed_factor)
         c = spec.cartesian
         return OnlineLimits(
             (s * c.translation_velocity,) * 3 + (s * c.rotation_velocity,) * 3,
-            (h * c.translation_acceleration,) * 3 + (h * c.rotation_acceleration,) * 3,
+            (s * c.translation_acceleration,) * 3 + (s * c.rotation_acceleration,) * 3,
             (s * c.translation_jerk,) * 3 + (s * c.rotation_jerk,) * 3,
+        )
+
+    def scaled(self, velocity: float = 1.0, acceleration: float = 1.0) -> OnlineLimits:
+        """These limits with the velocities and the accelerations (and jerks) scaled."""
+        return OnlineLimits(
+            tuple(velocity * v for v in self.velocity),
+            tuple(acceleration * a for a in self.acceleration),
+            tuple(acceleration * j for j in self.jerk),
         )
 
 
@@ -223,15 +227,28 @@ class OnlineGenerator:
 class OnlinePose:
     """:class:`OnlineGenerator` for an end-effector pose: ``position`` (3,) [m],
     ``orientation`` (4,) unit quaternion (x, y, z, w), ``twist`` (6,) [m/s, rad/s] and
-    ``accel`` (6,) [m/s^2, rad/s^2] in the base frame after each :meth:`step`."""
+    ``accel`` (6,) [m/s^2, rad/s^2] in the base frame after each :meth:`step`.
+
+    The generator bounds each coordinate, the robot the norms of the translational and
+    rotational motion. Each is generated in a frame whose first axis points where it must
+    go (at a new target: toward it; at a stop: along the motion), which gets the whole
+    norm limit, and the two others LATERAL of it: a straight motion gets all the robot
+    allows, and the norm exceeds it only while a sideways velocity left from before is
+    braked, by at most sqrt(1 + 2 LATERAL^2)."""
 
     def __init__(self, limits: OnlineLimits) -> None:
         if len(limits.velocity) != 6:
             raise ValueError(f"limits: expected 6 coordinates, got {len(limits.velocity)}")
-        self.gen = OnlineGenerator(limits)
+        self.gen = OnlineGenerator(_aligned(limits))
+        self.limits = limits
         self._q0 = np.array([0.0, 0.0, 0.0, 1.0])  # the anchor orientation
         self._R0 = np.eye(3)
         self._R0_rows = self._R0.tolist()
+        # the frames of the translation's and the rotation vector's coordinates (columns)
+        self._Ft = np.eye(3)
+        self._Fr = np.eye(3)
+        self._Ft_rows = self._Ft.tolist()
+        self._Fr_rows = self._Fr.tolist()
         self.position = np.zeros(3)
         self.orientation = self._q0.copy()
         self.twist = np.zeros(6)
@@ -240,6 +257,12 @@ class OnlinePose:
     @property
     def finished(self) -> bool:
         return self.gen.finished
+
+    @property
+    def frames(self) -> tuple[FloatArray, FloatArray]:
+        """The frames (columns) of the translation's and the rotation vector's
+        coordinates: their first axes get the whole limit, the others LATERAL of it."""
+        return self._Ft, self._Fr
 
     def reset(self, position: FloatArray, orientation: FloatArray, twist: FloatArray,
               accel: FloatArray) -> None:  # fmt: skip
@@ -251,11 +274,10 @@ class OnlinePose:
         R0t = self._R0.T
         tw = np.asarray(twist, dtype=np.float64)
         ac = np.asarray(accel, dtype=np.float64)
-        self.gen.reset(
-            np.concatenate([position, np.zeros(3)]),
-            np.concatenate([tw[:3], R0t @ tw[3:]]),
-            np.concatenate([ac[:3], R0t @ ac[3:]]),
-        )
+        self._restart(
+            np.asarray(position, dtype=np.float64), tw[:3], ac[:3],
+            np.zeros(3), R0t @ tw[3:], R0t @ ac[3:], np.eye(3), np.eye(3),
+        )  # fmt: skip
         self._publish()
 
     def _anchor(self, quat: FloatArray) -> None:
@@ -263,24 +285,37 @@ class OnlinePose:
         self._R0 = rotation.to_matrix(quat)
         self._R0_rows = self._R0.tolist()  # read per tick: plain floats are faster
 
-    def _reanchor(self) -> None:
-        """Move the anchor to the current orientation (the rotation vector becomes 0)."""
-        g = self.gen
-        x, xd, xdd = g.position[3:], g.velocity[3:], g.acceleration[3:]
-        if not x.any():
-            return
-        q = rotation.multiply(self._q0, rotation.exp(x))
-        # the body rates of R0 exp(x) (J_r(x) times the coordinates' rates) are the new
-        # anchor's coordinate rates at x = 0
-        xs = x.tolist()
-        w = _jacobian_times(xs, xd.tolist(), -1.0)
-        wd = _jacobian_times(xs, xdd.tolist(), -1.0)
-        self._anchor(q)
-        g.reset(
-            np.concatenate([g.position[:3], np.zeros(3)]),
-            np.concatenate([g.velocity[:3], w]),
-            np.concatenate([g.acceleration[:3], wd]),
+    def _restart(
+        self, p: FloatArray, v: FloatArray, a: FloatArray,
+        x: FloatArray, xd: FloatArray, xdd: FloatArray, Ft: FloatArray, Fr: FloatArray,
+    ) -> None:  # fmt: skip
+        """Restart the generator from this state (translation in the base frame, rotation
+        vector about the anchor) in the frames ``Ft``, ``Fr``."""
+        self._Ft, self._Fr = Ft, Fr
+        self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
+        self.gen.reset(
+            np.concatenate([Ft.T @ p, Fr.T @ x]),
+            np.concatenate([Ft.T @ v, Fr.T @ xd]),
+            np.concatenate([Ft.T @ a, Fr.T @ xdd]),
         )
+
+    def _world(self) -> tuple[FloatArray, ...]:
+        """The translation (base frame) and the rotation vector's state (anchor frame):
+        p, v, a, x, xd, xdd."""
+        g, Ft, Fr = self.gen, self._Ft, self._Fr
+        return (Ft @ g.position[:3], Ft @ g.velocity[:3], Ft @ g.acceleration[:3],
+                Fr @ g.position[3:], Fr @ g.velocity[3:], Fr @ g.acceleration[3:])  # fmt: skip
+
+    def _state_at_new_anchor(self) -> tuple[FloatArray, ...]:
+        """The state with the anchor moved to the current orientation (the rotation
+        vector becomes 0; its rates, J_r(x) times the old ones, are the body rates)."""
+        p, v, a, x, xd, xdd = self._world()
+        if x.any():
+            self._anchor(rotation.multiply(self._q0, rotation.exp(x)))
+            xs = x.tolist()
+            xd = np.array(_jacobian_times(xs, xd.tolist(), -1.0))
+            xdd = np.array(_jacobian_times(xs, xdd.tolist(), -1.0))
+        return p, v, a, np.zeros(3), xd, xdd
 
     def set_target(
         self,
@@ -291,25 +326,33 @@ class OnlinePose:
     ) -> None:
         """Go to this pose (arriving at rest, or with ``twist`` and ``accel`` in the
         base frame)."""
-        self._reanchor()
+        p, v, a, x, xd, xdd = self._state_at_new_anchor()
         quat = np.asarray(orientation, dtype=np.float64)
         rel = rotation.multiply(rotation.conjugate(self._q0), quat / np.linalg.norm(quat))
-        x = rotation.log(rel)  # the shortest way round
+        x_t = rotation.log(rel)  # the shortest way round
+        target = np.asarray(position, dtype=np.float64)
+        Ft, Fr = _frame(target - p, v), _frame(x_t, xd)
+        self._restart(p, v, a, x, xd, xdd, Ft, Fr)
         R0t = self._R0.T
         vel = acc = None
         if twist is not None:
-            vel = np.concatenate([twist[:3], R0t @ twist[3:]])
+            vel = np.concatenate([Ft.T @ twist[:3], Fr.T @ (R0t @ twist[3:])])
         if accel is not None:
-            acc = np.concatenate([accel[:3], R0t @ accel[3:]])
-        self.gen.set_target(np.concatenate([position, x]), vel, acc)
+            acc = np.concatenate([Ft.T @ accel[:3], Fr.T @ (R0t @ accel[3:])])
+        self.gen.set_target(np.concatenate([Ft.T @ target, Fr.T @ x_t]), vel, acc)
 
     def set_rest(self) -> None:
-        """Come to rest as fast as the limits allow."""
+        """Come to rest as fast as the limits allow (braking along the motion)."""
+        p, v, a, x, xd, xdd = self._state_at_new_anchor()
+        self._restart(p, v, a, x, xd, xdd, _frame(v, a), _frame(xd, xdd))
         self.gen.set_rest()
 
     def set_limits(self, limits: OnlineLimits) -> None:
-        """Bound what follows by ``limits`` (6 coordinates)."""
-        self.gen.set_limits(limits)
+        """Bound what follows by ``limits`` (the norms' limits, 6 coordinates)."""
+        if len(limits.velocity) != 6:
+            raise ValueError(f"limits: expected 6 coordinates, got {len(limits.velocity)}")
+        self.limits = limits
+        self.gen.set_limits(_aligned(limits))
 
     def step(self) -> bool:
         """Advance one period; True once the target (or rest) is reached."""
@@ -320,8 +363,9 @@ class OnlinePose:
     def _publish(self) -> None:
         # scalar arithmetic: numpy's per-call cost on 3-vectors would be most of a tick
         g = self.gen
-        p, v, a = g.position, g.velocity, g.acceleration
-        xs = p[3:].tolist()
+        ct, cr = self._Ft_rows, self._Fr_rows
+        p, v, a = g.position.tolist(), g.velocity.tolist(), g.acceleration.tolist()
+        xs = _times(cr, p[3:])
         x0, x1, x2 = xs
         th2 = x0 * x0 + x1 * x1 + x2 * x2
         th = math.sqrt(th2)
@@ -336,21 +380,54 @@ class OnlinePose:
         o[1] = qw * ey - qx * ez + qy * ew + qz * ex
         o[2] = qw * ez + qx * ey - qy * ex + qz * ew
         o[3] = qw * ew - qx * ex - qy * ey - qz * ez
+        self.position[:] = _times(ct, p[:3])
         # the world angular velocity of R0 exp(x) is R0 J_l(x) xd; the acceleration
         # likewise, without the Jacobian's rate (small for the small x the re-anchoring
         # keeps)
-        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._R0_rows
-        tw, ac = self.twist, self.accel
-        for src, dst in ((v, tw), (a, ac)):
-            z0, z1, z2 = _jacobian_times(xs, src[3:].tolist(), 1.0)
-            dst[:3] = src[:3]
-            dst[3] = r00 * z0 + r01 * z1 + r02 * z2
-            dst[4] = r10 * z0 + r11 * z1 + r12 * z2
-            dst[5] = r20 * z0 + r21 * z1 + r22 * z2
-        self.position[:] = p[:3]
+        r0 = self._R0_rows
+        for src, dst in ((v, self.twist), (a, self.accel)):
+            dst[:3] = _times(ct, src[:3])
+            dst[3:] = _times(r0, _jacobian_times(xs, _times(cr, src[3:]), 1.0))
 
 
-def _jacobian_times(x: list[float], y: list[float], sign: float) -> tuple[float, float, float]:
+LATERAL = 0.5  # of a norm's limit for the two coordinates across the motion (OnlinePose)
+
+
+def _aligned(limits: OnlineLimits) -> OnlineLimits:
+    """Per-coordinate limits of an aligned frame from the norms' limits (OnlinePose)."""
+
+    def spread(values: tuple[float, ...]) -> tuple[float, ...]:
+        t, r = values[0], values[3]
+        return (t, LATERAL * t, LATERAL * t, r, LATERAL * r, LATERAL * r)
+
+    return OnlineLimits(spread(limits.velocity), spread(limits.acceleration), spread(limits.jerk))
+
+
+def _frame(direction: FloatArray, fallback: FloatArray) -> FloatArray:
+    """A right-handed frame (columns) whose first axis is ``direction`` (or, where that
+    is ~0, ``fallback``; the identity where both are)."""
+    d = np.asarray(direction, dtype=np.float64)
+    n = float(np.linalg.norm(d))
+    if n < 1e-9:
+        d = np.asarray(fallback, dtype=np.float64)
+        n = float(np.linalg.norm(d))
+        if n < 1e-9:
+            return np.eye(3)
+    e1 = d / n
+    helper = np.eye(3)[int(np.argmin(np.abs(e1)))]  # the axis least along e1
+    e2 = np.cross(e1, helper)
+    e2 /= np.linalg.norm(e2)
+    return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+
+def _times(rows: list[list[float]], v: list[float]) -> list[float]:
+    """The 3x3 ``rows`` times ``v``, in scalars."""
+    (a, b, c), (d, e, f), (g, h, i) = rows
+    x, y, z = v
+    return [a * x + b * y + c * z, d * x + e * y + f * z, g * x + h * y + i * z]
+
+
+def _jacobian_times(x: list[float], y: list[float], sign: float) -> list[float]:
     """``J(x) y`` for SO(3)'s left (``sign`` 1) or right (-1) Jacobian of the rotation
     vector ``x``: ``y + sign a (x × y) + b x × (x × y)``, in scalars (numpy's per-call cost
     on 3-vectors would be most of the time)."""
@@ -365,4 +442,4 @@ def _jacobian_times(x: list[float], y: list[float], sign: float) -> tuple[float,
     a *= sign
     c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
     d0, d1, d2 = x1 * c2 - x2 * c1, x2 * c0 - x0 * c2, x0 * c1 - x1 * c0
-    return y0 + a * c0 + b * d0, y1 + a * c1 + b * d1, y2 + a * c2 + b * d2
+    return [y0 + a * c0 + b * d0, y1 + a * c1 + b * d1, y2 + a * c2 + b * d2]
