@@ -22,7 +22,7 @@ LAYERS: list[set[str]] = [
     {"constants", "kinematics", "dynamics", "motion"},
     {"libfranka", "sim"},
     {"controllers"},
-    {"rt"},
+    {"rt", "conditions"},
     {"panda"},
     {"cli", "demo", "doctor", "__init__"},
 ]

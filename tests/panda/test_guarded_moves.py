@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import panda_py
+from panda_py.conditions import Elapsed, Force
 from panda_py.robots.params import START_POSE, get_robot
 
 pytestmark = pytest.mark.timeout(300)
@@ -65,11 +66,11 @@ def test_a_guarded_descent_stops_on_contact_gently(panda: panda_py.Panda) -> Non
     goal = start.copy()
     goal[2, 3] = -0.03
     speed = 0.05 / FER.cartesian.translation_velocity  # 5 cm/s on a straight line
-    handle = panda.move_to_pose(goal, speed_factor=speed, until=PressingDown(10.0),
+    handle = panda.move_to_pose(goal, speed_factor=speed, until=Force.z < -10.0,
                                 asynchronous=True)  # fmt: skip
     assert handle.wait() is True  # ended by its condition, as asked
     result = handle.result
-    assert result is not None and result.condition == "pressing down > 10.0 N"
+    assert result is not None and result.condition == "Force.z < -10.0"
     assert 0.3 < result.condition_time < 2.0
     assert result.position_error > 0.02  # it did not go on to the goal inside the table
     log = panda.get_log()
@@ -93,6 +94,7 @@ def test_a_condition_can_hand_over_to_another_motion(panda: panda_py.Panda) -> N
     goal[2, 3] = -0.03
     back_up = panda_py.PoseMotion(start)
     speed = 0.05 / FER.cartesian.translation_velocity
+    # a user's own condition class works as well
     ok = panda.move_to_pose(goal, speed_factor=speed, until=PressingDown(5.0), then=back_up)
     assert ok is True
     np.testing.assert_allclose(panda.get_position(), ABOVE_TABLE, atol=0.003)
@@ -116,3 +118,14 @@ def test_a_condition_that_raises_aborts_the_move_with_its_error(
     assert "my condition is broken" in result.reason
     panda.recover()
     assert panda.move_to_start()
+
+
+def test_a_time_condition_ends_a_move_on_the_way(panda: panda_py.Panda) -> None:
+    panda.move_to_start()
+    start = panda.q
+    handle = panda.move_to_joint_position(start + 0.4, until=Elapsed > 0.3, asynchronous=True)
+    assert handle.wait() is True
+    result = handle.result
+    assert result is not None and result.condition == "Elapsed > 0.3"
+    assert 0.3 < result.condition_time < 0.31
+    assert 0.01 < np.abs(panda.q - start).max() < 0.35  # stopped on the way

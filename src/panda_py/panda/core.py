@@ -421,6 +421,8 @@ class Panda:
         """The checked ``asynchronous``, ``until`` and ``then`` of a move."""
         if not isinstance(asynchronous, (bool, np.bool_)):
             raise ValueError(f"asynchronous: expected True or False, got {asynchronous!r}")
+        # a condition of panda_py.conditions, or a user's own object with the same
+        # holds(state, progress) (sent by value like a user's controller)
         if until is not None and not callable(getattr(until, "holds", None)):
             raise ValueError(
                 "until: expected a condition of panda_py.conditions (e.g. Force.z < -10.0), "
