@@ -118,14 +118,14 @@ def test_what_cannot_be_a_condition_is_refused_by_name() -> None:
         Torque[7]
     with pytest.raises(ValueError, match=r"Torque\[\]: expected an index 0-6, got 'a'"):
         Torque["a"]
-    with pytest.raises(ValueError, match="Force.z <: expected a finite number, got nan"):
-        Force.z < float("nan")
+    with pytest.raises(ValueError, match=r"Force\.z <: expected a finite number, got nan"):
+        _ = Force.z < float("nan")
     with pytest.raises(ValueError, match="Elapsed >: expected a finite number, got '5'"):
-        Elapsed > "5"
+        _ = Elapsed > "5"
     with pytest.raises(ValueError, match="when: expected a function of the state, got 3"):
         when(3)  # type: ignore[arg-type]
     with pytest.raises(TypeError, match=r"\|: expected a condition .*got float"):
-        (Force.z < 1.0) | 3.0  # type: ignore[operator]
-    with pytest.raises(TypeError, match="combine conditions with &, | and ~"):
-        (Force.z < 1.0) and (Elapsed > 1.0)  # noqa: B015
+        _ = (Force.z < 1.0) | 3.0  # type: ignore[operator]
+    with pytest.raises(TypeError, match=r"combine conditions with &, \| and ~"):
+        _ = (Force.z < 1.0) and (Elapsed > 1.0)
     assert isinstance(Force.z < 1.0, Condition)
