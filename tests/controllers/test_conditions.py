@@ -129,3 +129,14 @@ def test_what_cannot_be_a_condition_is_refused_by_name() -> None:
     with pytest.raises(TypeError, match=r"combine conditions with &, \| and ~"):
         _ = (Force.z < 1.0) and (Elapsed > 1.0)
     assert isinstance(Force.z < 1.0, Condition)
+
+
+def test_which_names_the_alternative_that_held() -> None:
+    contact, timeout = Force.z < -10.0, Elapsed > 2.0
+    cond = contact | timeout
+    assert cond.which(state(O_F_ext_hat_K=[0, 0, -12.0, 0, 0, 0]), AT_START) == contact
+    assert cond.which(state(), Progress(3.0, 0.0)) == timeout
+    assert cond.which(state(), AT_START) is None
+    both = contact & timeout
+    held = state(O_F_ext_hat_K=[0, 0, -12.0, 0, 0, 0])
+    assert both.which(held, Progress(3.0, 0.0)) == both  # all of it held

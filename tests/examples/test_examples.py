@@ -170,3 +170,11 @@ def test_15_a_move_is_replaced_half_way_without_a_velocity_step(tmp_path: Path) 
     assert "first move: False (replaced by a new move after" in out
     assert number(r"second move: True, ([\d.]+) mm from its goal", out) < 5.0
     assert number(r"largest joint acceleration: (\d+) % of the FER's limit", out) <= 100
+
+
+def test_16_the_cube_is_placed_where_the_table_pushes_back(tmp_path: Path) -> None:
+    out = run_example("16", cwd=tmp_path)
+    assert "grasped: True" in out
+    assert "stopped by Force.z < -5.0 after" in out
+    # the fingers hold the cube 5 mm above its centre, which rests 20 mm up
+    assert number(r"TCP ([\d.]+) mm above the table", out) == pytest.approx(25.0, abs=3.0)

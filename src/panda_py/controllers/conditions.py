@@ -66,6 +66,11 @@ class Condition:
     def holds(self, state: Any, progress: Any) -> bool:
         raise NotImplementedError
 
+    def which(self, state: Any, progress: Any) -> Condition | None:
+        """The part of this condition that holds (of an ``|``, the first alternative that
+        does; otherwise the whole), or None if it does not hold."""
+        return self if self.holds(state, progress) else None
+
     def __and__(self, other: Condition) -> Condition:
         return All(_conditions("&", self, other))
 
@@ -108,6 +113,13 @@ class Any_(Condition):  # noqa: N801 (``Any`` is typing's)
 
     def holds(self, state: Any, progress: Any) -> bool:
         return any(p.holds(state, progress) for p in self.parts)
+
+    def which(self, state: Any, progress: Any) -> Condition | None:
+        for part in self.parts:
+            held = part.which(state, progress)
+            if held is not None:
+                return held
+        return None
 
     def __repr__(self) -> str:
         return " | ".join(_paren(p) for p in self.parts)

@@ -274,7 +274,9 @@ class Tracker(ControlLaw):
         if self.until is None or self.stopping or self.successor is not None:
             return
         if self.until.holds(state, progress):
-            self.condition = repr(self.until)
+            which = getattr(self.until, "which", None)  # the alternative that held
+            held = which(state, progress) if which is not None else None
+            self.condition = repr(held if held is not None else self.until)
             self.condition_time = self.t
             if self.then is None:
                 self.cancel(f"stopped after {self.t:.3f} s: {self.condition} held")
