@@ -1,16 +1,23 @@
 """What the Franka Hand (:class:`Gripper`) and the Cobot Pump (:class:`VacuumGripper`)
 clients share: one TCP/UDP connection opened with the gripper protocol's Connect, command
-ids, and blocking commands answered by a status (success, unsuccessful, fail, aborted)."""
+ids, and commands answered by a status (success, unsuccessful, fail, aborted) when the
+action ends: waited for (blocking), or as a :class:`CommandFuture` (``asynchronous``).
+
+The device runs one action at a time: a command sent while another one runs replaces it,
+and the earlier one ends as aborted (its call raises :class:`CommandException`), as the
+real hand and the simulated one do; Stop aborts the running action and succeeds."""
 
 from __future__ import annotations
 
 import enum
+import threading
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 from panda_py import fci
 from panda_py.checks import timeout as checked_timeout
 from panda_py.libfranka._network import Network, translate
+from panda_py.libfranka._responses import CommandFuture, Responses
 from panda_py.libfranka.errors import (
     CommandException,
     IncompatibleVersionException,
@@ -41,6 +48,7 @@ class HandClient:
             timeout=timeout,
         )
         self._next_id = 0
+        self._id_lock = threading.Lock()
         try:
             cid = self._take_id()
             self._net.send(
@@ -65,16 +73,23 @@ class HandClient:
                     library_version=version,
                 )
             self._server_version = int(server)
+            # from here on, one thread reads the responses (see _responses)
+            self._responses = Responses(self._net, self._LABEL)
         except BaseException:
             self._net.close()
             raise
 
     def _take_id(self) -> int:
-        cid = self._next_id
-        self._next_id = (cid + 1) & 0xFFFFFFFF
+        with self._id_lock:
+            cid = self._next_id
+            self._next_id = (cid + 1) & 0xFFFFFFFF
         return cid
 
     def close(self) -> None:
+        """Close the connection; a command still pending fails with NetworkException."""
+        responses = getattr(self, "_responses", None)
+        if responses is not None:
+            responses.close()
         self._net.close()
 
     def __enter__(self: _Hand) -> _Hand:
@@ -87,6 +102,21 @@ class HandClient:
         """The device's protocol version."""
         return self._server_version
 
+    def _start(
+        self,
+        name: str,
+        encode: Callable[[int], bytes],
+        decode_status: Callable[[Any], enum.IntEnum],
+    ) -> CommandFuture:
+        """Send the message ``encode(command_id)`` and return at once the future of its
+        outcome (see :meth:`_run`)."""
+        cid = self._take_id()
+
+        def finish(msg: fci.Message) -> bool:
+            return self._outcome(name, decode_status, msg)
+
+        return self._responses.submit(cid, name, finish, lambda: self._net.send(encode(cid)))
+
     def _run(
         self,
         name: str,
@@ -95,9 +125,23 @@ class HandClient:
     ) -> bool:
         """Send the message ``encode(command_id)`` and wait for its status: True on
         success, False if unsuccessful; a failed or aborted command raises."""
-        cid = self._take_id()
-        self._net.send(encode(cid))
-        msg = self._net.wait_response(cid)
+        self._check_blocking(name)
+        return self._start(name, encode, decode_status).result()
+
+    def _check_blocking(self, name: str) -> None:
+        """A blocking call waits for the reader thread, which resolves every future by the
+        connection's timeout or when the client is closed; in that thread (a future's
+        done-callback) it would wait for itself, so it is refused before anything is sent."""
+        if self._responses.in_reader():
+            raise RuntimeError(
+                f"libfranka {self._LABEL}: a blocking {name} in a future's done-callback "
+                "would wait for the thread that runs it; use asynchronous=True there"
+            )
+
+    def _outcome(
+        self, name: str, decode_status: Callable[[Any], enum.IntEnum], msg: fci.Message
+    ) -> bool:
+        """The call's return value from its response, or the exception it raises."""
         try:
             status = decode_status(msg.payload)
         except fci.ProtocolError as exc:

@@ -162,6 +162,27 @@ class Network:
         except (OSError, ProtocolError, ValueError) as exc:
             raise translate(exc, "TCP receive") from exc
 
+    def command_fileno(self) -> int:
+        """The TCP socket's descriptor (readable when a response, or the end, is waiting)."""
+        return self._sock().fileno()
+
+    def receive_messages(self) -> list[Message]:
+        """Read once from the TCP socket, which select() found readable, and return the
+        complete messages it held (none if a message is still incomplete). For a
+        connection whose responses one thread reads and hands out (the hand clients', see
+        :mod:`._responses`) instead of :meth:`wait_response`."""
+        sock = self._sock()
+        try:
+            data = sock.recv(65536)
+            if not data:
+                self.broken = True
+                raise NetworkException("libfranka: server closed connection")
+            return self._reader.feed(data)
+        except (BlockingIOError, InterruptedError):
+            return []
+        except (OSError, ProtocolError, ValueError) as exc:
+            raise translate(exc, "TCP receive") from exc
+
     def poll_response(self, command_id: int) -> Message | None:
         """The next queued response to ``command_id``, reading the socket without waiting."""
         queue = self._responses.get(command_id)
