@@ -1,4 +1,5 @@
-"""Grasp the cube with the gripper and lift it (libfranka's Gripper: homing, move, grasp).
+"""Grasp the cube with the gripper and lift it (libfranka's Gripper: homing, move, grasp;
+homing while the arm moves, with ``asynchronous=True``).
 
 On a real robot, put a 4 cm cube at x = 0.5 m, y = 0 on the table first."""
 
@@ -25,10 +26,12 @@ if __name__ == "__main__":
     with robot_host(__doc__) as (hostname, args):
         panda = connect(hostname)
         gripper = libfranka.Gripper(hostname)
-        gripper.homing()  # calibrates the fingers: opens them fully
-        print(f"open: {gripper.read_once().width * 1000:.1f} mm")
-
+        # homing calibrates the fingers (opens them fully); asynchronous=True returns a
+        # future at once, so the arm moves to the start pose meanwhile
+        homing = gripper.homing(asynchronous=True)
         panda.move_to_start()
+        print(f"homed: {homing.result()}, open: {gripper.read_once().width * 1000:.1f} mm")
+
         panda.move_to_pose(tcp_at(ABOVE))
         panda.move_to_pose(tcp_at(AT_CUBE))
         # True if the fingers stop within [width - 5 mm, width + 5 mm], squeezing with 20 N

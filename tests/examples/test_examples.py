@@ -99,6 +99,8 @@ def test_06_cartesian_impedance(tmp_path: Path) -> None:
 
 def test_07_gripper(tmp_path: Path) -> None:
     out = run_example("07", cwd=tmp_path)
+    assert "homed: True" in out  # the homing future, while the arm moved
+    assert number(r"open: ([\d.]+) mm", out) == pytest.approx(80.0, abs=1.0)
     assert "grasped: True" in out and "lifted: True" in out
 
 

@@ -34,7 +34,7 @@ from panda_py.libfranka.errors import (
     ProtocolException,
     RealtimeException,
 )
-from panda_py.libfranka.gripper import Gripper
+from panda_py.libfranka.gripper import CommandFuture, Gripper
 from panda_py.libfranka.limits import (
     RateLimits,
     cartesian_lowpass_filter,
@@ -77,6 +77,7 @@ __all__ = [
     "CartesianPose",
     "CartesianVelocities",
     "CommandException",
+    "CommandFuture",
     "ControlException",
     "ControllerMode",
     "Duration",
