@@ -77,6 +77,10 @@ class Network:
         self._udp_size = udp_size  # datagrams shorter than this are a protocol error
         self._responses: dict[int, deque[Message]] = {}
         self._tcp_lock = threading.Lock()
+        # a wait_response reads the socket (without the lock while it waits); the others
+        # wait on _arrived, notified when it queued responses or stopped reading
+        self._arrived = threading.Condition(self._tcp_lock)
+        self._reading = False
         self._udp_peer: tuple[str, int] | None = None
         self._next_due = 0.0  # perf_counter when the next state is expected
         self.broken = False  # the robot closed the TCP connection (or it failed)
@@ -183,36 +187,59 @@ class Network:
         except (OSError, ProtocolError, ValueError) as exc:
             raise translate(exc, "TCP receive") from exc
 
-    def poll_response(self, command_id: int) -> Message | None:
-        """The next queued response to ``command_id``, reading the socket without waiting."""
+    def _take(self, command_id: int) -> Message | None:
+        """The next queued response to ``command_id``, if any. Caller holds ``_tcp_lock``."""
         queue = self._responses.get(command_id)
         if not queue:
-            with self._tcp_lock:
+            return None
+        msg = queue.popleft()
+        if not queue:
+            del self._responses[command_id]
+        return msg
+
+    def poll_response(self, command_id: int) -> Message | None:
+        """The next queued response to ``command_id``, reading the socket without waiting
+        (unless a :meth:`wait_response` is reading it: that one queues what comes)."""
+        with self._tcp_lock:
+            msg = self._take(command_id)
+            if msg is None and not self._reading:
                 self._pump(0.0)
-            queue = self._responses.get(command_id)
-        if queue:
-            msg = queue.popleft()
-            if not queue:
-                del self._responses[command_id]
-            return msg
-        return None
+                msg = self._take(command_id)
+        return msg
 
     def wait_response(self, command_id: int, timeout: float | None = None) -> Message:
-        """Block (at most ``timeout`` [s], default the connection's) for a response."""
+        """Block (at most ``timeout`` [s], default the connection's) for a response.
+
+        Several threads may wait at once: one of them reads the socket, without holding
+        the lock while it waits, and wakes the others whenever it queued responses; when
+        it has its own, another waiter takes over the reading."""
         deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
-        while True:
-            queue = self._responses.get(command_id)
-            if queue:
-                msg = queue.popleft()
-                if not queue:
-                    del self._responses[command_id]
-                return msg
-            remaining = deadline - time.monotonic()
-            if remaining <= 0.0:
-                raise NetworkException("libfranka: TCP receive: Timeout")
-            with self._tcp_lock:
-                if not self._responses.get(command_id):
-                    self._pump(min(remaining, 0.1))
+        with self._arrived:
+            while True:
+                msg = self._take(command_id)
+                if msg is not None:
+                    return msg
+                remaining = deadline - time.monotonic()
+                if remaining <= 0.0:
+                    raise NetworkException("libfranka: TCP receive: Timeout")
+                if self._reading:  # another waiter reads: it wakes us when it queued some
+                    self._arrived.wait(remaining)
+                    continue
+                self._reading = True
+                try:
+                    sock = self._sock()
+                    self._arrived.release()
+                    try:
+                        ready, _, _ = select.select([sock], [], [], remaining)
+                    except (OSError, ValueError) as exc:
+                        raise translate(exc, "TCP receive") from exc
+                    finally:
+                        self._arrived.acquire()
+                    if ready:
+                        self._pump(0.0)
+                finally:
+                    self._reading = False
+                    self._arrived.notify_all()
 
     def check_closed(self) -> None:
         """Raise NetworkException if the robot closed the TCP connection (a select and, if
