@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import gc
 import socket
 import threading
 import time
@@ -231,3 +232,13 @@ def test_a_dropped_connection_fails_the_pending_future(scripted):
             future.result(timeout=10)
         with pytest.raises(lf.NetworkException, match="server closed connection"):
             g.stop()  # the connection is gone: later commands fail at once
+
+
+def test_a_client_dropped_unclosed_is_closed_when_collected(sim):
+    """Its reader thread holds the connection, not the client: the hand is free again."""
+    before = _readers()
+    lf.Gripper(sim.host).move(0.06, 0.1, asynchronous=True).result()
+    gc.collect()
+    assert _readers() == before
+    with lf.Gripper(sim.host) as again:  # not "robot busy"
+        assert again.move(0.08, 0.1) is True

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import threading
+import weakref
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -28,6 +29,11 @@ _Hand = TypeVar("_Hand", bound="HandClient")
 
 #: Gripper actions (homing, grasp, move, vacuum) block until done; this bounds the wait [s].
 ACTION_TIMEOUT = 60.0
+
+
+def _close(responses: Responses, net: Network) -> None:
+    responses.close()
+    net.close()
 
 
 class HandClient:
@@ -73,8 +79,10 @@ class HandClient:
                     library_version=version,
                 )
             self._server_version = int(server)
-            # from here on, one thread reads the responses (see _responses)
+            # from here on, one thread reads the responses (see _responses); it holds the
+            # connection, not this client: one dropped unclosed is closed when collected
             self._responses = Responses(self._net, self._LABEL)
+            self._closer = weakref.finalize(self, _close, self._responses, self._net)
         except BaseException:
             self._net.close()
             raise
@@ -87,10 +95,7 @@ class HandClient:
 
     def close(self) -> None:
         """Close the connection; a command still pending fails with NetworkException."""
-        responses = getattr(self, "_responses", None)
-        if responses is not None:
-            responses.close()
-        self._net.close()
+        self._closer()
 
     def __enter__(self: _Hand) -> _Hand:
         return self

@@ -184,12 +184,16 @@ class Responses:
         if p is None:  # answered after its wait timed out, or never asked: dropped
             log.debug("%s: dropped a response to command id %d", self._label, msg.command_id)
             return
+        future, finish = p.future, p.finish
+        del p  # finish holds the client: one dropped unclosed is collectable once resolved
         try:
-            ok = p.finish(msg)
+            ok = finish(msg)
         except Exception as exc:  # the blocking call's error, raised where it waits
-            p.future.set_exception(exc)
+            del finish
+            future.set_exception(exc)
         else:
-            p.future.set_result(ok)
+            del finish
+            future.set_result(ok)
 
     def _expire(self, now: float) -> None:
         with self._lock:
