@@ -36,12 +36,14 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 
-SETTLE_JOINT = 5e-5  # [rad] at goal: every joint within this
+SETTLE_JOINT = 2e-4  # [rad] at goal: every joint within this
 # [1/s] integral gain per unit stiffness once the trajectory ended: fast enough that a
 # joint at panda-py's wrist stiffness (50 Nm/rad) breaks free of the wrist's dry friction
 # within the settle time; a pose's lower, as its Cartesian damping is lighter.
 SETTLE_INTEGRAL = 10.0
 SETTLE_INTEGRAL_POSE = 2.0
+SETTLE_RATE = 10.0  # [1/s] the friction cancelled on the way back (see PoseMove.step)
+SETTLE_RATE_JOINT = 50.0  # [1/s] the same for a joint move, whose errors are smaller
 SETTLE_POSITION = 2e-3  # [m]
 SETTLE_ORIENTATION = 2e-3  # [rad]
 SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
@@ -373,8 +375,10 @@ class JointMove(Tracker):
         q_d, dq_d, ddq_d = self.ref = self._reference()
         tau = self.K * (q_d - state.q) + self.D * (dq_d - state.dq)
         if self.t > self.t_end and not self.stopping:
-            self.integral += self.dt * (self.goal - state.q)
+            error = self.goal - state.q
+            self.integral += self.dt * error
             tau += SETTLE_INTEGRAL * self.K * self.integral
+            tau += model.friction_for(error * SETTLE_RATE_JOINT)  # as PoseMove's
         tau += model.driven_mass_of(state) @ ddq_d + model.friction_for(dq_d)
         if self.until is not None:
             self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
@@ -514,6 +518,10 @@ class PoseMove(Tracker):
         if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
+            # the drives' dry friction cancelled along the way back to the goal (as if
+            # the joints moved there at SETTLE_RATE times the error): the impedance's few
+            # newtons at a millimetre otherwise stick, and the integral creeps for a second
+            tau += model.friction_for(J_pinv @ (err * -SETTLE_RATE))
         if self.until is not None:
             T = state.O_T_EE
             self.check_until(state, Progress(self.t, float(np.linalg.norm(T[12:15] - self.p[-1]))))
