@@ -180,3 +180,13 @@ def test_16_the_cube_is_placed_where_the_table_pushes_back(tmp_path: Path) -> No
     assert "stopped by Force.z < -5.0 after" in out
     # the fingers hold the cube 5 mm above its centre, which rests 20 mm up
     assert number(r"TCP ([\d.]+) mm above the table", out) == pytest.approx(25.0, abs=3.0)
+
+
+def test_14_the_arm_and_the_hand_move_together(tmp_path: Path) -> None:
+    out = run_example("14", cwd=tmp_path)
+    assert "homed while the arm moved: True" in out
+    assert "picked together: True" in out and "one after the other: True" in out
+    assert number(r"holding ([\d.]+) mm", out) == pytest.approx(40.0, abs=2.0)
+    together = number(r"in ([\d.]+) s \(one", out)
+    alone = number(r"one after the other: True, ([\d.]+) s", out)
+    assert together < alone - 0.1  # the hand opened while the arm moved
