@@ -3,23 +3,14 @@ homing while the arm moves, with ``asynchronous=True``).
 
 On a real robot, put a 4 cm cube at x = 0.5 m, y = 0 on the table first."""
 
-import numpy as np
+from _cube import ABOVE as UP
+from _cube import CUBE, GRIP, WIDTH, tcp_at
 from _robot import connect, robot_host
 
-import panda_py
-from panda_py import constants, libfranka
+from panda_py import libfranka
 
-CUBE = np.array([0.5, 0.0, 0.02])  # [m] where panda-sim's cube rests, its centre
-WIDTH = 0.04  # [m] the cube's edge
-ABOVE = CUBE + np.array([0, 0, 0.1])  # [m] TCP positions: 10 cm above the cube,
-AT_CUBE = CUBE + np.array([0, 0, 0.005])  # and with the fingers around it
-
-
-def tcp_at(position):
-    """The start pose's orientation (fingers down) with the TCP at ``position`` [m]."""
-    T = panda_py.fk(constants.JOINT_POSITION_START)
-    T[:3, 3] = position
-    return T
+ABOVE = CUBE + UP  # [m] TCP positions: 10 cm above the cube,
+AT_CUBE = CUBE + GRIP  # and with the fingers around it
 
 
 if __name__ == "__main__":

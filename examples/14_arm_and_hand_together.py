@@ -8,22 +8,10 @@ On a real robot, put a 4 cm cube at x = 0.5 m, y = 0 on the table first."""
 
 import asyncio
 
-import numpy as np
+from _cube import ABOVE, CUBE, GRIP, WIDTH, tcp_at
 from _robot import connect, robot_host
 
-import panda_py
-from panda_py import constants, libfranka
-
-CUBE = np.array([0.5, 0.0, 0.02])  # [m] where panda-sim's cube rests, its centre
-GRIP = np.array([0.0, 0.0, 0.005])  # [m] the TCP above the cube's centre when gripping
-ABOVE = np.array([0.0, 0.0, 0.1])  # [m]
-
-
-def tcp_at(position):
-    """The start pose's orientation (fingers down) with the TCP at ``position`` [m]."""
-    T = panda_py.fk(constants.JOINT_POSITION_START)
-    T[:3, 3] = position
-    return T
+from panda_py import libfranka
 
 
 async def pick(panda, gripper):
@@ -31,7 +19,7 @@ async def pick(panda, gripper):
     arm = panda.move_to_pose([tcp_at(CUBE + ABOVE), tcp_at(CUBE + GRIP)], asynchronous=True)
     hand = gripper.move(0.06, 0.1, asynchronous=True)
     reached, opened = await asyncio.gather(arm, hand)
-    grasped = await gripper.grasp(0.04, speed=0.05, force=20.0, asynchronous=True)
+    grasped = await gripper.grasp(WIDTH, speed=0.05, force=20.0, asynchronous=True)
     lifted = await panda.move_to_pose(tcp_at(CUBE + ABOVE), asynchronous=True)
     return reached and opened and grasped and lifted
 
@@ -39,7 +27,7 @@ async def pick(panda, gripper):
 def pick_one_after_the_other(panda, gripper):
     ok = gripper.move(0.06, 0.1)
     ok &= panda.move_to_pose([tcp_at(CUBE + ABOVE), tcp_at(CUBE + GRIP)])
-    ok &= gripper.grasp(0.04, speed=0.05, force=20.0)
+    ok &= gripper.grasp(WIDTH, speed=0.05, force=20.0)
     return ok & panda.move_to_pose(tcp_at(CUBE + ABOVE))
 
 

@@ -6,23 +6,13 @@ table height is needed; the result says which condition ended the move and when.
 On a real robot, put a 4 cm cube at x = 0.5 m, y = 0 on the table first."""
 
 import numpy as np
+from _cube import ABOVE, CUBE, GRIP, WIDTH, tcp_at
 from _robot import connect, robot_host
 
-import panda_py
-from panda_py import constants, libfranka
+from panda_py import libfranka
 from panda_py.conditions import Elapsed, Force
 
-CUBE = np.array([0.5, 0.0, 0.02])  # [m] where panda-sim's cube rests, its centre
 PLACE = np.array([0.45, 0.2, 0.02])  # [m] where to put it (the centre, roughly)
-GRIP = np.array([0.0, 0.0, 0.005])  # [m] the TCP above the cube's centre when gripping
-ABOVE = np.array([0.0, 0.0, 0.1])  # [m]
-
-
-def tcp_at(position):
-    """The start pose's orientation (fingers down) with the TCP at ``position`` [m]."""
-    T = panda_py.fk(constants.JOINT_POSITION_START)
-    T[:3, 3] = position
-    return T
 
 
 if __name__ == "__main__":
@@ -37,7 +27,7 @@ if __name__ == "__main__":
             [60.0] * 6, [60.0] * 6, [60.0] * 6, [60.0] * 6,
         )  # fmt: skip
         panda.move_to_pose([tcp_at(CUBE + ABOVE), tcp_at(CUBE + GRIP)])
-        print(f"grasped: {gripper.grasp(0.04, speed=0.05, force=20.0)}")
+        print(f"grasped: {gripper.grasp(WIDTH, speed=0.05, force=20.0)}")
         panda.move_to_pose([tcp_at(CUBE + ABOVE), tcp_at(PLACE + ABOVE)])
 
         # down at 5 cm/s toward 3 cm below the table, until it pushes back with 5 N
