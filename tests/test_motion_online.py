@@ -155,3 +155,16 @@ def test_the_scalar_jacobians_equal_the_vectorized_ones() -> None:
                                        atol=1e-12)  # fmt: skip
             np.testing.assert_allclose(online._jacobian_times(list(x), list(y), 1.0), left,
                                        atol=1e-12)  # fmt: skip
+
+
+def test_the_pose_generators_frames_are_rotations_along_the_motion() -> None:
+    from panda_py.motion import online
+
+    rng = np.random.default_rng(5)
+    for d in [*rng.normal(size=(50, 3)), np.array([0.0, 0.0, 2.0]), np.array([1e-3, 0.0, 0.0])]:
+        F = online._frame(d, np.zeros(3))
+        np.testing.assert_allclose(F.T @ F, np.eye(3), atol=1e-12)
+        assert np.linalg.det(F) == pytest.approx(1.0)
+        np.testing.assert_allclose(F[:, 0], d / np.linalg.norm(d), atol=1e-12)
+    np.testing.assert_allclose(online._frame(np.zeros(3), [0.0, 2.0, 0.0])[:, 0], [0, 1, 0])
+    np.testing.assert_array_equal(online._frame(np.zeros(3), np.zeros(3)), np.eye(3))

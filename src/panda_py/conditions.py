@@ -1,8 +1,8 @@
 """Conditions for guarded moves (``until=``): see :mod:`panda_py.controllers.conditions`.
 
-    from panda_py.conditions import Elapsed, Force
+from panda_py.conditions import Elapsed, Force
 
-    panda.move_to_pose(below, until=(Force.z < -10.0) | (Elapsed > 5.0))
+panda.move_to_pose(below, until=(Force.z < -10.0) | (Elapsed > 5.0))
 """
 
 from __future__ import annotations

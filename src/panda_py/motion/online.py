@@ -405,19 +405,31 @@ def _aligned(limits: OnlineLimits) -> OnlineLimits:
 
 def _frame(direction: FloatArray, fallback: FloatArray) -> FloatArray:
     """A right-handed frame (columns) whose first axis is ``direction`` (or, where that
-    is ~0, ``fallback``; the identity where both are)."""
-    d = np.asarray(direction, dtype=np.float64)
-    n = float(np.linalg.norm(d))
+    is ~0, ``fallback``; the identity where both are). In scalars: numpy's cross on
+    3-vectors cost most of a new target."""
+    x, y, z = (float(c) for c in direction)
+    n = math.sqrt(x * x + y * y + z * z)
     if n < 1e-9:
-        d = np.asarray(fallback, dtype=np.float64)
-        n = float(np.linalg.norm(d))
+        x, y, z = (float(c) for c in fallback)
+        n = math.sqrt(x * x + y * y + z * z)
         if n < 1e-9:
             return np.eye(3)
-    e1 = d / n
-    helper = np.eye(3)[int(np.argmin(np.abs(e1)))]  # the axis least along e1
-    e2 = np.cross(e1, helper)
-    e2 /= np.linalg.norm(e2)
-    return np.column_stack([e1, e2, np.cross(e1, e2)])
+    x, y, z = x / n, y / n, z / n
+    # e2 = e1 x (the base axis least along e1), normalized; e3 = e1 x e2
+    ax, ay, az = abs(x), abs(y), abs(z)
+    if ax <= ay and ax <= az:
+        u, v, w = 0.0, z, -y  # e1 x (1, 0, 0)
+    elif ay <= az:
+        u, v, w = -z, 0.0, x  # e1 x (0, 1, 0)
+    else:
+        u, v, w = y, -x, 0.0  # e1 x (0, 0, 1)
+    m = math.sqrt(u * u + v * v + w * w)
+    u, v, w = u / m, v / m, w / m
+    return np.array([
+        [x, u, y * w - z * v],
+        [y, v, z * u - x * w],
+        [z, w, x * v - y * u],
+    ])  # fmt: skip
 
 
 def _times(rows: list[list[float]], v: list[float]) -> list[float]:
