@@ -11,25 +11,32 @@ error, nothing sent), travels to the control process with the move and is evalua
 each tick's state; when it holds, the move stops gently (or goes on with ``then=``) and
 its result names the condition and when it held.
 
-Quantities, compared with ``<``, ``<=``, ``>``, ``>=`` against a number:
+Quantities, compared with ``<``, ``<=``, ``>``, ``>=`` against a finite number:
 
-- ``Force.x/.y/.z/.norm``, ``Moment.x/.y/.z/.norm``: the external wrench in the base
-  frame, ``O_F_ext_hat_K``, with libfranka's sign: the wrench the robot applies to its
-  environment (pressing down on a table: ``Force.z`` < 0). ``ForceEE``, ``MomentEE``: the
-  same in the stiffness frame K (``K_F_ext_hat_K``; the hand's z points down, into it).
-- ``Torque[j]`` (joint j, 0-6) and ``Torque.norm``: ``tau_ext_hat_filtered`` [Nm].
+- ``Force.x/.y/.z/.norm`` [N], ``Moment.x/.y/.z/.norm`` [Nm]: the external wrench in the
+  base frame, ``O_F_ext_hat_K``, with libfranka's sign: the wrench the robot applies to
+  its environment (pressing down on a table: ``Force.z`` < 0). ``ForceEE``, ``MomentEE``:
+  the same in the stiffness frame K (``K_F_ext_hat_K``; the hand's z points down, into it).
+- ``Torque[j]`` (joint j, 0-based like NumPy: 0-6) and ``Torque.norm`` [Nm]: the external
+  joint torques ``tau_ext_hat_filtered``.
 - ``Elapsed``: time since the move started [s]; ``Distance``: to its goal ([m] for a
-  Cartesian move, the largest joint's [rad] for a joint move).
-- ``Field("name")[i]`` / ``Field("name").norm``: any numeric field of the robot state.
+  Cartesian move, the largest joint's [rad] for a joint move). Both read the move's
+  :class:`Progress`.
+- ``Field("name")[i]`` or ``Field("name", i)``, ``Field("name").norm``: any float field of
+  the robot state, in its units (``Field("dq").norm > 1.0``, ``Field("m_ee") > 1.0``).
 
-``Errors`` holds when the robot reports an error. ``when(function)`` wraps a function of
-the state (``f(state) -> bool``), sent by value like a user's controller. Conditions
-combine with ``&``, ``|`` and ``~``; all are immutable and picklable.
+``Errors`` holds when the robot reports an error. ``when(function)`` (or
+``Condition.of(function)``) wraps a function of the state (``f(state) -> bool``), sent by
+value like a user's controller; what it raises ends the move with that error.
+
+Conditions combine with ``&``, ``|`` and ``~`` (parenthesize the comparisons: ``<`` binds
+looser than ``|``); all are immutable and picklable, and print as Python that builds them.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -37,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from panda_py.controllers.moves import Progress
 from panda_py.fci import state_float_fields
 
 __all__ = [
@@ -49,6 +57,7 @@ __all__ = [
     "ForceEE",
     "Moment",
     "MomentEE",
+    "Progress",
     "Quantity",
     "Torque",
     "when",
@@ -57,13 +66,23 @@ __all__ = [
 _OPS: dict[str, Callable[[float, float], bool]] = {
     "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
 }  # fmt: skip
+# the robot state's float fields -> number of values (the newest protocol's: older ones
+# lack some fields, which their states read as libfranka documents, and reorder none)
+_SIZES = state_float_fields()
+_PROGRESS = ("elapsed", "distance")  # the fields of Progress a Quantity can read
+_ERRORS = ("errors",)
+_NOT_A_CONDITION = (
+    "compare it with a number first, and parenthesize the comparisons: "
+    "(Force.z < -10.0) | (Elapsed > 5.0)"
+)
 
 
 class Condition:
-    """Something that holds, or not, on a tick's state and the move's progress (an object
-    with ``elapsed`` [s] and ``distance`` to the goal). Combine with ``&``, ``|``, ``~``."""
+    """Something that holds, or not, on a tick's state and the move's :class:`Progress`.
+    Combine with ``&``, ``|``, ``~``; ``describe()`` (or ``repr``) prints it."""
 
     def holds(self, state: Any, progress: Any) -> bool:
+        """Whether the condition holds on ``state`` (a RobotState) and ``progress``."""
         raise NotImplementedError
 
     def which(self, state: Any, progress: Any) -> Condition | None:
@@ -71,11 +90,26 @@ class Condition:
         does; otherwise the whole), or None if it does not hold."""
         return self if self.holds(state, progress) else None
 
+    def describe(self) -> str:
+        """The condition as an expression (``(Force.z < -10.0) | (Elapsed > 5.0)``)."""
+        return repr(self)
+
+    @staticmethod
+    def of(function: Callable[[Any], Any]) -> Condition:
+        """The same as :func:`when`."""
+        return when(function)
+
     def __and__(self, other: Condition) -> Condition:
-        return All(_conditions("&", self, other))
+        return All(_parts(All, "&", self, other))
+
+    def __rand__(self, other: Any) -> Condition:
+        return All(_parts(All, "&", other, self))
 
     def __or__(self, other: Condition) -> Condition:
-        return Any_(_conditions("|", self, other))
+        return Any_(_parts(Any_, "|", self, other))
+
+    def __ror__(self, other: Any) -> Condition:
+        return Any_(_parts(Any_, "|", other, self))
 
     def __invert__(self) -> Condition:
         return Not(self)
@@ -87,21 +121,33 @@ class Condition:
         )
 
 
-def _conditions(op: str, *items: Any) -> tuple[Condition, ...]:
+def _parts(kind: type, op: str, *items: Any) -> tuple[Condition, ...]:
+    """The operands of an ``&`` or ``|``, those of the same operator spliced in (a | b | c
+    is one alternative of three, not two nested)."""
+    parts: list[Condition] = []
     for item in items:
+        if isinstance(item, Quantity):
+            raise TypeError(f"{op}: {item!r} is a quantity, not a condition: {_NOT_A_CONDITION}")
         if not isinstance(item, Condition):
             raise TypeError(
                 f"{op}: expected a condition (e.g. Force.z < -10.0), got {type(item).__name__}"
             )
-    return tuple(items)
+        parts.extend(item.parts if type(item) is kind else (item,))  # type: ignore[attr-defined]
+    return tuple(parts)
 
 
 @dataclass(frozen=True, eq=True)
 class All(Condition):
+    """Holds when all its parts hold (``a & b``); evaluates them in order, up to the first
+    that does not."""
+
     parts: tuple[Condition, ...]
 
     def holds(self, state: Any, progress: Any) -> bool:
-        return all(p.holds(state, progress) for p in self.parts)
+        for part in self.parts:
+            if not part.holds(state, progress):
+                return False
+        return True
 
     def __repr__(self) -> str:
         return " & ".join(_paren(p) for p in self.parts)
@@ -109,10 +155,16 @@ class All(Condition):
 
 @dataclass(frozen=True, eq=True)
 class Any_(Condition):  # noqa: N801 (``Any`` is typing's)
+    """Holds when one of its parts holds (``a | b``); evaluates them in order, up to the
+    first that does."""
+
     parts: tuple[Condition, ...]
 
     def holds(self, state: Any, progress: Any) -> bool:
-        return any(p.holds(state, progress) for p in self.parts)
+        for part in self.parts:
+            if part.holds(state, progress):
+                return True
+        return False
 
     def which(self, state: Any, progress: Any) -> Condition | None:
         for part in self.parts:
@@ -127,10 +179,15 @@ class Any_(Condition):  # noqa: N801 (``Any`` is typing's)
 
 @dataclass(frozen=True, eq=True)
 class Not(Condition):
+    """Holds when its part does not (``~a``)."""
+
     part: Condition
 
     def holds(self, state: Any, progress: Any) -> bool:
         return not self.part.holds(state, progress)
+
+    def __invert__(self) -> Condition:
+        return self.part
 
     def __repr__(self) -> str:
         return f"~{_paren(self.part)}"
@@ -142,9 +199,10 @@ def _paren(c: Condition) -> str:
 
 @dataclass(frozen=True, eq=True)
 class Quantity:
-    """A number read from the state or the progress each tick: ``source`` a state field
-    (or ``"elapsed"``/``"distance"`` of the progress), one value (``index``) or the norm
-    of a slice (``start:stop``)."""
+    """A number read each tick: one value of a state field (``source``, ``index``), the
+    Euclidean norm of its values ``start:stop``, a one-value field (``m_ee``; neither
+    given), or ``"elapsed"``/``"distance"`` of the move's progress. Compare it with a
+    number to get a condition: ``Force.z < -10.0``. ``name`` is how it prints."""
 
     name: str
     source: str
@@ -152,25 +210,155 @@ class Quantity:
     start: int = 0
     stop: int = 0
 
-    def value(self, state: Any, progress: Any) -> float:
-        if self.source == "elapsed":
-            return float(progress.elapsed)
-        if self.source == "distance":
-            return float(progress.distance)
-        data = getattr(state, self.source)
+    def __post_init__(self) -> None:
+        size = 1 if self.source in _PROGRESS else _SIZES.get(self.source, 0)
+        if not size:
+            raise ValueError(
+                f"source: expected one of {sorted(_SIZES)} or {list(_PROGRESS)}, "
+                f"got {self.source!r}"
+            )
+        if size == 1:
+            if self.index is None and self.stop == 0:
+                return
+            raise ValueError(
+                f"index, start, stop: {self.source} is one value, expected none, "
+                f"got {self.index}, {self.start}, {self.stop}"
+            )
         if self.index is not None:
-            return float(data[self.index])
-        return math.sqrt(float(np.dot(data[self.start : self.stop], data[self.start : self.stop])))
+            if not 0 <= self.index < size:
+                raise ValueError(f"index: expected 0-{size - 1}, got {self.index}")
+        elif not 0 <= self.start < self.stop <= size:
+            raise ValueError(
+                f"start, stop: expected 0 <= start < stop <= {size}, got {self.start}, {self.stop}"
+            )
+
+    def value(self, state: Any, progress: Any) -> float:
+        """The quantity on ``state`` and ``progress`` (in the field's units)."""
+        if self.index is not None:
+            return float(getattr(state, self.source)[self.index])
+        if self.stop:
+            # hypot of Python floats: a third of np.dot's cost on a few values
+            return math.hypot(*getattr(state, self.source)[self.start : self.stop].tolist())
+        if self.source in _PROGRESS:
+            return float(getattr(progress, self.source))
+        return float(getattr(state, self.source))  # a one-value field (m_ee [kg])
 
     def _compare(self, op: str, threshold: Any) -> Compare:
-        if isinstance(threshold, (bool, np.bool_)) or not isinstance(
-            threshold, (int, float, np.integer, np.floating)
-        ):
-            raise ValueError(f"{self.name} {op}: expected a finite number, got {threshold!r}")
-        value = float(threshold)
-        if not math.isfinite(value):
-            raise ValueError(f"{self.name} {op}: expected a finite number, got {value}")
-        return Compare(self, op, value)
+        return Compare(self, op, _threshold(f"{self.name} {op}", threshold))
+
+    def __lt__(self, threshold: Any) -> Compare:
+        return self._compare("<", threshold)
+
+    def __le__(self, threshold: Any) -> Compare:
+        return self._compare("<=", threshold)
+
+    def __gt__(self, threshold: Any) -> Compare:
+        return self._compare(">", threshold)
+
+    def __ge__(self, threshold: Any) -> Compare:
+        return self._compare(">=", threshold)
+
+    def _not_a_condition(self, other: Any) -> Any:
+        raise TypeError(f"{self.name} is a quantity, not a condition: {_NOT_A_CONDITION}")
+
+    __and__ = __rand__ = __or__ = __ror__ = _not_a_condition
+
+    def __invert__(self) -> Any:
+        return self._not_a_condition(None)
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+def _threshold(what: str, threshold: Any) -> float:
+    if isinstance(threshold, (bool, np.bool_)) or not isinstance(threshold, numbers.Real):
+        raise ValueError(f"{what}: expected a finite number, got {threshold!r}")
+    value = float(threshold)
+    if not math.isfinite(value):
+        raise ValueError(f"{what}: expected a finite number, got {value}")
+    return value
+
+
+@dataclass(frozen=True, eq=True)
+class Compare(Condition):
+    """Holds when ``quantity op threshold`` (op one of ``<``, ``<=``, ``>``, ``>=``)."""
+
+    quantity: Quantity
+    op: str
+    threshold: float
+
+    def holds(self, state: Any, progress: Any) -> bool:
+        return _OPS[self.op](self.quantity.value(state, progress), self.threshold)
+
+    def __repr__(self) -> str:
+        return f"{self.quantity!r} {self.op} {self.threshold!r}"
+
+
+class Field:
+    """A float field of the robot state (libfranka's ``RobotState`` names and sizes, e.g.
+    ``"tau_J"`` (7,) [Nm], ``"O_T_EE"`` (16,) column-major): ``Field("tau_J")[3]`` or
+    ``Field("tau_J", 3)`` is one value (0-based), ``Field("dq").norm`` the Euclidean norm of
+    them all; a one-value field (``"m_ee"``, ``"m_load"`` [kg]) compares as it is."""
+
+    field: str  # the state's attribute
+    label: str  # how it prints
+    start: int  # the values it stands for: field[start:stop]
+    stop: int
+    _one: Quantity | None  # what it compares as: its one value (or given index), if any
+    _single: bool  # one value: no index, no norm
+
+    def __init__(self, name: str, index: int | None = None) -> None:
+        if not isinstance(name, str) or name not in _SIZES:
+            raise ValueError(
+                f"Field(name): expected the name of a float field of the robot state, one of "
+                f"{sorted(_SIZES)}, got {name!r}"
+            )
+        self._setup(name, f'Field("{name}")', 0, _SIZES[name])
+        if index is not None:
+            one = self[index]
+            self._one = Quantity(f'Field("{name}", {one.index})', name, one.index)
+            self._single = True
+
+    @classmethod
+    def _view(cls, field: str, label: str, start: int, stop: int) -> Any:
+        """The values ``start:stop`` of ``field``, printed as ``label``."""
+        view = cls.__new__(cls)
+        view._setup(field, label, start, stop)
+        return view
+
+    def _setup(self, field: str, label: str, start: int, stop: int) -> None:
+        self.field, self.label, self.start, self.stop = field, label, start, stop
+        self._single = _SIZES[field] == 1
+        self._one = Quantity(label, field) if self._single else None
+
+    def __getitem__(self, index: Any) -> Quantity:
+        """The value ``index`` (0-based) of the field."""
+        n = self.stop - self.start
+        if self._single:
+            raise ValueError(f"{self._one!r}[]: is one value already, it has no index")
+        if isinstance(index, (bool, np.bool_)) or not isinstance(index, numbers.Integral):
+            raise ValueError(f"{self.label}[]: expected an index 0-{n - 1}, got {index!r}")
+        if not 0 <= int(index) < n:
+            raise ValueError(f"{self.label}[]: expected an index 0-{n - 1}, got {index}")
+        return Quantity(f"{self.label}[{int(index)}]", self.field, self.start + int(index))
+
+    @property
+    def norm(self) -> Quantity:
+        """The Euclidean norm of the field's values (in their units)."""
+        if self._single:
+            raise ValueError(f"{self._one!r}.norm: is one value already, compare it as it is")
+        return Quantity(f"{self.label}.norm", self.field, None, self.start, self.stop)
+
+    def _choices(self) -> str:
+        return f"{self.label}[i] with i 0-{self.stop - self.start - 1}"
+
+    def _compare(self, op: str, threshold: Any) -> Compare:
+        if self._one is None:
+            raise ValueError(
+                f"{self.label} {op}: expected one value, {self.label} has "
+                f"{self.stop - self.start}: compare {self._choices()}, or {self.label}.norm"
+            )
+        return self._one._compare(op, threshold)
 
     def __lt__(self, threshold: Any) -> Compare:
         return self._compare("<", threshold)
@@ -185,48 +373,7 @@ class Quantity:
         return self._compare(">=", threshold)
 
     def __repr__(self) -> str:
-        return self.name
-
-
-@dataclass(frozen=True, eq=True)
-class Compare(Condition):
-    quantity: Quantity
-    op: str
-    threshold: float
-
-    def holds(self, state: Any, progress: Any) -> bool:
-        return _OPS[self.op](self.quantity.value(state, progress), self.threshold)
-
-    def __repr__(self) -> str:
-        return f"{self.quantity!r} {self.op} {self.threshold!r}"
-
-
-class Field:
-    """Any numeric field of the robot state: ``Field("tau_J")[3]``, ``Field("dq").norm``
-    (the fields' names and sizes are libfranka's ``RobotState``'s)."""
-
-    def __init__(self, name: str, label: str | None = None, start: int = 0,
-                 stop: int | None = None) -> None:  # fmt: skip
-        sizes = state_float_fields()
-        if name not in sizes:
-            raise ValueError(f"field: expected one of {sorted(sizes)}, got {name!r}")
-        self.field = name
-        self.start = start
-        self.stop = sizes[name] if stop is None else stop
-        self.label = label or f'Field("{name}")'
-
-    def __getitem__(self, index: Any) -> Quantity:
-        n = self.stop - self.start
-        if isinstance(index, (bool, np.bool_)) or not isinstance(index, (int, np.integer)):
-            raise ValueError(f"{self.label}[]: expected an index 0-{n - 1}, got {index!r}")
-        if not 0 <= int(index) < n:
-            raise ValueError(f"{self.label}[]: expected an index 0-{n - 1}, got {index}")
-        return Quantity(f"{self.label}[{int(index)}]", self.field, self.start + int(index))
-
-    @property
-    def norm(self) -> Quantity:
-        """The Euclidean norm of the field's values."""
-        return Quantity(f"{self.label}.norm", self.field, None, self.start, self.stop)
+        return repr(self._one) if self._single else self.label
 
 
 class _Vector3(Field):
@@ -234,24 +381,35 @@ class _Vector3(Field):
 
     @property
     def x(self) -> Quantity:
+        """The value along the frame's x axis."""
         return self._axis(0, "x")
 
     @property
     def y(self) -> Quantity:
+        """The value along the frame's y axis."""
         return self._axis(1, "y")
 
     @property
     def z(self) -> Quantity:
+        """The value along the frame's z axis."""
         return self._axis(2, "z")
 
     def _axis(self, i: int, name: str) -> Quantity:
         return Quantity(f"{self.label}.{name}", self.field, self.start + i)
+
+    def _choices(self) -> str:
+        return f"{self.label}.x, .y, .z"
 
 
 class _ErrorsHold(Condition):
     """Holds when the robot reports any error (``current_errors``)."""
 
     def holds(self, state: Any, progress: Any) -> bool:
+        raw = getattr(state, "raw_fields", None)
+        if raw is not None:
+            # a RobotState: its error flags' bytes (0 or 1 each), without decoding the
+            # whole state as current_errors does (0.4 us instead of 3)
+            return raw(_ERRORS).strip(b"\0") != b""
         return bool(state.current_errors)
 
     def __repr__(self) -> str:
@@ -280,17 +438,18 @@ class _When(Condition):
 
 def when(function: Callable[[Any], Any]) -> Condition:
     """A condition from a function of the state (``f(state) -> bool``), evaluated in the
-    control process every tick; an exception it raises aborts the move with that error."""
+    control process every tick (keep it to a few microseconds: it runs within the 1 ms
+    tick); an exception it raises ends the move with that error."""
     if not callable(function):
         raise ValueError(f"when: expected a function of the state, got {function!r}")
     return _When(function)
 
 
-Force = _Vector3("O_F_ext_hat_K", "Force", 0, 3)
-Moment = _Vector3("O_F_ext_hat_K", "Moment", 3, 6)
-ForceEE = _Vector3("K_F_ext_hat_K", "ForceEE", 0, 3)
-MomentEE = _Vector3("K_F_ext_hat_K", "MomentEE", 3, 6)
-Torque = Field("tau_ext_hat_filtered", "Torque")
+Force = _Vector3._view("O_F_ext_hat_K", "Force", 0, 3)
+Moment = _Vector3._view("O_F_ext_hat_K", "Moment", 3, 6)
+ForceEE = _Vector3._view("K_F_ext_hat_K", "ForceEE", 0, 3)
+MomentEE = _Vector3._view("K_F_ext_hat_K", "MomentEE", 3, 6)
+Torque = Field._view("tau_ext_hat_filtered", "Torque", 0, 7)
 Elapsed = Quantity("Elapsed", "elapsed")
 Distance = Quantity("Distance", "distance")
 Errors = _ErrorsHold()
