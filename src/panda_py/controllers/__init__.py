@@ -17,13 +17,16 @@ from panda_py.controllers._builtin import (
     IntegratedVelocity,
     JointPosition,
 )
+from panda_py.controllers.streaming import CartesianTarget, JointTarget
 
 __all__ = [
     "AppliedForce",
     "AppliedTorque",
     "CartesianImpedance",
+    "CartesianTarget",
     "Force",
     "IntegratedVelocity",
     "JointPosition",
+    "JointTarget",
     "TorqueController",
 ]
