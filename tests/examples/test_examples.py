@@ -170,3 +170,16 @@ def test_15_a_move_is_replaced_half_way_without_a_velocity_step(tmp_path: Path) 
     assert "first move: False (replaced by a new move after" in out
     assert number(r"second move: True, ([\d.]+) mm from its goal", out) < 5.0
     assert number(r"largest joint acceleration: (\d+) % of the FER's limit", out) <= 100
+
+
+def test_17_a_streamed_target_is_followed_and_the_arm_stops_when_targets_stop(
+    tmp_path: Path,
+) -> None:
+    out = run_example("17", cwd=tmp_path)
+    assert number(r"followed (\d+) targets sent at 20 Hz", out) == 120
+    assert number(r"lag at most (\d+) mm", out) < 40  # the circle's 16 cm/s, 20 Hz
+    # at rest after the timeout (0.5 s) and the braking, on its way to the last target
+    assert 0.5 < number(r"at rest ([\d.]+) s later", out) < 1.0
+    assert number(r"(\d+) mm short of the last one", out) > 50
+    assert number(r"acceleration: (\d+) % of the FER's limits", out) <= 100
+    assert number(r"largest joint velocity: (\d+) %", out) <= 100
