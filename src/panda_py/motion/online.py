@@ -413,11 +413,24 @@ def _frame(direction: FloatArray, fallback: FloatArray) -> FloatArray:
         n = float(np.linalg.norm(d))
         if n < 1e-9:
             return np.eye(3)
-    e1 = d / n
-    helper = np.eye(3)[int(np.argmin(np.abs(e1)))]  # the axis least along e1
-    e2 = np.cross(e1, helper)
-    e2 /= np.linalg.norm(e2)
-    return np.column_stack([e1, e2, np.cross(e1, e2)])
+    # in scalars: numpy's cross on 3-vectors costs ten times as much (a new target's
+    # frames are most of what a streamed target costs the loop)
+    x, y, z = (d / n).tolist()
+    ax, ay, az = abs(x), abs(y), abs(z)
+    # e2 = e1 x (the axis least along e1), normalised
+    if ax <= ay and ax <= az:
+        u, v, w = 0.0, z, -y
+    elif ay <= az:
+        u, v, w = -z, 0.0, x
+    else:
+        u, v, w = y, -x, 0.0
+    m = math.sqrt(u * u + v * v + w * w)
+    u, v, w = u / m, v / m, w / m
+    return np.array([
+        [x, u, y * w - z * v],
+        [y, v, z * u - x * w],
+        [z, w, x * v - y * u],
+    ])  # fmt: skip
 
 
 def _times(rows: list[list[float]], v: list[float]) -> list[float]:
