@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Any, TypeVar
 
 import numpy as np
 import pytest
@@ -27,12 +28,19 @@ DT = 1e-3
 SLACK = 1.0 + 1e-6  # ruckig's limits hold to numerical precision
 
 
-def joint_pair(**options: object) -> tuple[controllers.JointTarget, controllers.JointTarget]:
+S = TypeVar("S", controllers.JointTarget, controllers.CartesianTarget)
+
+
+def pair(cls: type[S], **options: Any) -> tuple[S, S]:
     """The controller as the control process runs it and the user's handle on it."""
-    ctrl, user = controllers.JointTarget(**options), controllers.JointTarget(**options)
+    ctrl, user = cls(**options), cls(**options)
     block, values = started(ctrl)
     user.attach(block, values)
     return ctrl, user
+
+
+def joint_pair(**options: Any) -> tuple[controllers.JointTarget, controllers.JointTarget]:
+    return pair(controllers.JointTarget, **options)
 
 
 def joint_reference(ctrl: controllers.JointTarget, user: controllers.JointTarget,
@@ -179,11 +187,8 @@ def test_the_defaults_are_the_moves() -> None:
 # --- Cartesian -------------------------------------------------------------------------
 
 
-def pose_pair(**options: object) -> tuple[controllers.CartesianTarget, controllers.CartesianTarget]:
-    ctrl, user = controllers.CartesianTarget(**options), controllers.CartesianTarget(**options)
-    block, values = started(ctrl)
-    user.attach(block, values)
-    return ctrl, user
+def pose_pair(**options: Any) -> tuple[controllers.CartesianTarget, controllers.CartesianTarget]:
+    return pair(controllers.CartesianTarget, **options)
 
 
 def pose_reference(ctrl: controllers.CartesianTarget, user: controllers.CartesianTarget,

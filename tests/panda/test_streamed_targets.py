@@ -57,12 +57,12 @@ def wait_robot_until(panda: panda_py.Panda, ms: int) -> None:
 
 
 def assert_within_limits(panda: panda_py.Panda) -> tuple[float, float, float]:
-    """The logged joint velocities, accelerations and jerks as fractions of the limits
-    (velocity and acceleration asserted within them)."""
+    """The logged joint velocities, accelerations and jerks (judged as motion_limits
+    does) as fractions of the limits, asserted within them."""
     log = panda.get_log()
     dq = np.abs(np.array(log["dq"])) / np.array(FER.joints.dq_max)
     acc, jerk = motion_limits(panda, log)
-    assert dq.max() <= 1.0 and acc <= 1.0, (dq.max(), acc)
+    assert dq.max() <= 1.0 and acc <= 1.0 and jerk <= 1.0, (dq.max(), acc, jerk)
     return float(dq.max()), acc, jerk
 
 
