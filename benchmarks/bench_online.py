@@ -14,7 +14,16 @@ Run: ``python benchmarks/bench_online.py [--quick]``.
   user-side checks and planning, the request, and the wait for the next tick. Joint and
   Cartesian targets alternate. Target: p99 <= 2 ms.
 
+* **streamed** (panda-sim in real time, FER): the control process's CPU share while a
+  ``CartesianTarget`` follows targets streamed at 20 Hz round a circle, against
+  ``CartesianImpedance`` fed the same targets, alternating in the same run (each round
+  both; the spread over the rounds is printed); and each law's tick plus step in this
+  process on states made here (a new one each tick, as the loop has), a new target every
+  50 ticks: the steadier figure on a shared machine. Target: <= 1.2x
+  CartesianImpedance's CPU.
+
 Each prints median, p99 and worst. The machine is a noisy 2-core VM: run it more than once.
+``--only generator|latency|streamed`` runs one section.
 """
 
 from __future__ import annotations
@@ -163,12 +172,115 @@ def bench_latency(n: int) -> None:
         print(f"  all                         {stats(joint_ms + pose_ms)}")
 
 
+def _cpu_seconds(pid: int) -> float:
+    """User plus system CPU time of process ``pid`` so far [s] (Linux /proc)."""
+    import os
+
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _circle(center: np.ndarray, k: int) -> np.ndarray:
+    """The k-th target of 20 Hz ones round a 10 cm circle in 4 s [m]."""
+    a = 2.0 * np.pi * k / 80
+    return center + 0.1 * np.array([0.0, np.sin(a), 1.0 - np.cos(a)])
+
+
+def bench_streamed(seconds: float, rounds: int, n: int) -> None:
+    import logging
+
+    import panda_py
+    from panda_py import controllers
+    from panda_py.sim import Simulator, free_loopback_host
+
+    logging.getLogger("panda").setLevel(logging.ERROR)
+    cpu: dict[str, list[float]] = {"CartesianImpedance": [], "CartesianTarget": []}
+    with (
+        Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim,
+        panda_py.Panda(sim.host) as panda,
+    ):
+        panda.move_to_start()
+        center, quat = panda.get_position(), panda.get_orientation()
+        pid = panda._proc.proc.pid
+        for _ in range(rounds):
+            for name in cpu:
+                ctrl = getattr(controllers, name)()
+                send = ctrl.set_control if name == "CartesianImpedance" else ctrl.set_target
+                panda.start_controller(ctrl)
+                time.sleep(0.3)
+                c0, t0 = _cpu_seconds(pid), time.monotonic()
+                k = 0
+                while time.monotonic() - t0 < seconds:
+                    send(_circle(center, k), quat)
+                    k += 1
+                    time.sleep(0.05)
+                cpu[name].append((_cpu_seconds(pid) - c0) / (time.monotonic() - t0))
+                panda.stop_controller()
+                panda.move_to_start()
+    print(f"control process CPU, targets at 20 Hz round a circle, {rounds} rounds of "
+          f"{seconds:g} s each, realtime simulator (FER) [% of a core]")  # fmt: skip
+    for name, values in cpu.items():
+        runs = ", ".join(f"{100 * v:.1f}" for v in values)
+        print(f"  {name:27} {runs}  (spread {100 * (max(values) - min(values)):.1f})")
+    ratios = [t / i for t, i in zip(cpu["CartesianTarget"], cpu["CartesianImpedance"], strict=True)]
+    print(f"  ratio CartesianTarget / CartesianImpedance: "
+          f"{', '.join(f'{r:.2f}x' for r in ratios)} (target <= 1.2x)")  # fmt: skip
+    _streamed_steps(n)
+
+
+def _streamed_steps(n: int) -> None:
+    """Each law's tick plus step in this process on states made here (a new one each
+    tick), fed through a signal slot as in the control process; a new target every 50
+    ticks."""
+    import os
+
+    from test_law_steps import MODEL, Q0, make_state
+
+    from panda_py import controllers
+    from panda_py.controllers import laws
+    from panda_py.rt.shm import SharedBlock
+
+    laws.warmup()
+    # a new state each tick, as the loop has (the model's per-state caches do not hit)
+    rng = np.random.default_rng(2)
+    states = [make_state(Q0 + rng.normal(0.0, 1e-4, 7), rng.normal(0.0, 1e-3, 7))
+              for _ in range(n + 500)]  # fmt: skip
+    state = states[0]
+    center = state.O_T_EE[12:15].copy()
+    quat = laws.quat_from_matrix(state.O_T_EE)
+    print("the laws' tick and step, in process, a new target every 50 ticks [us]")
+    for name in ("CartesianImpedance", "CartesianTarget"):
+        ctrl, user = getattr(controllers, name)(), getattr(controllers, name)()
+        block, fd = SharedBlock.create()
+        os.close(fd)
+        ctrl.start(state, MODEL)
+        user.attach(block, ctrl.open_slot(block))
+        send = user.set_control if name == "CartesianImpedance" else user.set_target
+
+        out = []
+        for i, tick_state in enumerate(states):  # the first 500 warm up
+            if i % 50 == 0:  # the user's process writes (not timed: not the loop's)
+                send(_circle(center, i // 50), quat)
+            t0 = time.perf_counter()
+            ctrl.tick(1e-3)
+            ctrl.step(tick_state, MODEL)
+            ctrl.published()
+            out.append((time.perf_counter() - t0) * 1e6)
+        print(f"  {name:27} {stats(out[500:])}  mean {np.mean(out[500:]):6.2f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    parser.add_argument("--only", choices=("generator", "latency", "streamed"))
     args = parser.parse_args()
-    bench_generator(2_000 if args.quick else 20_000)
-    bench_latency(40 if args.quick else 200)
+    if args.only in (None, "generator"):
+        bench_generator(2_000 if args.quick else 20_000)
+    if args.only in (None, "latency"):
+        bench_latency(40 if args.quick else 200)
+    if args.only in (None, "streamed"):
+        bench_streamed(3.0 if args.quick else 10.0, 2, 2_000 if args.quick else 20_000)
 
 
 if __name__ == "__main__":

@@ -190,3 +190,16 @@ def test_14_the_arm_and_the_hand_move_together(tmp_path: Path) -> None:
     together = number(r"in ([\d.]+) s \(one", out)
     alone = number(r"one after the other: True, ([\d.]+) s", out)
     assert together < alone - 0.1  # the hand opened while the arm moved
+
+
+def test_17_a_streamed_target_is_followed_and_the_arm_stops_when_targets_stop(
+    tmp_path: Path,
+) -> None:
+    out = run_example("17", cwd=tmp_path)
+    assert number(r"followed (\d+) targets sent at 20 Hz", out) == 120
+    assert number(r"lag at most (\d+) mm", out) < 40  # the circle's 16 cm/s, 20 Hz
+    # at rest after the timeout (0.5 s) and the braking, on its way to the last target
+    assert 0.5 < number(r"at rest ([\d.]+) s later", out) < 1.0
+    assert number(r"(\d+) mm short of the last one", out) > 50
+    assert number(r"acceleration: (\d+) % of the FER's limits", out) <= 100
+    assert number(r"largest joint velocity: (\d+) %", out) <= 100

@@ -4,6 +4,9 @@ Instantiate one and hand it to :meth:`panda_py.Panda.start_controller`; it runs 
 the control process while this process feeds it with ``set_control`` and its setters, all
 changeable while it runs. Subclass :class:`TorqueController` (declare ``signals``,
 implement ``step(state, model) -> tau``) to run a control law of your own at 1 kHz.
+Beyond panda-py, :class:`JointTarget` and :class:`CartesianTarget` follow targets streamed
+at any rate (a policy, teleoperation) smoothly within the robot's limits
+(:mod:`panda_py.controllers.streaming`).
 """
 
 from __future__ import annotations
@@ -17,13 +20,16 @@ from panda_py.controllers._builtin import (
     IntegratedVelocity,
     JointPosition,
 )
+from panda_py.controllers.streaming import CartesianTarget, JointTarget
 
 __all__ = [
     "AppliedForce",
     "AppliedTorque",
     "CartesianImpedance",
+    "CartesianTarget",
     "Force",
     "IntegratedVelocity",
     "JointPosition",
+    "JointTarget",
     "TorqueController",
 ]

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from panda_py.controllers import laws
 from panda_py.controllers.law import ControlLaw
-from panda_py.controllers.model import FRICTION_SPEED
+from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
 from panda_py.fci import PERIOD
 from panda_py.motion.online import LATERAL, OnlineGenerator, OnlineLimits, OnlinePose
 
@@ -373,13 +373,12 @@ class JointMove(Tracker):
 
     def step(self, state: Any, model: Any) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
-        tau = self.K * (q_d - state.q) + self.D * (dq_d - state.dq)
+        tau = joint_impedance_torque(self.K, self.D, q_d, dq_d, ddq_d, state, model)
         if self.t > self.t_end and not self.stopping:
             error = self.goal - state.q
             self.integral += self.dt * error
             tau += SETTLE_INTEGRAL * self.K * self.integral
             tau += model.friction_for(error * SETTLE_RATE_JOINT)  # as PoseMove's
-        tau += model.driven_mass_of(state) @ ddq_d + model.friction_for(dq_d)
         if self.until is not None:
             self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
         return self._blended(tau + model.coriolis_of(state), state, model)
@@ -416,17 +415,12 @@ class PoseMove(Tracker):
     def __init__(self, plan: PosePlan) -> None:
         super().__init__(len(plan.position), plan.dq_threshold)
         self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
-        self._J_prev: FloatArray | None = None
-        self.qn = plan.q_nullspace
-        self.K = plan.impedance
-        w, v = np.linalg.eigh(plan.impedance)
-        self.D = 2.0 * plan.damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
-        self.kn = plan.nullspace_stiffness
+        self.law = PoseImpedance(plan.impedance, plan.damping_ratio, plan.q_nullspace,
+                                 plan.nullspace_stiffness)  # fmt: skip
         self.success_threshold = plan.success_threshold
         self.orientation_threshold = plan.orientation_threshold
         self.join = plan.join % len(plan.position)
         self.integral = np.zeros(6)
-        self._err, self._J_pinv = np.empty(6), np.empty((7, 6))
         self.gen = OnlinePose(plan.limits)
         self.limits = plan.limits
         self.stop_limits = plan.stop_limits or plan.limits
@@ -470,8 +464,9 @@ class PoseMove(Tracker):
         p, quat, v, a = (r.copy() for r in self.ref)
         self.gen.reset(p, quat, v, a)
         self.gen.set_rest()
-        if self._J_prev is not None and self.spec is not None:  # within the joints' limits
-            limits = joint_capped(self.stop_limits, self._J_prev, self.spec, self.gen.frames)
+        J_prev = self.law.J_prev
+        if J_prev is not None and self.spec is not None:  # within the joints' limits
+            limits = joint_capped(self.stop_limits, J_prev, self.spec, self.gen.frames)
         else:
             limits = self.stop_limits
         self.gen.set_limits(limits)
@@ -488,40 +483,16 @@ class PoseMove(Tracker):
 
     def step(self, state: Any, model: Any) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()
-        q, dq = state.q, state.dq
-        J = model.ee_jacobian(state)
         self.spec = getattr(model, "spec", None)
-        kn = self.kn
-        kernels = laws.compiled()
-        if kernels is not None:  # the same terms, compiled
-            tau, err, J_pinv = np.empty(7), self._err, self._J_pinv
-            kernels.impedance_torque(
-                state.O_T_EE, J, q, dq, p_d, quat_d, v_d, self.K, self.D,
-                self.qn, kn, tau, err, J_pinv,
-            )  # fmt: skip
-        else:
-            err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
-            tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - v_d))
-            tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
-            J_pinv = laws.damped_pinv(J)
-        if kernels is not None:
-            J_prev = J if self._J_prev is None else self._J_prev
-            kernels.pose_feedforward(J, J_prev, dq, self.dt, a_d, v_d, J_pinv,
-                                     model.driven_mass_of(state), model.coulomb,
-                                     FRICTION_SPEED, tau)  # fmt: skip
-        else:
-            a = a_d
-            if self._J_prev is not None and self.dt > 0.0:
-                a = a - ((J - self._J_prev) @ dq) / self.dt
-            tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(J_pinv @ v_d)
-        self._J_prev = J
+        tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
+        err, J = self.law.err, model.ee_jacobian(state)  # (cached)
         if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
-            tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.K @ self.integral))
+            tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.law.K @ self.integral))
             # the drives' dry friction cancelled along the way back to the goal (as if
             # the joints moved there at SETTLE_RATE times the error): the impedance's few
             # newtons at a millimetre otherwise stick, and the integral creeps for a second
-            tau += model.friction_for(J_pinv @ (err * -SETTLE_RATE))
+            tau += model.friction_for(self.law.J_pinv @ (err * -SETTLE_RATE))
         if self.until is not None:
             T = state.O_T_EE
             self.check_until(state, Progress(self.t, float(np.linalg.norm(T[12:15] - self.p[-1]))))
