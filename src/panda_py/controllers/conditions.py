@@ -197,8 +197,27 @@ def _paren(c: Condition) -> str:
     return f"({c!r})" if isinstance(c, (All, Any_, Compare)) else repr(c)
 
 
+class _Comparable:
+    """``<``, ``<=``, ``>``, ``>=`` against a number make a condition (``_compare``)."""
+
+    def _compare(self, op: str, threshold: Any) -> Compare:
+        raise NotImplementedError
+
+    def __lt__(self, threshold: Any) -> Compare:
+        return self._compare("<", threshold)
+
+    def __le__(self, threshold: Any) -> Compare:
+        return self._compare("<=", threshold)
+
+    def __gt__(self, threshold: Any) -> Compare:
+        return self._compare(">", threshold)
+
+    def __ge__(self, threshold: Any) -> Compare:
+        return self._compare(">=", threshold)
+
+
 @dataclass(frozen=True, eq=True)
-class Quantity:
+class Quantity(_Comparable):
     """A number read each tick: one value of a state field (``source``, ``index``), the
     Euclidean norm of its values ``start:stop``, a one-value field (``m_ee``; neither
     given), or ``"elapsed"``/``"distance"`` of the move's progress. Compare it with a
@@ -246,18 +265,6 @@ class Quantity:
     def _compare(self, op: str, threshold: Any) -> Compare:
         return Compare(self, op, _threshold(f"{self.name} {op}", threshold))
 
-    def __lt__(self, threshold: Any) -> Compare:
-        return self._compare("<", threshold)
-
-    def __le__(self, threshold: Any) -> Compare:
-        return self._compare("<=", threshold)
-
-    def __gt__(self, threshold: Any) -> Compare:
-        return self._compare(">", threshold)
-
-    def __ge__(self, threshold: Any) -> Compare:
-        return self._compare(">=", threshold)
-
     def _not_a_condition(self, other: Any) -> Any:
         raise TypeError(f"{self.name} is a quantity, not a condition: {_NOT_A_CONDITION}")
 
@@ -294,7 +301,7 @@ class Compare(Condition):
         return f"{self.quantity!r} {self.op} {self.threshold!r}"
 
 
-class Field:
+class Field(_Comparable):
     """A float field of the robot state (libfranka's ``RobotState`` names and sizes, e.g.
     ``"tau_J"`` (7,) [Nm], ``"O_T_EE"`` (16,) column-major): ``Field("tau_J")[3]`` or
     ``Field("tau_J", 3)`` is one value (0-based), ``Field("dq").norm`` the Euclidean norm of
@@ -359,18 +366,6 @@ class Field:
                 f"{self.stop - self.start}: compare {self._choices()}, or {self.label}.norm"
             )
         return self._one._compare(op, threshold)
-
-    def __lt__(self, threshold: Any) -> Compare:
-        return self._compare("<", threshold)
-
-    def __le__(self, threshold: Any) -> Compare:
-        return self._compare("<=", threshold)
-
-    def __gt__(self, threshold: Any) -> Compare:
-        return self._compare(">", threshold)
-
-    def __ge__(self, threshold: Any) -> Compare:
-        return self._compare(">=", threshold)
 
     def __repr__(self) -> str:
         return repr(self._one) if self._single else self.label
