@@ -265,7 +265,8 @@ def _law_costs(n: int) -> dict[str, list[float]]:
     on the state type the loop hands them (TickState) and a controller fed through a
     signal slot, as in the control process."""
     from panda_py.controllers.model import ControlModel
-    from panda_py.controllers.moves import JointMove, JointPlan, PoseMove, PosePlan
+    from panda_py.controllers.moves import JointMove, PoseMove
+    from panda_py.controllers.plans import JointPlan, PosePlan
     from panda_py.libfranka.state import TickState
     from panda_py.rt.shm import SharedBlock
 

@@ -128,7 +128,8 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     """PoseMove.step with the compiled feed-forward (M J^+ (a - dJ dq) + friction along
     J^+ v) gives the NumPy branch's torques, tick after tick (dJ from the previous tick)."""
     from panda_py.controllers.model import ControlModel
-    from panda_py.controllers.moves import PoseMove, PosePlan
+    from panda_py.controllers.moves import PoseMove
+    from panda_py.controllers.plans import PosePlan
 
     rng = np.random.default_rng(seed)
     model = ControlModel("fr3")

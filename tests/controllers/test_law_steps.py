@@ -15,7 +15,8 @@ import pytest
 from panda_py import controllers, fci, kinematics
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import JointMove, JointPlan, PoseMove, PosePlan, tracker_for
+from panda_py.controllers.moves import JointMove, PoseMove, tracker_for
+from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.libfranka import RobotState
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import START_POSE, get_robot

@@ -11,7 +11,8 @@ import numpy as np
 from test_law_steps import KIN, MODEL, Q0, ctrl_quat, make_state
 
 from panda_py.controllers import laws
-from panda_py.controllers.moves import JointMove, PoseMove, Progress, Tracker, tracker_for
+from panda_py.controllers.moves import JointMove, PoseMove, Tracker, tracker_for
+from panda_py.controllers.plans import Progress
 from panda_py.fci import PERIOD
 from panda_py.panda import planning
 from panda_py.robots.params import get_robot
@@ -170,7 +171,7 @@ def test_a_condition_with_a_successor_hands_over_to_it() -> None:
 
 
 def tracker_plan(law: JointMove) -> Any:
-    from panda_py.controllers.moves import JointPlan
+    from panda_py.controllers.plans import JointPlan
 
     return JointPlan(law.q, law.dq, law.ddq, law.K, law.D, 1e-3, 1e-2,
                      law.gen.limits)  # fmt: skip

@@ -16,7 +16,7 @@ from test_law_steps import KIN, MODEL, Q0, STATE0, make_state, run_once, started
 from panda_py import controllers
 from panda_py.controllers import streaming
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import rotation_angle
+from panda_py.controllers.plans import rotation_angle
 from panda_py.libfranka.errors import InvalidOperationException
 from panda_py.motion import rotation
 from panda_py.panda import planning

@@ -13,7 +13,7 @@ import socket
 import numpy as np
 import pytest
 
-from panda_py.controllers.moves import JointPlan
+from panda_py.controllers.plans import JointPlan
 from panda_py.libfranka import InvalidOperationException
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import get_robot

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from panda_py.controllers.moves import Progress
+from panda_py.controllers.plans import Progress
 from panda_py.fci import state_float_fields
 
 __all__ = [

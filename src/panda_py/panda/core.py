@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from panda_py import fci, kinematics
 from panda_py.controllers import TorqueController, laws
-from panda_py.controllers.moves import JointPlan, MoveResult, PosePlan, rotation_angle
+from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, rotation_angle
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.realtime import fifo_permitted, has_realtime_kernel
 from panda_py.libfranka.state import RobotState

@@ -18,7 +18,7 @@ import threading
 from collections.abc import Callable, Generator
 from typing import Any
 
-from panda_py.controllers.moves import MoveResult
+from panda_py.controllers.plans import MoveResult
 from panda_py.rt import requests as rq
 from panda_py.rt.process import ControlProcess, ControlProcessError, Pending
 

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import checks
-from panda_py.controllers.moves import JointPlan, PosePlan
+from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import parse_poses, stack_rows

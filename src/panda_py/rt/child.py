@@ -34,13 +34,8 @@ from panda_py import kinematics
 from panda_py.controllers import TorqueController, laws
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import (
-    JointPlan,
-    MoveResult,
-    PosePlan,
-    Tracker,
-    tracker_for,
-)
+from panda_py.controllers.moves import Tracker, tracker_for
+from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.libfranka import (
     ControlException,

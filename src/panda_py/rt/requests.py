@@ -16,7 +16,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from panda_py.controllers.moves import JointPlan, PosePlan
+from panda_py.controllers.plans import JointPlan, PosePlan
 
 __all__ = [
     "Call",
