@@ -76,8 +76,9 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
     ``|row_i(J^+) . axis| * limit``; without them, the worst direction."""
     pinv = laws.damped_pinv(J)
     if frames is None:
-        t = np.linalg.norm(pinv[:, :3], axis=1) * 1.2248  # sqrt(1 + 2 LATERAL^2)
-        r = np.linalg.norm(pinv[:, 3:], axis=1) * 1.2248
+        excess = math.sqrt(1.0 + 2.0 * LATERAL**2)  # the aligned frames' over a norm
+        t = np.linalg.norm(pinv[:, :3], axis=1) * excess
+        r = np.linalg.norm(pinv[:, 3:], axis=1) * excess
     else:
         spread = np.array([1.0, LATERAL, LATERAL])
         t = np.abs(pinv[:, :3] @ frames[0]) @ spread

@@ -51,7 +51,7 @@ from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.motion.online import OnlineLimits
-from panda_py.robots.params import get_robot, robot_for_protocol
+from panda_py.robots.params import RobotSpec, get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
@@ -109,6 +109,7 @@ class ControlServer:
         self.model: ControlModel | None = None
         self.walls: laws.JointWalls | None = None
         self.tau_max = np.zeros(7)
+        self.limits: RobotSpec | None = None  # whose joint limits apply (set at connect)
         self._tau = np.zeros(7)  # the command of this tick, finalized
         self.log: LogRing | None = None
         self.logging = False
@@ -161,7 +162,7 @@ class ControlServer:
         robot.spin_wait = False
         self.robot = robot
         version = robot.server_version()
-        limits = get_robot(limits_spec_for_version(version))
+        limits = self.limits = get_robot(limits_spec_for_version(version))
         self.model = ControlModel(robot.robot_spec)
         laws.warmup()  # the compiled laws: compiled or loaded now, not in a tick
         self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
@@ -199,8 +200,8 @@ class ControlServer:
         self.model.gravity_of(state)
         q = state.q
         z = np.zeros((2, 7))
-        assert self.robot is not None
-        spec = get_robot(limits_spec_for_version(self.robot.server_version()))
+        spec = self.limits  # the joint limits that apply (connect's)
+        assert spec is not None
         joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
                           OnlineLimits.joints(spec, 1.0))  # fmt: skip
         p = np.array([state.O_T_EE[12:15]] * 2)
