@@ -103,7 +103,10 @@ class FciSession(ServerState):
         conn.dialect = d
         conn.state_wire = StateWire(d, self.core)
         conn.command_wire = CommandWire(d)
-        self._sel.register(udp, selectors.EVENT_READ, ("robot-udp", conn))
+        if self.config.lockstep:  # it waits for the command: woken by its arrival
+            self._sel.register(udp, selectors.EVENT_READ, ("robot-udp", conn))
+        # on the clock, the tick reads the commands that arrived (_tick): one wake-up a
+        # tick instead of two, which is most of an idle simulator's CPU
         self._send_tcp(
             conn, fci.encode_connect_response(msg.command_id, ConnectStatus.SUCCESS, version)
         )

@@ -210,6 +210,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         command = None
         excused = False
         if conn is not None:
+            if not self.config.lockstep:  # its socket is not watched (FciSession._connect)
+                self._read_robot_udp(conn)
             command, conn.command = conn.command, None
             if self.core.robot_mode == RobotMode.MOVE and conn.awaiting:
                 if command is not None:
