@@ -139,6 +139,25 @@ def test_a_new_move_replaces_a_running_one_mid_motion(panda: panda_py.Panda) -> 
     assert not panda.get_state().current_errors
 
 
+def test_a_long_path_replaces_a_running_move_as_a_single_target_does(
+    panda: panda_py.Panda,
+) -> None:
+    # a path of 40 waypoints is sampled into megabytes of arrays: they must reach the
+    # control loop while it runs (not wait for the running move to end)
+    panda.move_to_start()
+    start = panda.q
+    first = panda.move_to_joint_position(start + OFFSET, asynchronous=True, speed_factor=0.05)
+    wait_moving(panda, 0.02)
+    path = [start + 0.3 * np.sin(0.7 * k + np.arange(7)) for k in range(40)]
+    second = panda.move_to_joint_position(path, asynchronous=True, speed_factor=0.3)
+    assert first.wait(10.0) is False
+    result = first.result
+    assert result is not None and "replaced by a new move" in result.reason, result
+    second.cancel()
+    second.wait(30.0)
+    assert not panda.get_state().current_errors
+
+
 def test_stop_controller_cancels_a_running_move_gently(panda: panda_py.Panda) -> None:
     panda.move_to_start()
     handle = panda.move_to_joint_position(panda.q + OFFSET, asynchronous=True)

@@ -3,10 +3,20 @@ stream socket carrying length-prefixed pickles, optionally with file descriptors
 
 Used only for what is not per-tick (start a controller, a move, setters, logging files,
 replies and asynchronous events); the per-tick data goes through shared memory.
+
+A message whose arrays are large (a sampled trajectory of a long move) does not travel
+through the socket: its pickle (protocol 5) leaves the arrays' bytes out of band, they are
+written to an anonymous memory file (``memfd``) sent along as a descriptor, and the
+receiver maps it and unpickles the arrays onto the mapping, without copying. The socket
+then only ever carries small messages, so a send never waits for the reader: the control
+loop reads a request when its count says it is whole (see ``ControlProcess.submit``), and
+a sender blocked on a full socket buffer would wait for a loop that waits for it.
 """
 
 from __future__ import annotations
 
+import mmap
+import os
 import pickle
 import select
 import socket
@@ -17,6 +27,12 @@ __all__ = ["Channel", "ChannelClosed"]
 
 _LEN = struct.Struct("<I")
 _MAX_MESSAGE = 256 * 1024 * 1024  # [bytes] a sampled trajectory of a few minutes fits
+# A message whose arrays hold more than this goes out of band, through a memfd [bytes]
+# (far below the socket's buffer, about 200 KiB: a send of the rest never blocks).
+OUT_OF_BAND = 32 * 1024
+_OOB_FLAG = 1 << 31  # in the length word: the last descriptor holds the arrays' bytes
+_COUNT = struct.Struct("<I")
+_SIZE = struct.Struct("<Q")
 
 
 class ChannelClosed(EOFError):
@@ -44,8 +60,21 @@ class Channel:
             pass
 
     def send(self, obj: Any, fds: tuple[int, ...] = ()) -> None:
-        payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-        data = _LEN.pack(len(payload)) + payload
+        buffers: list[pickle.PickleBuffer] = []
+        payload = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
+        memfd = -1
+        if buffers:
+            views = [b.raw() for b in buffers]
+            if sum(v.nbytes for v in views) >= OUT_OF_BAND:
+                memfd = _write_memfd(views)
+                table = _COUNT.pack(len(views)) + b"".join(_SIZE.pack(v.nbytes) for v in views)
+                payload = table + payload
+                fds = (*fds, memfd)
+            else:  # small: in band after all
+                payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+        if len(payload) >= _OOB_FLAG:
+            raise ValueError(f"control channel: message of {len(payload)} bytes is too large")
+        data = _LEN.pack(len(payload) | (_OOB_FLAG if memfd >= 0 else 0)) + payload
         try:
             if fds:
                 sent = socket.send_fds(self.sock, [data[:4]], list(fds))
@@ -56,6 +85,9 @@ class Channel:
                 self.sock.sendall(data)
         except (BrokenPipeError, ConnectionResetError) as exc:
             raise ChannelClosed("the other process closed the control channel") from exc
+        finally:
+            if memfd >= 0:
+                os.close(memfd)  # the receiver has its own descriptor of it now
 
     def _recv_exact(self, n: int) -> bytes:
         chunks = []
@@ -78,9 +110,20 @@ class Channel:
         if len(head) < 4:
             head += self._recv_exact(4 - len(head))
         (n,) = _LEN.unpack(head)
+        oob = bool(n & _OOB_FLAG)
+        n &= ~_OOB_FLAG
         if n > _MAX_MESSAGE:
             raise ChannelClosed(f"control channel: message of {n} bytes is too large")
-        return pickle.loads(self._recv_exact(n)), list(fds)
+        payload = self._recv_exact(n)
+        if not oob:
+            return pickle.loads(payload), list(fds)
+        if not fds:
+            raise ChannelClosed("control channel: an out-of-band message came without its data")
+        memfd = fds.pop()
+        try:
+            return _loads_mapped(payload, memfd), list(fds)
+        finally:
+            os.close(memfd)
 
     def poll(self, timeout: float = 0.0) -> bool:
         """True if a message (or the close) is waiting."""
@@ -95,3 +138,38 @@ class Channel:
             return False
         except OSError:
             return True
+
+
+def _write_memfd(views: list[memoryview]) -> int:
+    """A new anonymous memory file holding ``views`` one after another (its descriptor)."""
+    fd = os.memfd_create("panda-py-message", os.MFD_CLOEXEC)
+    try:
+        for data in views:  # (raw(): flat byte views)
+            while data:
+                written = os.write(fd, data)
+                data = data[written:]
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _loads_mapped(payload: bytes, memfd: int) -> Any:
+    """Unpickle a message whose arrays' bytes are in ``memfd``: they become arrays on a
+    private (copy-on-write) mapping of it, so nothing is copied and the arrays may be
+    written to."""
+    (count,) = _COUNT.unpack_from(payload)
+    sizes = [_SIZE.unpack_from(payload, 4 + 8 * i)[0] for i in range(count)]
+    body = memoryview(payload)[4 + 8 * count :]
+    total = sum(sizes)
+    if total == 0 or total != os.fstat(memfd).st_size:
+        raise ChannelClosed(
+            f"control channel: out-of-band data of {os.fstat(memfd).st_size} bytes, "
+            f"expected {total}"
+        )
+    whole = memoryview(mmap.mmap(memfd, total, access=mmap.ACCESS_COPY))
+    buffers, offset = [], 0
+    for size in sizes:
+        buffers.append(whole[offset : offset + size])
+        offset += size
+    return pickle.loads(body, buffers=buffers)
