@@ -39,6 +39,8 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 autodoc_class_signature = "mixed"
 autoclass_content = "class"
+# float64 arrays: the alias, not its expansion ndarray[tuple[Any, ...], dtype[float64]]
+autodoc_type_aliases = {"FloatArray": "FloatArray", "Vec7": "Vec7"}
 
 myst_enable_extensions = ["colon_fence"]
 myst_heading_anchors = 3
