@@ -278,3 +278,19 @@ def test_public_name_is_documented(module: str, name: str, reference: Reference)
         )
     undocumented = [m for m in methods if not method_docstring(obj, m)]
     assert not undocumented, f"{module}.{name}: methods without a docstring: {undocumented}"
+
+
+def test_ci_builds_the_site_with_warnings_as_errors_before_the_tests() -> None:
+    # (tests/examples/test_readme.py holds that the README's second command is .ci/run's)
+    command = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert '".[dev,examples,docs]"' in command
+    assert "-m sphinx -W" in command and command.index("-m sphinx") < command.index("-m pytest")
+
+
+def test_the_guides_code_parses_and_the_examples_they_name_exist() -> None:
+    for page in sorted((ROOT / "docs").rglob("*.md")):
+        text = page.read_text()
+        for block in re.findall(r"```python\n(.*?)```", text, flags=re.S):
+            compile(block, str(page), "exec")  # a SyntaxError names the page
+        for name in re.findall(r"examples/(\w+\.py)", text):
+            assert (ROOT / "examples" / name).is_file(), f"{page.name} names examples/{name}"
