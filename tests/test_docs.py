@@ -54,13 +54,14 @@ PUBLIC_MODULES = (
     "panda_py.sim",
     "panda_py.sim.desk",
     "panda_py.cli",
+    "panda_py.fci",
 )
 # public names of modules without an __all__
 EXTRA_NAMES = {"panda_py.sim.testing": ("panda_sim",)}
 
 # ``.. autoclass:: target`` and its options (``:members:``) on the lines below it
 DIRECTIVE = re.compile(r"^\.\. (auto\w+):: *(\S+)\s*$")
-OPTION = re.compile(r"^\s+:([\w-]+):")
+OPTION = re.compile(r"^\s+:([\w-]+):(.*)$")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,6 +70,7 @@ class Directive:
     target: str  # the dotted name it documents
     options: frozenset[str]  # "members", "inherited-members", ...
     where: str  # file:line, for the messages
+    excluded: frozenset[str] = frozenset()  # :exclude-members: (documented elsewhere)
 
 
 def read_directives(text: str, source: str) -> list[Directive]:
@@ -79,13 +81,16 @@ def read_directives(text: str, source: str) -> list[Directive]:
         match = DIRECTIVE.match(line)
         if not match:
             continue
-        options = set()
+        options, excluded = set(), set()
         for following in lines[i + 1 :]:
             option = OPTION.match(following)
             if not option:
                 break
             options.add(option.group(1))
-        found.append(Directive(match[1], match[2], frozenset(options), f"{source}:{i + 1}"))
+            if option.group(1) == "exclude-members":
+                excluded |= {name.strip() for name in option.group(2).split(",") if name.strip()}
+        where = f"{source}:{i + 1}"
+        found.append(Directive(match[1], match[2], frozenset(options), where, frozenset(excluded)))
     return found
 
 
@@ -130,7 +135,7 @@ class Reference:
                 self.modules.add(directive.target)
                 if "members" in directive.options:
                     module = importlib.import_module(directive.target)
-                    for name in module.__all__:
+                    for name in set(module.__all__) - directive.excluded:
                         # as autodoc: a constant only with its docstring in this module
                         if not _is_constant(getattr(module, name)) or attribute_docstring(
                             directive.target, name, follow=False
@@ -219,13 +224,20 @@ def reference() -> Reference:
 
 def test_the_reader_finds_directives_and_their_options() -> None:
     text = (
-        "Title\n=====\n\n.. automodule:: panda_py.motion\n   :members:\n\n"
+        "Title\n=====\n\n.. automodule:: panda_py.motion\n   :members:\n"
+        "   :exclude-members: JointTrajectory, TrajectoryError\n\n"
         ".. autoclass:: panda_py.Panda\n\n.. autofunction:: panda_py.kinematics.fk\n"
     )
     assert read_directives(text, "x.rst") == [
-        Directive("automodule", "panda_py.motion", frozenset({"members"}), "x.rst:4"),
-        Directive("autoclass", "panda_py.Panda", frozenset(), "x.rst:7"),
-        Directive("autofunction", "panda_py.kinematics.fk", frozenset(), "x.rst:9"),
+        Directive(
+            "automodule",
+            "panda_py.motion",
+            frozenset({"members", "exclude-members"}),
+            "x.rst:4",
+            frozenset({"JointTrajectory", "TrajectoryError"}),
+        ),
+        Directive("autoclass", "panda_py.Panda", frozenset(), "x.rst:8"),
+        Directive("autofunction", "panda_py.kinematics.fk", frozenset(), "x.rst:10"),
     ]
 
 
