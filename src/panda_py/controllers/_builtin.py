@@ -89,12 +89,16 @@ class JointPosition(TorqueController):
         self._send(0, q + dq)
 
     def set_stiffness(self, stiffness: Any) -> None:
+        """Joint stiffness ``K`` (7,) [Nm/rad], each >= 0."""
         self._write(stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
 
     def set_damping(self, damping: Any) -> None:
+        """Joint damping ``D`` (7,) [Nm s/rad], each >= 0."""
         self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
+        """The low-pass coefficient in (0, 1] by which the target, stiffness and damping move
+        toward new values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
@@ -136,9 +140,11 @@ class IntegratedVelocity(TorqueController):
         self._send(0, _fast("velocity", velocity, 7, "[rad/s]"))
 
     def set_stiffness(self, stiffness: Any) -> None:
+        """Joint stiffness ``K`` (7,) [Nm/rad], each >= 0."""
         self._write(stiffness=checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]"))
 
     def set_damping(self, damping: Any) -> None:
+        """Joint damping ``D`` (7,) [Nm s/rad], each >= 0."""
         self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def get_qd(self) -> FloatArray:
@@ -184,9 +190,12 @@ class _Applied(TorqueController):
         self._send(0, _fast(name, value, n, unit))
 
     def set_damping(self, damping: Any) -> None:
+        """Joint damping ``D`` (7,) [Nm s/rad], each >= 0."""
         self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
+        """The low-pass coefficient in (0, 1] by which the input and the damping move toward new
+        values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
@@ -275,18 +284,25 @@ class Force(TorqueController):
         self._send(0, _fast("force", force, 3, "[N]"))
 
     def set_proportional_gain(self, k_p: float) -> None:
+        """The proportional gain ``k_p`` [-] on the joint torque error, >= 0."""
         self._write(k_p=[checks.nonnegative_scalar("k_p", k_p)])
 
     def set_integral_gain(self, k_i: float) -> None:
+        """The integral gain ``k_i`` [1/s] on the joint torque error, >= 0."""
         self._write(k_i=[checks.nonnegative_scalar("k_i", k_i)])
 
     def set_threshold(self, threshold: float) -> None:
+        """How far [m] the end effector may move from where the controller started before it
+        aborts, >= 0."""
         self._write(threshold=[checks.nonnegative_scalar("threshold", threshold, "[m]")])
 
     def set_damping(self, damping: Any) -> None:
+        """Joint damping ``D`` (7,) [Nm s/rad], each >= 0."""
         self._write(damping=checks.nonnegative("damping", damping, 7, "[Nm s/rad]"))
 
     def set_filter(self, filter_coeff: float) -> None:
+        """The low-pass coefficient in (0, 1] by which the force, gains, damping and threshold
+        move toward new values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def start(self, state: Any, model: Any) -> None:
@@ -393,16 +409,23 @@ class CartesianImpedance(TorqueController):
         self._send(0, p + o + n)
 
     def set_impedance(self, impedance: Any) -> None:
+        """The Cartesian stiffness ``K``, a 6x6 matrix [N/m, Nm/rad] (translation, then
+        rotation)."""
         self._write(impedance=checks.matrix6("impedance", impedance, "[N/m, Nm/rad]"))
 
     def set_damping_ratio(self, damping: float) -> None:
+        """The damping ratio [-] of ``D = 2 damping_ratio sqrt(K)``, >= 0."""
         self._write(damping_ratio=[checks.nonnegative_scalar("damping", damping)])
 
     def set_nullspace_stiffness(self, nullspace_stiffness: float) -> None:
+        """The stiffness ``k_n`` [Nm/rad] of the joint impedance toward ``q_nullspace`` in the
+        task's nullspace, >= 0."""
         value = checks.nonnegative_scalar("nullspace_stiffness", nullspace_stiffness)
         self._write(nullspace_stiffness=[value])
 
     def set_filter(self, filter_coeff: float) -> None:
+        """The low-pass coefficient in (0, 1] by which the target, the impedance and the
+        nullspace stiffness move toward new values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
     def _damping_target(self) -> FloatArray:

@@ -441,10 +441,24 @@ def when(function: Callable[[Any], Any]) -> Condition:
 
 
 Force = _Vector3._view("O_F_ext_hat_K", "Force", 0, 3)
+"""The external force on the environment in the base frame [N] (``O_F_ext_hat_K[0:3]``,
+libfranka's sign: pressing down reads ``Force.z < 0``): ``Force.x``, ``.y``, ``.z``, ``.norm``."""
 Moment = _Vector3._view("O_F_ext_hat_K", "Moment", 3, 6)
+"""The external moment in the base frame [Nm] (``O_F_ext_hat_K[3:6]``): ``Moment.x``, ``.y``,
+``.z``, ``.norm``."""
 ForceEE = _Vector3._view("K_F_ext_hat_K", "ForceEE", 0, 3)
+"""The external force in the stiffness frame K [N] (``K_F_ext_hat_K[0:3]``; the hand's z points
+down, into it): ``.x``, ``.y``, ``.z``, ``.norm``."""
 MomentEE = _Vector3._view("K_F_ext_hat_K", "MomentEE", 3, 6)
+"""The external moment in the stiffness frame K [Nm] (``K_F_ext_hat_K[3:6]``): ``.x``, ``.y``,
+``.z``, ``.norm``."""
 Torque = Field._view("tau_ext_hat_filtered", "Torque", 0, 7)
+"""The external joint torques [Nm] (``tau_ext_hat_filtered``): ``Torque[j]`` for joint j (0-6),
+``Torque.norm``."""
 Elapsed = Quantity("Elapsed", "elapsed")
+"""The time since the move started [s]."""
 Distance = Quantity("Distance", "distance")
+"""The distance to the move's goal: [m] for a Cartesian move, the largest joint's [rad] for a
+joint move."""
 Errors = _ErrorsHold()
+"""Holds when the robot reports an error (any flag of ``current_errors``)."""

@@ -47,6 +47,9 @@ _PLATFORMS = {
 
 
 class DeskAPI(enum.Enum):
+    """Which web API a robot's Desk speaks: the legacy one (FER, older FR3) or Desk API v1 (FR3,
+    system 5.8 and later)."""
+
     LEGACY = "legacy"
     V1 = "v1"
 
@@ -324,6 +327,8 @@ class Desk:
         self._fci(True)
 
     def deactivate_fci(self) -> None:
+        """Deactivate the FCI: the robot closes the connected client's connection and refuses new
+        ones."""
         self._fci(False)
 
     def _fci(self, on: bool) -> None:
@@ -394,6 +399,7 @@ class Desk:
             time.sleep(POLL_PERIOD)
 
     def self_test_status(self) -> dict[str, Any]:
+        """The safety self-tests' status as the robot reports it (``{"status": ...}``; v1)."""
         self._require_v1("self_test_status")
         return dict(self._json(self._send(self._v1.self_test_status())))
 

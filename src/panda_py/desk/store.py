@@ -99,10 +99,13 @@ class TokenStore:
     # -- certificates --------------------------------------------------------------------
 
     def fingerprint(self, host: str) -> str | None:
+        """The certificate fingerprint pinned for ``host`` (SHA-256, colon-separated hex),
+        or None before the first connection."""
         value = self._load()["hosts"].get(host, {}).get("fingerprint")
         return value if isinstance(value, str) else None
 
     def pin(self, host: str, fingerprint: str) -> None:
+        """Pin ``fingerprint`` as ``host``'s certificate (written at once, file mode 0600)."""
         data = self._load()
         self._host(data, host)["fingerprint"] = fingerprint
         self._save(data)
@@ -110,6 +113,8 @@ class TokenStore:
     # -- tokens --------------------------------------------------------------------------
 
     def token(self, host: str, user: str) -> Token:
+        """The control token saved for ``user`` on ``host`` (an empty, false :class:`Token` if
+        none)."""
         raw = self._load()["hosts"].get(host, {}).get("tokens", {}).get(user)
         if not isinstance(raw, dict):
             return Token()
@@ -119,6 +124,7 @@ class TokenStore:
             return Token()
 
     def save_token(self, host: str, user: str, token: Token) -> None:
+        """Save ``user``'s control token for ``host``; an empty token removes it."""
         data = self._load()
         tokens = self._host(data, host)["tokens"]
         if token:

@@ -31,6 +31,9 @@ DEFAULT_TIMEOUT = 10.0  # [s] for every request unless the caller says otherwise
 
 @dataclass
 class Request:
+    """One HTTP request to the Desk: ``method``, ``path`` (with the query), ``headers`` and
+    ``body`` (bytes, or None for none)."""
+
     method: str
     path: str
     headers: dict[str, str] = field(default_factory=dict)
@@ -39,12 +42,16 @@ class Request:
 
 @dataclass
 class Response:
+    """One HTTP response from the Desk: ``status``, ``headers`` (lower-case names) and ``body``
+    (bytes)."""
+
     status: int
     headers: dict[str, str] = field(default_factory=dict)  # lower-case names
     body: bytes = b""
 
     @property
     def text(self) -> str:
+        """The body decoded as UTF-8 (undecodable bytes replaced)."""
         return self.body.decode("utf-8", "replace")
 
 
@@ -167,13 +174,17 @@ class MockTransport:
         self.requests: list[Request] = []
 
     def request(self, request: Request, *, timeout: float) -> Response:
+        """Record ``request`` (in ``requests``) and return what ``handler`` answers; ``timeout``
+        [s] is ignored."""
         self.requests.append(request)
         return self.handler(request)
 
     def secure_socket(self, *, timeout: float) -> socket.socket:
+        """Raise :class:`~panda_py.desk.DeskConnectionError`: a mock has no websocket."""
         raise DeskConnectionError("the mock transport has no websocket")
 
     def close(self) -> None:
+        """Nothing to close."""
         pass
 
 

@@ -42,7 +42,9 @@ __all__ = [
 ]
 
 GRIPPER_VERSION = 3
+"""The gripper protocol version spoken here (libfranka's ``kVersion`` of ``gripper_types.h``)."""
 GRIPPER_COMMAND_PORT = 1338
+"""The gripper's TCP port on the robot."""
 
 #: Gripper TCP header: command u16, command_id u32, size u32 (total incl. header) [10 B].
 GRIPPER_HEADER = struct.Struct("<HII")
@@ -53,6 +55,8 @@ GRIPPER_CONNECT_RESPONSE = struct.Struct("<HIIHH")
 
 
 class GripperCommand(enum.IntEnum):
+    """The gripper protocol's command ids (libfranka's ``gripper_types.h``)."""
+
     CONNECT = 0
     HOMING = 1
     GRASP = 2
@@ -71,6 +75,9 @@ class GripperStatus(enum.IntEnum):
 
 
 class GripperConnectStatus(enum.IntEnum):
+    """The gripper's answers to Connect (libfranka's ``gripper_types.h``; ``ROBOT_BUSY`` is
+    panda-sim's)."""
+
     SUCCESS = 0
     INCOMPATIBLE_LIBRARY_VERSION = 1
     #: panda-sim only: another client holds the robot. A robot admits one client at a

@@ -45,7 +45,9 @@ from .enums import (
 )
 
 SUPPORTED_VERSIONS: tuple[int, ...] = (3, 4, 5, 6, 7, 8, 9, 10)
+"""The robot protocol versions this package speaks (libfranka 0.4.0-0.21.x)."""
 NEWEST_VERSION = 10
+"""The newest robot protocol version spoken here, offered first on Connect."""
 
 
 def errors_count(version: int) -> int:

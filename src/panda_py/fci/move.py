@@ -44,10 +44,12 @@ __all__ = [
     "target_status",
 ]
 
-# libfranka async_position_control_handler.cpp: kDefaultGoalTolerance [rad] and
-# kTargetReachedVelocityThreshold [rad/s].
 ASYNC_GOAL_TOLERANCE = 0.001
+"""libfranka's default goal tolerance of asynchronous position control [rad]
+(``kDefaultGoalTolerance``, async_position_control_handler.cpp)."""
 ASYNC_REACHED_VELOCITY = 0.01
+"""The joint velocity below which libfranka's asynchronous position control counts a target as
+reached [rad/s] (``kTargetReachedVelocityThreshold``)."""
 
 
 class TargetStatus(enum.IntEnum):
@@ -81,6 +83,8 @@ class MoveRequest:
 
     @property
     def is_async(self) -> bool:
+        """Whether this Move starts the robot's asynchronous motion generator (v10; it carries a
+        maximum velocity)."""
         return self.maximum_velocity is not None
 
     def fields(self, d: Dialect) -> dict[str, Any]:

@@ -119,18 +119,23 @@ class Dialect:
 
     @property
     def has_get_cartesian_limit(self) -> bool:
+        """Whether this version has the GetCartesianLimit command."""
         return Command.GET_CARTESIAN_LIMIT in self.command_ids
 
     @property
     def has_set_filters(self) -> bool:
+        """Whether this version has the SetFilters command (v3-v5 only)."""
         return Command.SET_FILTERS in self.command_ids
 
     @property
     def has_load_model_library(self) -> bool:
+        """Whether this version has the LoadModelLibrary command (the robot serves its model
+        library)."""
         return Command.LOAD_MODEL_LIBRARY in self.command_ids
 
     @property
     def has_get_robot_model(self) -> bool:
+        """Whether this version has the GetRobotModel command (the robot serves its URDF)."""
         return Command.GET_ROBOT_MODEL in self.command_ids
 
     @property

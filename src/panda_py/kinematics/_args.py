@@ -17,8 +17,9 @@ from numpy.typing import NDArray
 from panda_py.kinematics import _ik, _input
 from panda_py.robots.params import START_POSE
 
-# panda-py's default redundancy parameter q7 [rad] (panda_py.ik's q_7 default).
 DEFAULT_Q7 = math.pi / 4
+"""panda-py's default redundancy parameter ``q_7`` [rad] (``panda_py.ik``'s default): the last
+joint's position, chosen before the analytical solution is found."""
 
 FloatArray = NDArray[np.float64]
 

@@ -25,8 +25,9 @@ from panda_py.robots.params import FRANKA_HAND, START_POSE, RobotSpec, get_robot
 
 __all__ = ["DEFAULT_Q7", "Q7_SEARCH_STEP", "IKResult", "IKStatus", "Kinematics", "hand_F_T_EE"]
 
-# Step [rad] of the q7 search (``q7_search``): candidates q_7 +- k * step, nearest first.
 Q7_SEARCH_STEP = 0.01
+"""The step [rad] of the ``q_7`` search (``q7_search``): candidates ``q_7 +- k * step``, nearest
+first."""
 # A flange-to-EE transform whose rotation is this close [-] to a z rotation and whose
 # translation this close [m] to the z axis keeps the ik target on joint 7's axis (the
 # He-Liu geometry then takes it directly; any other EE is first mapped to the flange).

@@ -1,5 +1,5 @@
 """A pure-Python libfranka: the Franka FCI client with panda-py's (and pylibfranka's)
-Python API, speaking every robot protocol version 3-10 from one install.
+Python API, speaking every robot protocol version 3-10 from one install::
 
     from panda_py.libfranka import Robot, Torques, motion_finished
     robot = Robot("172.16.0.2")              # negotiates the protocol version

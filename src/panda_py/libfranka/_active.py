@@ -56,6 +56,8 @@ class ActiveControl:
 
     @property
     def finished(self) -> bool:
+        """Whether the motion has ended (a command marked finished was sent, or it was
+        cancelled); reads and writes then raise ``InvalidOperationException``."""
         return self._finished
 
     def _check(self) -> None:

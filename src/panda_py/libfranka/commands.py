@@ -162,6 +162,7 @@ class CartesianPose:
     elbow = _elbow_attribute()
 
     def has_elbow(self) -> bool:
+        """Whether the command carries an elbow (``elbow`` is not None)."""
         return self.elbow is not None
 
 
@@ -180,6 +181,7 @@ class CartesianVelocities:
     elbow = _elbow_attribute()
 
     def has_elbow(self) -> bool:
+        """Whether the command carries an elbow (``elbow`` is not None)."""
         return self.elbow is not None
 
 

@@ -175,6 +175,8 @@ class Robot(NamedControlMixin):
 
     @property
     def rate_limits(self) -> RateLimits:
+        """The limits the client-side rate limiter (``limit_rate``) enforces on this
+        robot's commands (FER or FR3: libfranka's ``rate_limiting.h``)."""
         return self._limits
 
     def read_once(self) -> RobotState:

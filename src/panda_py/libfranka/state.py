@@ -166,6 +166,8 @@ class RobotState:
 
     @property
     def robot_mode(self) -> RobotMode:
+        """The robot's mode (:class:`~panda_py.libfranka.RobotMode`: idle, move, guiding,
+        reflex, user stopped, ...)."""
         return RobotMode(self._layout.header.unpack(self._data)[3])
 
     @property

@@ -21,6 +21,9 @@ __all__ = [
 
 
 class VacuumGripperDeviceStatus(enum.IntEnum):
+    """The Cobot Pump's device status, as libfranka's ``VacuumGripperDeviceStatus`` (green:
+    fine, to red: a fault)."""
+
     kGreen = 0
     kYellow = 1
     kOrange = 2
@@ -28,6 +31,9 @@ class VacuumGripperDeviceStatus(enum.IntEnum):
 
 
 class VacuumGripperProductionSetupProfile(enum.IntEnum):
+    """The Cobot Pump's production setup profiles P0-P3 (libfranka's
+    ``VacuumGripperProductionSetupProfile``), chosen in ``vacuum()``."""
+
     kP0 = 0
     kP1 = 1
     kP2 = 2
@@ -110,6 +116,7 @@ class VacuumGripper(HandClient):
         return self._execute(vp.VacuumCommand.DROP_OFF, "Drop Off", timeout=_milliseconds(timeout))
 
     def stop(self) -> bool:
+        """Stop the pump's running action (libfranka's ``stop``); True on success."""
         return self._execute(vp.VacuumCommand.STOP, "Stop")
 
     def read_once(self) -> VacuumGripperState:

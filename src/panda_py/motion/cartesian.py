@@ -92,14 +92,13 @@ class CartesianTrajectory:
     (N 3-vectors) and unit quaternions (N 4-vectors, x, y, z, w), or
     ``CartesianTrajectory(poses, ...)`` with N 4x4 homogeneous transforms (as panda-py).
 
-    Args:
-        speed_factor: fraction of the Cartesian velocity and acceleration limits, in (0, 1].
-        max_deviation: how far blends may cut corners, >= 0 (bounds both the position
-            [m] and the orientation [rad] deviation); 0 stops exactly at every waypoint.
-        timeout: planning time budget [s]; :class:`~panda_py.motion.PlanningTimeoutError`
-            past it.
-        robot: whose limits apply: ``"fer"`` (default, as panda-py), ``"fr3"``,
-            ``"fr3-pre-5.9"`` or a :class:`~panda_py.robots.params.RobotSpec`.
+    :param speed_factor: fraction of the Cartesian velocity and acceleration limits, in (0, 1].
+    :param max_deviation: how far blends may cut corners, >= 0 (bounds both the position
+        [m] and the orientation [rad] deviation); 0 stops exactly at every waypoint.
+    :param timeout: planning time budget [s]; :class:`~panda_py.motion.PlanningTimeoutError`
+        past it.
+    :param robot: whose limits apply: ``"fer"`` (default, as panda-py), ``"fr3"``,
+        ``"fr3-pre-5.9"`` or a :class:`~panda_py.robots.params.RobotSpec`.
     """
 
     @overload

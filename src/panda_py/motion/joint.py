@@ -34,15 +34,14 @@ class JointTrajectory:
     It starts and ends at rest; before ``t = 0`` and from ``get_duration()`` on it rests on
     the first and last waypoint.
 
-    Args:
-        waypoints: joint positions [rad], a sequence of 7-vectors (or (7, 1)) or an
-            (N, 7) array; N >= 1, every one within the robot's joint limits.
-        speed_factor: fraction of the joint velocity and acceleration limits, in (0, 1].
-        max_deviation: how far blends may cut corners [rad], >= 0.
-        timeout: planning time budget [s]; :class:`~panda_py.motion.PlanningTimeoutError`
-            past it.
-        robot: whose limits apply: ``"fer"`` (default, as panda-py), ``"fr3"``,
-            ``"fr3-pre-5.9"`` or a :class:`~panda_py.robots.params.RobotSpec`.
+    :param waypoints: joint positions [rad], a sequence of 7-vectors (or (7, 1)) or an
+        (N, 7) array; N >= 1, every one within the robot's joint limits.
+    :param speed_factor: fraction of the joint velocity and acceleration limits, in (0, 1].
+    :param max_deviation: how far blends may cut corners [rad], >= 0.
+    :param timeout: planning time budget [s]; :class:`~panda_py.motion.PlanningTimeoutError`
+        past it.
+    :param robot: whose limits apply: ``"fer"`` (default, as panda-py), ``"fr3"``,
+        ``"fr3-pre-5.9"`` or a :class:`~panda_py.robots.params.RobotSpec`.
     """
 
     def __init__(

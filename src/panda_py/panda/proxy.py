@@ -52,6 +52,8 @@ class RobotProxy:
         return self._process.call(rq.RobotCall(method, args))
 
     def server_version(self) -> int:
+        """The robot's FCI protocol version, negotiated when the :class:`~panda_py.Panda`
+        connected."""
         return self._server_version
 
     def read_once(self) -> RobotState:
@@ -62,6 +64,7 @@ class RobotProxy:
     readOnce = read_once
 
     def load_model(self) -> Model:
+        """The robot's :class:`~panda_py.libfranka.Model` (computed locally, in this process)."""
         return self._model
 
     def set_collision_behavior(self, *args: Any, **kwargs: Any) -> None:
@@ -70,18 +73,24 @@ class RobotProxy:
         self._call("set_collision_behavior", *_collision_args(args, kwargs))
 
     def set_joint_impedance(self, K_theta: Any) -> None:
+        """The stiffness of the robot's internal joint impedance controller, ``K_theta`` (7,)
+        [Nm/rad], each >= 0 (libfranka's ``setJointImpedance``)."""
         arr = _vec("K_theta", K_theta, 7, "[Nm/rad]")
         if (arr < 0.0).any():
             raise ValueError(f"K_theta: expected stiffness >= 0 [Nm/rad], got {arr.tolist()}")
         self._call("set_joint_impedance", arr)
 
     def set_cartesian_impedance(self, K_x: Any) -> None:
+        """The stiffness of the robot's internal Cartesian impedance controller, ``K_x``
+        (6,) [N/m, Nm/rad], each >= 0 (libfranka's ``setCartesianImpedance``)."""
         arr = _vec("K_x", K_x, 6, "[N/m, Nm/rad]")
         if (arr < 0.0).any():
             raise ValueError(f"K_x: expected stiffness >= 0 [N/m, Nm/rad], got {arr.tolist()}")
         self._call("set_cartesian_impedance", arr)
 
     def set_guiding_mode(self, guiding_mode: Any, elbow: bool) -> None:
+        """Which Cartesian axes (x, y, z, roll, pitch, yaw: 6 bools) can be moved by hand in
+        guiding mode, and whether the elbow can (libfranka's ``setGuidingMode``)."""
         axes = np.asarray(guiding_mode)
         if axes.shape != (6,) or axes.dtype.kind not in "bi":
             raise ValueError(f"guiding_mode: expected 6 bools, got {guiding_mode!r}")
@@ -100,15 +109,22 @@ class RobotProxy:
         return T
 
     def set_k(self, EE_T_K: Any) -> None:
+        """The stiffness frame K relative to the end effector, ``EE_T_K`` (a 4x4 transform or 16
+        values, column-major; libfranka's ``setK``)."""
         self._call("set_k", self._transform("EE_T_K", EE_T_K))
 
     def set_ee(self, NE_T_EE: Any) -> None:
+        """The end effector frame relative to the nominal end effector, ``NE_T_EE`` (a 4x4
+        transform or 16 values, column-major; libfranka's ``setEE``)."""
         self._call("set_ee", self._transform("NE_T_EE", NE_T_EE))
 
     set_K = set_k
     set_EE = set_ee
 
     def set_load(self, load_mass: float, F_x_Cload: Any, load_inertia: Any) -> None:
+        """The load carried beyond the end effector: its mass ``load_mass`` [kg], centre of mass
+        ``F_x_Cload`` (3,) [m] in the flange frame and inertia ``load_inertia`` (3x3 or 9
+        values) [kg m^2] (libfranka's ``setLoad``)."""
         m = float(_vec("load_mass", [load_mass], 1, "[kg]")[0])
         if m < 0.0:
             raise ValueError(f"load_mass: expected a mass >= 0 [kg], got {m}")
@@ -132,6 +148,8 @@ class RobotProxy:
         self._call("set_filters", *values.tolist())
 
     def automatic_error_recovery(self) -> None:
+        """Clear the robot's error (reflex) so that it accepts motions again (libfranka's
+        ``automaticErrorRecovery``); raises ``CommandException`` if it cannot."""
         self._call("automatic_error_recovery")
 
     def stop(self) -> None:

@@ -183,6 +183,8 @@ FRANKA_HAND = HandSpec(
     # publishes no friction values for the pads.
     pad_friction=(1.0, 0.0067, 0.0001),
 )
+"""The Franka Hand: its TCP, inertial parameters, stroke, speed and force limits and finger
+friction (sources beside each value)."""
 
 _TAU_MAX = _t7(87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)  # [Nm] FCI docs, both robots
 _DTAU_MAX = _t7(*([1000.0] * 7))  # [Nm/s] FCI docs, both robots
@@ -286,6 +288,7 @@ FER = RobotSpec(
     drives=_FER_DRIVES,
     protocol_versions=_FER_PROTOCOLS,
 )
+"""The Franka Emika Robot (FER, "Panda"), robot systems 3.0-4.2.x, protocol versions 3-5."""
 
 # The FR3 carries the same published link inertial parameters: Franka publishes no
 # separate identified set for it, and its kinematics are identical (DH above).
@@ -302,6 +305,8 @@ FR3 = RobotSpec(
     drives=_FR3_DRIVES,
     protocol_versions=_FR3_PROTOCOLS,
 )
+"""The Franka Research 3 with robot system 5.9 or later (the data sheet's wider joint limits),
+protocol version 10."""
 
 FR3_PRE_5_9 = RobotSpec(
     kind=RobotKind.FR3_PRE_5_9,
@@ -316,6 +321,8 @@ FR3_PRE_5_9 = RobotSpec(
     drives=_FR3_DRIVES,
     protocol_versions=_FR3_PRE_5_9_PROTOCOLS,
 )
+"""The Franka Research 3 with a robot system from 5.2 to 5.7.x (narrower joint limits), protocol
+versions 6-9."""
 
 ROBOTS: dict[str, RobotSpec] = {
     "fer": FER,
@@ -323,12 +330,14 @@ ROBOTS: dict[str, RobotSpec] = {
     "fr3": FR3,
     "fr3-pre-5.9": FR3_PRE_5_9,
 }
+"""The robots by name (``"fer"`` and its alias ``"panda"``, ``"fr3"``, ``"fr3-pre-5.9"``);
+:func:`get_robot` looks names up here."""
 
-# panda-py's start pose (``Panda.move_to_start``) [rad].
 START_POSE: Vec7 = _t7(0.0, -math.pi / 4, 0.0, -3 * math.pi / 4, 0.0, math.pi / 2, math.pi / 4)
+"""panda-py's start pose (``Panda.move_to_start``) [rad]."""
 
-# Standard gravity as libfranka reports it in ``O_ddP_O`` [m/s^2].
 GRAVITY = (0.0, 0.0, -9.81)
+"""Standard gravity as libfranka reports it in ``O_ddP_O`` [m/s^2]."""
 
 
 def get_robot(robot: str | RobotKind | RobotSpec = "fer") -> RobotSpec:

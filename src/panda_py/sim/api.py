@@ -156,6 +156,9 @@ class Simulator:
     # -- lifecycle ---------------------------------------------------------------------
 
     def start(self) -> Simulator:
+        """Start the simulated robot in a process of its own (and its Desk, viewer or recorder
+        if asked for) and return it once it serves; raises :class:`SimulatorError` if it does
+        not within ``start_timeout`` [s]."""
         if self._process is not None:
             raise SimulatorError("simulator already started")
         link = None
@@ -195,6 +198,8 @@ class Simulator:
         return self
 
     def stop(self) -> None:
+        """Stop the simulator and its Desk, viewer and recorder (a recording is then in
+        ``recording``); nothing happens if it is not running."""
         desk, self.desk = self.desk, None
         if desk is not None:
             desk.stop()
@@ -241,6 +246,7 @@ class Simulator:
 
     @property
     def running(self) -> bool:
+        """Whether the simulator's process is running."""
         return self._process is not None and self._process.is_alive()
 
     # -- requests ------------------------------------------------------------------------
@@ -266,6 +272,7 @@ class Simulator:
         return dict(self._request("state"))
 
     def q(self) -> np.ndarray:
+        """The arm's joint positions [rad], (7,)."""
         return np.asarray(self.state()["q"])
 
     def inject_reflex(self, *flags: str) -> None:
@@ -277,9 +284,12 @@ class Simulator:
         self._request("drop_commands", n)
 
     def press_user_stop(self) -> None:
+        """Press the user stop: the robot stops and enters the user-stopped mode, as a robot
+        does."""
         self._request("user_stop", True)
 
     def release_user_stop(self) -> None:
+        """Release the user stop: the robot returns to idle."""
         self._request("user_stop", False)
 
     def set_guiding(self, on: bool) -> None:
@@ -302,4 +312,5 @@ class Simulator:
         return dict(self._request("stats"))
 
     def reset_stats(self) -> None:
+        """Set the counts of :meth:`stats` back to zero."""
         self._request("reset_stats")

@@ -1,6 +1,6 @@
 """pytest fixtures for code that talks to a robot: a lockstep simulator per test.
 
-Enabled automatically (``pytest11`` entry point) when panda_py is installed:
+Enabled automatically (``pytest11`` entry point) when panda_py is installed::
 
     def test_my_controller(panda_sim):
         robot = MyClient(panda_sim.host)

@@ -40,6 +40,8 @@ class DeskLink:
     # -- the Desk's side ---------------------------------------------------------------
 
     def set_switches(self, *, brakes_open: bool, fci_active: bool) -> None:
+        """Set the brake and FCI switches the simulator's loop reads (written by the Desk
+        process)."""
         self.view[BRAKES_OPEN] = 1.0 if brakes_open else 0.0
         self.view[FCI_ACTIVE] = 1.0 if fci_active else 0.0
 
@@ -61,6 +63,9 @@ class DeskLink:
     # -- the FCI loop's side (never waits) ---------------------------------------------
 
     def publish(self, tick: int, state: dict[str, np.ndarray], robot_mode: int) -> None:
+        """Publish the arm's joint positions, end-effector pose, robot mode and simulated time
+        for the Desk's page under the seqlock, every ``PUBLISH_EVERY`` ticks (20 Hz); called by
+        the loop each tick."""
         if tick % PUBLISH_EVERY:
             return
         v = self.view

@@ -22,9 +22,10 @@ from panda_py.sim.desk.link import DeskLink
 
 log = logging.getLogger("panda_py.sim.desk")
 
-# The documented default credentials of the simulated Desk (panda-sim --desk-user/--desk-password).
 DEFAULT_USER = "franka"
+"""The simulated Desk's documented default user name (``panda-sim --desk-user``)."""
 DEFAULT_PASSWORD = "franka123"
+"""The simulated Desk's documented default password (``panda-sim --desk-password``)."""
 DESK_NICE = 5  # the Desk yields the CPU to the simulator's loop
 
 
@@ -214,6 +215,7 @@ class DeskProcess:
 
     @property
     def url(self) -> str:
+        """The Desk's address, ``https://host`` with the port unless it is 443."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"https://{host}" + ("" if self.port == 443 else f":{self.port}")
 
@@ -223,6 +225,9 @@ class DeskProcess:
         return self.url.removeprefix("https://")
 
     def start(self, timeout: float = 30.0) -> DeskProcess:
+        """Start the Desk's process and return this handle once it serves (its port and
+        certificate fingerprint known); raises :class:`DeskStartError` if it does not within
+        ``timeout`` [s]."""
         ctx = multiprocessing.get_context("spawn")
         parent, child = ctx.Pipe()
         proc = ctx.Process(
@@ -251,6 +256,8 @@ class DeskProcess:
         return self
 
     def request(self, op: str, *args: Any) -> Any:
+        """Run ``op`` (a name of the Desk process's control operations, with ``args``) in the
+        Desk process and return its result; ``ValueError`` for an operation it refuses."""
         with self._lock:
             if self._conn is None:
                 raise DeskStartError("the simulated Desk is not running")
@@ -281,6 +288,8 @@ class DeskProcess:
         self.request("power_cycle")
 
     def stop(self) -> None:
+        """Stop the Desk's process (asked, then SIGTERM after 5 s); nothing happens if it is not
+        running."""
         proc, conn = self._process, self._conn
         if proc is None:
             return
