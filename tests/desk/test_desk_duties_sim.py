@@ -198,10 +198,11 @@ def test_bring_up_from_power_up_with_a_safety_error_and_the_self_test_due(
     handle = ready(sim)
     handle.make_self_test_due()
     handle.inject_safety_error()
-    d = desk(sim, tokens, api)
+    d = Desk(handle.hostname, USER, PASSWORD, token_dir=tokens, api=api, connect=False)
     with pytest.raises(lf.NetworkException):
         lf.Robot(sim.host)  # the FCI is inactive
-    report = d.bring_up()
+    report = d.bring_up()  # logs in and takes control first
+    assert d.api == DeskAPI(api) and d.has_control()
     assert report.recovered == ("SafetyError",)
     assert report.self_test_ran == (name == "fr3")
     assert report.self_test_due_in > FULL_DAY

@@ -67,8 +67,10 @@ class DeskDuties:
         _token: Token
         _tokenless: bool
         _legacy: LegacyAPI
+        _logged_in: bool
         timeout: float
 
+        def login(self) -> None: ...
         def _send(
             self, request: Request, *, check: bool = True, timeout: float | None = None
         ) -> Response: ...
@@ -293,10 +295,11 @@ class DeskDuties:
     def bring_up(
         self, *, force: bool = False, self_test_within: float = 0.0, self_test_wait: float = 300.0
     ) -> BringUpReport:
-        """Make the robot ready for control, in order: take control (``force``: confirm on
-        the Pilot), confirm pending recoverable errors, run the self-test if it is due
-        within ``self_test_within`` [s] (waiting up to ``self_test_wait`` [s]), switch to
-        Execution, open the brakes, activate the FCI. Steps already done are skipped.
+        """Make the robot ready for control, in order: log in if need be, take control
+        (``force``: confirm on the Pilot), confirm pending recoverable errors, run the
+        self-test if it is due within ``self_test_within`` [s] (waiting up to
+        ``self_test_wait`` [s]), switch to Execution, open the brakes, activate the FCI.
+        Steps already done are skipped.
 
         Each blocker raises its :class:`~panda_py.desk.errors.BringUpError`:
         :class:`ControlNotGrantedError`, :class:`RecoveryRefusedError`,
@@ -305,6 +308,8 @@ class DeskDuties:
         host = self._hostname
         if not self_test_within >= 0:
             raise ValueError(f"self_test_within: expected >= 0 s, got {self_test_within!r}")
+        if not self._logged_in:
+            self.login()
         api = self._dialect()
         # 1. control
         if not self._tokenless and not self.has_control():
