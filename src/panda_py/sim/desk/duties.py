@@ -22,8 +22,8 @@ from panda_py.sim.settings import check_frame, check_load
 if TYPE_CHECKING:
     from panda_py.sim.desk.link import DeskLink
 
-# [s] The FR3 demands its safety self-test every 24 h (FR3 manual; aiofranka shows the
-# time left). The FER demands none.
+# [s] The FR3 demands its safety self-test every 24 h (issue 19; the legacy status counts
+# it down as timeToTd2, v1 as "remaining", which aiofranka shows). The FER demands none.
 SELF_TEST_PERIOD = 86400.0
 SELF_TEST_WARNING = 3600.0  # [s] "Warning" this long before it is due: ours, unpublished
 # The pack (transport) pose [rad]. FER: the manual's transport pose, as libfranka issue #64
