@@ -12,6 +12,7 @@ from panda_py.sim.desk import DeskConfig
 
 FORCE_TIMEOUT = 1.5  # [s] the simulated Desks' tokenForceTimeout in these tests
 HEADER_TIMEOUT = 1.0  # [s] their patience with a slow request head
+SELF_TEST_DURATION = 0.3  # [s] their safety self-test
 
 
 def desk_sim(
@@ -23,6 +24,7 @@ def desk_sim(
         cert_dir=str(cert_dir),
         token_force_timeout=FORCE_TIMEOUT,
         header_timeout=HEADER_TIMEOUT,
+        self_test_duration=SELF_TEST_DURATION,
     )
     return Simulator(host or free_loopback_host(), robot=robot, lockstep=True, desk=config)
 

@@ -70,7 +70,7 @@ def test_v1_self_test_and_recovery(fr3: Simulator, tokens: str) -> None:
     fresh(fr3)
     d = desk(fr3, tokens)
     assert d.api == DeskAPI.V1
-    assert d.execute_self_test(wait=5.0) == "Finished"
+    assert d.execute_self_test(wait=5.0) == "OK"
     assert d.recovery_status() is None and not d.recover()
     fr3.desk.inject_safety_error()  # type: ignore[union-attr]
     assert d.recovery_status() == {"type": "SafetyError", "safetyErrors": ["SimulatedSafetyError"]}

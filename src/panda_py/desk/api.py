@@ -8,6 +8,7 @@ Paths and payloads: ``shared/reference/desk-api.md``.
 from __future__ import annotations
 
 import base64
+import enum
 import hashlib
 import json
 from typing import Any
@@ -15,6 +16,16 @@ from typing import Any
 from panda_py.desk.transport import Request
 
 CONTROL_TOKEN_HEADER = "X-Control-Token"
+
+
+class DeskAPI(enum.Enum):
+    """Which web API a robot's Desk speaks: the legacy one (FER, older FR3) or Desk API v1
+    (FR3, system 5.8 and later)."""
+
+    LEGACY = "legacy"
+    V1 = "v1"
+
+
 PILOT_EVENTS_PATH = "/desk/api/navigation/events"
 
 # The legacy brake endpoints differ by arm; each robot answers 404 for the other's pair.
@@ -170,15 +181,3 @@ class V1API:
     def set_operating_mode(self, mode: str, token: str) -> Request:
         body = {"desiredOperatingMode": mode}
         return self._control("POST", "/api/system/operating-mode:change", token, body)
-
-    def execute_self_test(self, token: str) -> Request:
-        return self._control("POST", "/api/safety/self-tests:execute", token)
-
-    def self_test_status(self) -> Request:
-        return Request("GET", "/api/safety/self-tests")
-
-    def recovery(self) -> Request:
-        return Request("GET", "/api/safety/recovery")
-
-    def confirm_recovery(self, recovery: dict[str, Any], token: str) -> Request:
-        return self._control("POST", "/api/safety/recovery:confirm", token, recovery)

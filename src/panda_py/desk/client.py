@@ -9,7 +9,6 @@ timeout, and no request that changes the robot is ever retried behind the caller
 
 from __future__ import annotations
 
-import enum
 import json
 import logging
 import threading
@@ -17,11 +16,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from panda_py.desk.api import PILOT_EVENTS_PATH, V1API, LegacyAPI
+from panda_py.desk.api import PILOT_EVENTS_PATH, V1API, DeskAPI, LegacyAPI
+from panda_py.desk.duties import DeskDuties
 from panda_py.desk.errors import (
     DeskConnectionError,
     DeskError,
     DeskHTTPError,
+    DeskUnsupportedError,
     NotInControlError,
     TakeControlTimeoutError,
 )
@@ -46,15 +47,7 @@ _PLATFORMS = {
 }  # fmt: skip
 
 
-class DeskAPI(enum.Enum):
-    """Which web API a robot's Desk speaks: the legacy one (FER, older FR3) or Desk API v1 (FR3,
-    system 5.8 and later)."""
-
-    LEGACY = "legacy"
-    V1 = "v1"
-
-
-class Desk:
+class Desk(DeskDuties):
     """A session with a robot's Desk (``hostname`` may carry a port: ``"robot:8443"``).
 
     As panda-py's, the constructor logs in and tries to take control (without force);
@@ -327,8 +320,8 @@ class Desk:
         self._fci(True)
 
     def deactivate_fci(self) -> None:
-        """Deactivate the FCI: the robot closes the connected client's connection and refuses new
-        ones."""
+        """Deactivate the FCI: the robot closes the connected client's connection and refuses
+        new ones."""
         self._fci(False)
 
     def _fci(self, on: bool) -> None:
@@ -373,8 +366,11 @@ class Desk:
             self._send(self._legacy.set_operating_mode(mode, token))
 
     def _require_v1(self, what: str) -> None:
-        if self._need_login() != DeskAPI.V1:
-            raise DeskError(f"{what} needs Desk API v1 (an FR3 on system 5.8 or newer)")
+        api = self._need_login()
+        if api != DeskAPI.V1:
+            raise DeskUnsupportedError(
+                what, api.value, "it needs Desk API v1 (an FR3 on system 5.8 or newer)"
+            )
 
     def fci_status(self) -> str:
         """``"Active"`` or ``"Inactive"`` (v1)."""
@@ -385,38 +381,6 @@ class Desk:
         """Per joint ``"Locked"`` or ``"Unlocked"`` (v1)."""
         self._require_v1("brake_states")
         return [str(j["brakeStatus"]) for j in self._json(self._send(self._v1.joints()))]
-
-    def execute_self_test(self, *, wait: float | None = 60.0) -> str:
-        """Run the safety self-tests (v1); waits up to ``wait`` [s] for them to end and
-        returns their status."""
-        self._require_v1("execute_self_test")
-        self._send(self._v1.execute_self_test(self._need_token()))
-        deadline = time.monotonic() + (wait or 0.0)
-        while True:
-            status = self.self_test_status()
-            if status.get("status") != "Running" or time.monotonic() >= deadline:
-                return str(status.get("status"))
-            time.sleep(POLL_PERIOD)
-
-    def self_test_status(self) -> dict[str, Any]:
-        """The safety self-tests' status as the robot reports it (``{"status": ...}``; v1)."""
-        self._require_v1("self_test_status")
-        return dict(self._json(self._send(self._v1.self_test_status())))
-
-    def recovery_status(self) -> dict[str, Any] | None:
-        """The safety error awaiting confirmation (``{"type": ...}``), or None (v1)."""
-        self._require_v1("recovery_status")
-        recovery = self._json(self._send(self._v1.recovery())).get("recovery")
-        return dict(recovery) if recovery else None
-
-    def recover(self) -> bool:
-        """Confirm the pending recoverable safety error, if any (v1). Returns whether
-        there was one."""
-        recovery = self.recovery_status()
-        if recovery is None:
-            return False
-        self._send(self._v1.confirm_recovery(recovery, self._token.token))
-        return True
 
     # -- Pilot buttons -------------------------------------------------------------------
 

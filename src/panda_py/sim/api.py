@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from panda_py.robots.end_effectors import EndEffector
+from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
@@ -189,7 +189,10 @@ class Simulator:
             raise SimulatorError(f"simulator failed to start on {self.host}: {detail}")
         self._process, self._conn = proc, parent
         if link is not None and self.desk_config is not None:
-            desk = DeskProcess(self.host, self.config.robot, self.desk_config, link, self.log_level)
+            desk = DeskProcess(
+                self.host, self.config.robot, self.desk_config, link, self.log_level,
+                end_effector=get_end_effector(self.config.end_effector).value,
+            )  # fmt: skip
             try:
                 self.desk = desk.start(self.start_timeout)
             except RuntimeError as exc:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import base64
+import inspect
 import json
 import logging
 from collections.abc import Awaitable, Callable
@@ -19,7 +20,9 @@ from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, unquote
 
-from panda_py.sim.desk.state import PILOT_BUTTONS, DeskState, Reply, error
+from panda_py.sim.desk.duties import duty_routes
+from panda_py.sim.desk.reply import Reply, error
+from panda_py.sim.desk.state import PILOT_BUTTONS, DeskState
 
 log = logging.getLogger("panda_py.sim.desk")
 
@@ -99,7 +102,7 @@ class DeskApp:
     def __init__(self, state: DeskState, *, page: bool = True) -> None:
         self.state = state
         self.page = page
-        legacy: dict[tuple[str, str], Callable[[HttpRequest], Reply]] = {
+        legacy: dict[tuple[str, str], Callable[[HttpRequest], Any]] = {
             ("POST", "/admin/api/logout"): lambda r: self.state.logout(r.session),
             ("GET", "/admin/api/control-token"): self._legacy_active,
             ("POST", "/admin/api/control-token/request"): self._legacy_request,
@@ -121,9 +124,6 @@ class DeskApp:
             ),
             ("POST", "/admin/api/safety/recoverable-safety-errors/acknowledge"): self._control(
                 self._legacy_acknowledge
-            ),
-            ("POST", "/admin/api/safety/td2-tests/execute"): self._control(
-                lambda r: self.state.execute_self_test()
             ),
             ("POST", "/admin/api/reboot"): self._control(self._reboot),
         }
@@ -169,12 +169,6 @@ class DeskApp:
                     ),
                     ("POST", "/api/fci:activate"): self._control(lambda r: self.state.fci(True)),
                     ("POST", "/api/fci:deactivate"): self._control(lambda r: self.state.fci(False)),
-                    ("POST", "/api/safety/self-tests:execute"): self._control(
-                        lambda r: self.state.execute_self_test()
-                    ),
-                    ("GET", "/api/safety/self-tests"): lambda r: Reply(
-                        200, {"status": self.state.v1_system()["selfTest"]}
-                    ),
                     ("GET", "/api/safety/recovery"): lambda r: Reply(
                         200, {"recovery": self.state.recovery}
                     ),
@@ -183,25 +177,23 @@ class DeskApp:
                         lambda r: self.state.confirm_recovery(r.json())
                     ),
                     ("POST", "/api/system:reboot"): self._optional_control(self._reboot),
-                    ("POST", "/api/system:shutdown"): self._optional_control(self._reboot),
                 }
             )
+        self.routes.update(duty_routes(state, self._control, self._optional_control))
         self.paths = {path for _, path in self.routes}
 
     # -- handlers --------------------------------------------------------------------------
 
-    def _control(self, fn: Callable[[HttpRequest], Reply]) -> Callable[[HttpRequest], Reply]:
-        def handler(r: HttpRequest) -> Reply:
+    def _control(self, fn: Callable[[HttpRequest], Any]) -> Callable[[HttpRequest], Any]:
+        def handler(r: HttpRequest) -> Any:
             if not self.state.token_valid(r.control_token()):
                 return error(423, "ControlTokenInvalid", "missing or invalid control token")
             return fn(r)
 
         return handler
 
-    def _optional_control(
-        self, fn: Callable[[HttpRequest], Reply]
-    ) -> Callable[[HttpRequest], Reply]:
-        def handler(r: HttpRequest) -> Reply:
+    def _optional_control(self, fn: Callable[[HttpRequest], Any]) -> Callable[[HttpRequest], Any]:
+        def handler(r: HttpRequest) -> Any:
             token = r.control_token()
             if token is not None and not self.state.token_valid(token):
                 return error(423, "ControlTokenInvalid", "invalid control token")
@@ -243,7 +235,7 @@ class DeskApp:
         """``?error_id=TD2Timeout`` (self-test due) or the pending safety error's type."""
         error_id = r.query.get("error_id", [""])[-1]
         if error_id == "TD2Timeout":
-            self.state.td2_timeout = False
+            self.state.acknowledge_td2()
             return Reply(200, {"code": "SuccessResponse"})
         reply = self.state.confirm_recovery({"type": error_id})
         return Reply(200, {"code": "SuccessResponse"}) if reply.status == 200 else reply
@@ -342,6 +334,8 @@ class DeskApp:
     async def _route(
         self, method: str, path: str, scope: Scope, headers: dict[str, str], body: bytes
     ) -> Reply:
+        if self.state.powered_off:  # shut down: nothing answers until a power cycle
+            return error(503, "SystemOff", "the robot is shut down")
         if self.page and method == "GET" and path in PAGE_FILES:
             return Reply(200, ("page", PAGE_FILES[path]))
         query = parse_qs(scope.get("query_string", b"").decode("latin-1"), keep_blank_values=True)
@@ -372,7 +366,10 @@ class DeskApp:
         handler = self.routes.get((method, path))
         if handler is None:
             return error(405, "MethodNotAllowed")
-        return handler(request)
+        reply = handler(request)
+        if inspect.isawaitable(reply):  # a duty that waits for the arm (the pack pose)
+            reply = await reply
+        return reply
 
     def _not_found(self, path: str) -> Reply:
         if self.state.robot == "fer":
@@ -409,9 +406,14 @@ class DeskApp:
         message = await receive()  # websocket.connect
         if message["type"] != "websocket.connect":
             return
-        if user is None or path not in (
-            "/desk/api/navigation/events",
-            "/desk/api/robot/configuration",
+        if (
+            user is None
+            or self.state.powered_off
+            or path
+            not in (
+                "/desk/api/navigation/events",
+                "/desk/api/robot/configuration",
+            )
         ):
             await send({"type": "websocket.close", "code": 1008})
             return

@@ -77,7 +77,10 @@ def start_desk(args: argparse.Namespace, host: str, robot: str) -> tuple[DeskPro
     )
     link = DeskLink.create(locked=config.locked)
     try:
-        desk = DeskProcess(host, robot, config, link, args.log_level.upper()).start()
+        ee = str(getattr(args, "end_effector", "hand"))
+        desk = DeskProcess(
+            host, robot, config, link, args.log_level.upper(), end_effector=ee
+        ).start()
     except DeskStartError as exc:
         if args.locked:
             raise

@@ -4,6 +4,10 @@ A block of shared doubles (``multiprocessing.RawArray``, no lock). The Desk writ
 brake and FCI switches; the loop reads them without waiting (one load each) when a client
 connects or a motion starts. The loop publishes the arm's joint positions and end-effector
 pose at 20 Hz under a sequence counter (a seqlock: odd while writing) for the Desk's page.
+
+The Desk can also ask the loop to place the arm at joint positions (the pack pose): it
+writes the target, then counts a request up; the loop, between motions, places the arm
+and counts the request done. One writer per double, so no lock either.
 """
 
 from __future__ import annotations
@@ -16,9 +20,11 @@ import numpy as np
 from panda_py.fci import PERIOD
 
 BRAKES_OPEN, FCI_ACTIVE, SEQ, ROBOT_MODE, SIM_TIME = 0, 1, 2, 3, 4
+MOVE_REQUESTED, MOVE_DONE = 5, 6  # counters: the Desk's requests, the loop's completions
 Q = slice(8, 15)  # [rad]
 O_T_EE = slice(16, 32)  # column-major 4x4
-SIZE = 32
+MOVE_TARGET = slice(32, 39)  # [rad] where the Desk asks the arm to be placed
+SIZE = 40
 PUBLISH_EVERY = 50  # [ticks] 20 Hz for the page's live view
 
 
@@ -44,6 +50,18 @@ class DeskLink:
         process)."""
         self.view[BRAKES_OPEN] = 1.0 if brakes_open else 0.0
         self.view[FCI_ACTIVE] = 1.0 if fci_active else 0.0
+
+    def request_move(self, q: Any) -> None:
+        """Ask the loop to place the arm at ``q`` [rad] (7 finite values)."""
+        target = np.asarray(q, dtype=float)
+        if target.shape != (7,) or not np.all(np.isfinite(target)):
+            raise ValueError(f"q: expected 7 finite joint positions [rad], got {q!r}")
+        self.view[MOVE_TARGET] = target
+        self.view[MOVE_REQUESTED] += 1.0  # after the target: the loop reads it complete
+
+    def move_done(self) -> bool:
+        """Whether the loop has done every move asked for."""
+        return bool(self.view[MOVE_DONE] == self.view[MOVE_REQUESTED])
 
     def snapshot(self) -> dict[str, Any] | None:
         """The newest published arm state, or None before the loop published any."""
@@ -75,6 +93,19 @@ class DeskLink:
         v[ROBOT_MODE] = robot_mode
         v[SIM_TIME] = tick * PERIOD
         v[SEQ] += 1.0
+
+    def move_request(self) -> tuple[float, np.ndarray] | None:
+        """(request, joint positions [rad]) the Desk asks the arm to be placed at, or None."""
+        v = self.view
+        request = float(v[MOVE_REQUESTED])
+        if request == v[MOVE_DONE]:
+            return None
+        return request, v[MOVE_TARGET].copy()
+
+    def move_finished(self, request: float) -> None:
+        """The simulator placed the arm as the Desk's ``request`` asked (its number from
+        :meth:`move_request`)."""
+        self.view[MOVE_DONE] = request
 
 
 def accept_fci_connect(link: DeskLink | None) -> bool:

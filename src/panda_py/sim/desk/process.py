@@ -46,6 +46,7 @@ class DeskConfig:
     cert_dir: str | None = None  # default: ~/.cache/panda_py/desk
     page: bool = True
     header_timeout: float = 10.0  # [s] a request head slower than this (to twice it): closed
+    self_test_duration: float = 1.0  # [s] the simulated safety self-test takes this long
 
     def __post_init__(self) -> None:
         if not 0 <= self.port < 65536:
@@ -56,6 +57,10 @@ class DeskConfig:
             raise ValueError(f"header_timeout: expected > 0 s, got {self.header_timeout}")
         if not self.token_force_timeout > 0:
             raise ValueError(f"token_force_timeout: expected > 0 s, got {self.token_force_timeout}")
+        if not 0 < self.self_test_duration <= 600:
+            raise ValueError(
+                f"self_test_duration: expected 0 < s <= 600, got {self.self_test_duration}"
+            )
 
 
 def _bind(host: str, port: int) -> socket.socket:
@@ -109,7 +114,13 @@ def _slow_header_protocol(timeout: float) -> Any:
 
 
 def desk_main(
-    host: str, robot: str, config: DeskConfig, array: Any, conn: Any, log_level: str
+    host: str,
+    robot: str,
+    config: DeskConfig,
+    array: Any,
+    conn: Any,
+    log_level: str,
+    end_effector: str = "hand",
 ) -> None:
     """Entry point of the Desk process: serve until told to stop (or the parent goes)."""
     logging.basicConfig(level=log_level, format="panda-sim desk %(levelname)s: %(message)s")
@@ -119,13 +130,17 @@ def desk_main(
         pass
     import uvicorn
 
+    from panda_py.robots.end_effectors import get_end_effector
     from panda_py.sim.desk.app import DeskApp
     from panda_py.sim.desk.cert import default_cert_dir, ensure_certificate, fingerprint
+    from panda_py.sim.desk.duties import initial_end_effector
     from panda_py.sim.desk.state import DeskState
 
     state = DeskState(
         robot, {config.user: config.password}, DeskLink(array),
         token_force_timeout=config.token_force_timeout,
+        self_test_duration=config.self_test_duration,
+        end_effector=initial_end_effector(get_end_effector(end_effector)),
     )  # fmt: skip
     try:
         cert_dir = Path(config.cert_dir) if config.cert_dir else default_cert_dir()
@@ -187,14 +202,26 @@ def _control(state: Any, op: str, *args: Any) -> Any:
         state.press(str(args[0]))
         return None
     if op == "inject_safety_error":
-        state.inject_safety_error(str(args[0]))
+        state.inject_safety_error(str(args[0]), confirmable=bool(args[1]))
         return None
     if op == "status":
         return state.legacy_status()
     if op == "power_cycle":  # as after power-up (tests): locked, nobody in control
         state.reboot()
         state.recovery = None
+        state.powered_off = False
         return None
+    if op == "make_self_test_due":
+        state.make_self_test_due(float(args[0]))
+        return None
+    if op == "set":  # the test switches DeskState names
+        name, value = str(args[0]), bool(args[1])
+        if name not in ("fail_next_self_test", "brakes_jammed", "fci_installed"):
+            raise ValueError(f"unknown Desk switch {name!r}")
+        setattr(state, name, value)
+        return None
+    if op == "end_effector":
+        return state.end_effector_legacy()
     raise ValueError(f"unknown Desk request {op!r}")
 
 
@@ -203,10 +230,18 @@ class DeskProcess:
     or ``panda-sim``)."""
 
     def __init__(
-        self, host: str, robot: str, config: DeskConfig, link: DeskLink, log_level: str = "WARNING"
+        self,
+        host: str,
+        robot: str,
+        config: DeskConfig,
+        link: DeskLink,
+        log_level: str = "WARNING",
+        *,
+        end_effector: str = "hand",
     ) -> None:
         self.host, self.robot, self.config, self.link = host, robot, config, link
         self.log_level = log_level
+        self.end_effector_kind = end_effector
         self.port = config.port
         self.fingerprint = ""
         self._process: Any = None
@@ -232,7 +267,15 @@ class DeskProcess:
         parent, child = ctx.Pipe()
         proc = ctx.Process(
             target=desk_main,
-            args=(self.host, self.robot, self.config, self.link.array, child, self.log_level),
+            args=(
+                self.host,
+                self.robot,
+                self.config,
+                self.link.array,
+                child,
+                self.log_level,
+                self.end_effector_kind,
+            ),
             daemon=True,
             name="panda-sim-desk",
         )
@@ -275,16 +318,41 @@ class DeskProcess:
         ``right``, ``down``, ``up``, or the FR3's ``top``."""
         self.request("press", button)
 
-    def inject_safety_error(self, kind: str = "SafetyError") -> None:
-        """A recoverable safety error: brakes close, FCI off, until confirmed."""
-        self.request("inject_safety_error", kind)
+    def inject_safety_error(self, kind: str = "SafetyError", *, confirmable: bool = True) -> None:
+        """A recoverable safety error: brakes close, FCI off, until confirmed
+        (``confirmable=False``: its cause persists; confirming it is refused)."""
+        self.request("inject_safety_error", kind, confirmable)
+
+    def make_self_test_due(self, due_in: float = 0.0) -> None:
+        """The safety self-test (an FR3's) falls due in ``due_in`` [s] (0: now, as if
+        24 h had passed since the last one; 86400: as just after one)."""
+        if not 0 <= due_in <= 86400:
+            raise ValueError(f"due_in: expected 0 to 86400 s, got {due_in!r}")
+        self.request("make_self_test_due", float(due_in))
+
+    def fail_next_self_test(self, fail: bool = True) -> None:
+        """The next safety self-test does not pass (the robot still demands it)."""
+        self.request("set", "fail_next_self_test", fail)
+
+    def jam_brakes(self, jammed: bool = True) -> None:
+        """The brakes do not open, though the Desk answers the unlock (a fault)."""
+        self.request("set", "brakes_jammed", jammed)
+
+    def install_fci(self, installed: bool = True) -> None:
+        """Whether the FCI feature is installed (without it, activating the FCI is refused)."""
+        self.request("set", "fci_installed", installed)
+
+    def end_effector(self) -> dict[str, Any]:
+        """The stored end-effector configuration (the legacy document)."""
+        return dict(self.request("end_effector"))
 
     def status(self) -> dict[str, Any]:
         """What the Desk shows: ``/admin/api/system-status`` plus the arm's pose."""
         return dict(self.request("status"))
 
     def power_cycle(self) -> None:
-        """Brakes closed, FCI off, no control token, no sessions (as after power-up)."""
+        """Brakes closed, FCI off, no control token, no sessions, no safety error (as after
+        power-up; a shut-down robot is on again)."""
         self.request("power_cycle")
 
     def stop(self) -> None:

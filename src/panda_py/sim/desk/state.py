@@ -1,5 +1,6 @@
 """The simulated Desk's robot: users, sessions, the control token, brakes, FCI, operating
-mode, self-tests, recoverable safety errors and the Pilot buttons. No I/O: the web app
+mode, recoverable safety errors and the Pilot buttons (the self-test, end-effector
+configuration, pack pose and shutdown are in ``duties.py``). No I/O: the web app
 calls these methods, each answering an HTTP status and a body, and nothing changes when
 the answer is an error.
 
@@ -11,13 +12,17 @@ from __future__ import annotations
 
 import base64
 import hashlib
+import math
 import secrets
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from panda_py.robots.end_effectors import EndEffector
+from panda_py.sim.desk.duties import DeskDuties, initial_end_effector
 from panda_py.sim.desk.link import DeskLink
+from panda_py.sim.desk.reply import Reply, error
 
 PILOT_BUTTONS = ("circle", "cross", "check", "left", "right", "down", "up")
 SELF_TEST_DURATION = 1.0  # [s] the simulated safety self-test takes this long
@@ -30,16 +35,6 @@ def encode_password(username: str, password: str) -> str:
 
 
 @dataclass
-class Reply:
-    status: int
-    body: Any = None  # dict/list: JSON; str: text; None: empty
-
-
-def error(status: int, code: str, message: str = "", **extra: Any) -> Reply:
-    return Reply(status, {"code": code, "message": message or code, **extra})
-
-
-@dataclass
 class ControlToken:
     id: int
     token: str
@@ -49,8 +44,12 @@ class ControlToken:
 
 
 @dataclass
-class DeskState:
-    """One robot's Desk. ``robot``: ``"fer"`` (legacy API only) or ``"fr3"`` (both)."""
+class DeskState(DeskDuties):
+    """One robot's Desk. ``robot``: ``"fer"`` (legacy API only) or ``"fr3"`` (both).
+
+    Test switches (fields a test may set): ``fail_next_self_test``, ``brakes_jammed`` (the
+    brakes do not open, though the unlock is answered), ``fci_installed`` (False: the FCI
+    feature is missing and its activation refused)."""
 
     robot: str
     users: dict[str, str]
@@ -62,11 +61,26 @@ class DeskState:
     queue: list[ControlToken] = field(default_factory=list)
     operating_mode: str = "Execution"
     recovery: dict[str, Any] | None = None
-    td2_timeout: bool = False
-    self_test_until: float = 0.0
-    self_test_result: str = "Finished"
+    recovery_confirmable: bool = True
+    self_test_duration: float = SELF_TEST_DURATION  # [s]
+    last_self_test: float = math.nan  # [s, clock] when the last self-test passed (now)
+    self_test_until: float = 0.0  # [s, clock] the running self-test ends then (0: none)
+    self_test_passes: bool = True
+    self_test_reopens: bool = False  # the brakes were open when the self-test began
+    fail_next_self_test: bool = False
+    td2_acknowledged: bool = False
+    end_effector: dict[str, Any] = field(
+        default_factory=lambda: initial_end_effector(EndEffector.HAND)
+    )
+    powered_off: bool = False
+    brakes_jammed: bool = False
+    fci_installed: bool = True
     listeners: list[Callable[[dict[str, bool]], None]] = field(default_factory=list)
     _next_id: int = 1
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.last_self_test):
+            self.last_self_test = self.clock()
 
     @property
     def brakes_open(self) -> bool:
@@ -213,6 +227,10 @@ class DeskState:
             return error(424, "SafetyError", "confirm the safety error first", reason="SafetyError")
         if self.self_test_running():
             return error(424, "ActionUnavailable", "self-test running", reason="SelfTestRunning")
+        if self.self_test_elapsed():
+            return error(
+                424, "ActionUnavailable", "the safety self-test is due", reason="SelfTestDue"
+            )
         return None
 
     def brakes(self, open_: bool) -> Reply:
@@ -220,6 +238,8 @@ class DeskState:
             blocked = self._blocked()
             if blocked is not None:
                 return blocked
+            if self.brakes_jammed:  # a fault the answer does not tell: they stay closed
+                return Reply(200)
         self._switch(brakes_open=open_)
         return Reply(200)
 
@@ -234,6 +254,11 @@ class DeskState:
             blocked = self._blocked()
             if blocked is not None:
                 return blocked
+            if not self.fci_installed:
+                return error(
+                    424, "ActionUnavailable", "the FCI feature is not installed",
+                    reason="FeatureMissing",
+                )  # fmt: skip
         self._switch(fci_active=on)
         return Reply(200)
 
@@ -247,19 +272,11 @@ class DeskState:
 
     # -- safety ----------------------------------------------------------------------------
 
-    def self_test_running(self) -> bool:
-        return self.clock() < self.self_test_until
-
-    def execute_self_test(self) -> Reply:
-        if self.self_test_running() or self.fci_active:
-            return error(424, "ActionUnavailable", "not now", reason="FciActive")
-        self.td2_timeout = False
-        self.self_test_until = self.clock() + SELF_TEST_DURATION
-        return Reply(200, {"code": "SuccessResponse"})
-
-    def inject_safety_error(self, kind: str = "SafetyError") -> None:
-        """A recoverable safety error: the brakes close, the FCI stops, until confirmed."""
+    def inject_safety_error(self, kind: str = "SafetyError", *, confirmable: bool = True) -> None:
+        """A recoverable safety error: the brakes close, the FCI stops, until confirmed
+        (``confirmable=False``: its cause persists, and confirming it is refused)."""
         self.recovery = {"type": kind, "safetyErrors": ["SimulatedSafetyError"]}
+        self.recovery_confirmable = confirmable
         self._switch(brakes_open=False, fci_active=False)
 
     def confirm_recovery(self, body: Any) -> Reply:
@@ -267,6 +284,11 @@ class DeskState:
             return error(424, "ActionUnavailable", "no recovery pending", reason="NoRecovery")
         if not isinstance(body, dict) or body.get("type") != self.recovery["type"]:
             return error(400, "InvalidArgument", f"expected type {self.recovery['type']!r}")
+        if not self.recovery_confirmable:
+            return error(
+                424, "ActionUnavailable", "the cause of the safety error persists",
+                reason="RecoveryNotPossible",
+            )  # fmt: skip
         self.recovery = None
         return Reply(200)
 
@@ -285,19 +307,25 @@ class DeskState:
 
     def legacy_status(self) -> dict[str, Any]:
         active = self.active_token()
+        errors: dict[str, bool] = {}
+        safety: dict[str, Any] = {"brakeState": self.brake_states()}
+        if self.has_self_test:  # franky reads these two of an FR3
+            safety["timeToTd2"] = round(self.self_test_remaining())
+            errors["td2Timeout"] = self.self_test_elapsed() and not self.td2_acknowledged
+        if self.recovery is not None:
+            errors[str(self.recovery["type"])] = True
+        safety.update(
+            recoverableErrors=errors,
+            safetyControllerStatus="SelfTest" if self.self_test_running() else "Idle",
+            recovery=self.recovery,
+        )
         return {
             "controlToken": {
                 "activeToken": None
                 if active is None
                 else {"id": active.id, "ownedBy": active.owner},
             },
-            "safety": {
-                "brakeState": self.brake_states(),
-                "timeToTd2": 86400,
-                "recoverableErrors": {"td2Timeout": self.td2_timeout},
-                "safetyControllerStatus": "SelfTest" if self.self_test_running() else "Idle",
-                "recovery": self.recovery,
-            },
+            "safety": safety,
             "derived": {"operatingMode": self.operating_mode},
             "fci": {"active": self.fci_active},
             "robot": self.robot,
@@ -317,5 +345,5 @@ class DeskState:
             "brakeStatus": "Unlocked" if self.brakes_open else "Locked",
             "fci": "Active" if self.fci_active else "Inactive",
             "recovery": self.recovery,
-            "selfTest": "Running" if self.self_test_running() else self.self_test_result,
+            "selfTest": self.self_test_state(),
         }
