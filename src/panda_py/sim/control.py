@@ -94,6 +94,12 @@ class ControlRpc(ServerState):
                 raise ValueError(f"q: expected 7 finite joint positions, got {q.tolist()}")
             core.reset(q)
             return None
+        if op == "place_cube":
+            p = np.asarray(args[0], dtype=float)
+            if p.shape != (3,) or not np.all(np.isfinite(p)):
+                raise ValueError(f"position: expected 3 finite coordinates [m], got {args[0]!r}")
+            self.physics.place_body("cube", p)
+            return None
         if op == "stats":
             st = self.stats
             wall = time.monotonic() - st.started
