@@ -1,0 +1,191 @@
+"""The environments on the fast in-process world: Gymnasium's checker passes; a seed
+gives the same episode bit for bit; bad actions are refused with nothing sent; a reflex
+mid-episode truncates it with the reason and the next reset recovers; the vector API
+runs them; the scripted policies succeed; every action kind runs."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import panda_py.learning as learning
+from panda_py.learning import ActionKind, pick_and_place_policy, reach_policy
+
+pytestmark = pytest.mark.timeout(300)
+
+IDS = ("PandaReach-v0", "PandaPickAndPlace-v0")
+POLICIES = {"PandaReach-v0": reach_policy, "PandaPickAndPlace-v0": pick_and_place_policy}
+
+
+@pytest.fixture(scope="module")
+def reach() -> gymnasium.Env:
+    env = gymnasium.make("PandaReach-v0")
+    yield env
+    env.close()
+
+
+@pytest.fixture(scope="module")
+def pick() -> gymnasium.Env:
+    env = gymnasium.make("PandaPickAndPlace-v0")
+    yield env
+    env.close()
+
+
+def run(env: gymnasium.Env, seed: int, policy, steps: int | None = None) -> tuple[list, dict]:
+    """Observations of one episode with ``policy`` (until it ends) and its last info."""
+    obs, info = env.reset(seed=seed)
+    seen = [obs]
+    for _ in range(steps or env.spec.max_episode_steps):
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        seen.append(obs)
+        if terminated or truncated:
+            break
+    return seen, info
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_gymnasiums_checker_passes(env_id: str) -> None:
+    env = gymnasium.make(env_id)
+    try:
+        check_env(env.unwrapped)
+    finally:
+        env.close()
+
+
+def test_the_registered_ids_make_the_tasks() -> None:
+    assert set(IDS) <= set(gymnasium.registry)
+    assert gymnasium.registry["PandaReach-v0"].max_episode_steps == 50
+    assert gymnasium.registry["PandaPickAndPlace-v0"].max_episode_steps == 100
+
+
+def test_a_seed_gives_the_same_episode_bit_for_bit(pick: gymnasium.Env) -> None:
+    first, info_1 = run(pick, 7, pick_and_place_policy, steps=30)
+    run(pick, 8, pick_and_place_policy, steps=5)  # another episode between
+    again, info_2 = run(pick, 7, pick_and_place_policy, steps=30)
+    assert len(first) == len(again)
+    for a, b in zip(first, again, strict=True):
+        for key in a:
+            assert np.array_equal(a[key], b[key])
+    assert info_1 == info_2
+    other, _ = run(pick, 8, pick_and_place_policy, steps=1)
+    assert not np.array_equal(other[0]["desired_goal"], first[0]["desired_goal"])
+
+
+@pytest.mark.parametrize(
+    ("action", "message"),
+    [
+        ([0.1, float("nan"), 0.0], "action: expected finite values"),
+        ([0.1, 1.5, 0.0], r"value 1 is 1.5, outside \[-1.0, 1.0\]"),
+        ([0.1, 0.0], r"shape \(3,\); got shape \(2,\)"),
+        ("up", "action: expected 3 values"),
+    ],
+)
+def test_a_bad_action_is_refused_and_nothing_is_sent(
+    reach: gymnasium.Env, action: object, message: str
+) -> None:
+    env = reach.unwrapped
+    env.reset(seed=1)
+    env.step(np.zeros(3, dtype=np.float32))
+    ctrl = env._controller
+    sent, clock = ctrl.get_signal("count")[0], env.backend.time_ms()
+    with pytest.raises(ValueError, match=message):
+        env.step(action)
+    assert ctrl.get_signal("count")[0] == sent  # no target sent
+    assert env.backend.time_ms() == clock  # no time passed
+    env.step(np.zeros(3, dtype=np.float32))  # the episode goes on
+
+
+def test_a_reflex_truncates_the_episode_and_reset_recovers(pick: gymnasium.Env) -> None:
+    env = pick.unwrapped
+    obs, _ = env.reset(seed=3)
+    for _ in range(5):
+        obs, *_ = env.step(pick_and_place_policy(obs))
+    env.backend.inject_reflex("cartesian_reflex")
+    obs, _, terminated, truncated, info = env.step(pick_and_place_policy(obs))
+    assert truncated and not terminated
+    assert "cartesian_reflex" in info["reflex"]
+    assert not info["is_success"]
+    with pytest.raises(RuntimeError, match=r"cartesian_reflex.*call reset"):
+        env.step(pick_and_place_policy(obs))
+    obs, info = env.reset(seed=3)
+    assert "reflex" not in info
+    obs, _, _, truncated, info = env.step(pick_and_place_policy(obs))
+    assert not truncated and "reflex" not in info
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_the_scripted_policy_succeeds(env_id: str) -> None:
+    env = gymnasium.make(env_id)
+    try:
+        results = [run(env, seed, POLICIES[env_id])[1]["is_success"] for seed in range(5)]
+    finally:
+        env.close()
+    print(f"{env_id} on the fast world: {sum(results)} of {len(results)} succeeded")
+    assert sum(results) >= 4
+
+
+@pytest.mark.parametrize("kind", list(ActionKind))
+def test_every_action_kind_moves_the_arm_toward_its_target(kind: ActionKind) -> None:
+    env = learning.PandaReachEnv(action=kind)
+    try:
+        obs, _ = env.reset(seed=0)
+        q0, ee0 = obs["observation"][:7].copy(), obs["observation"][14:17].copy()
+        if kind is ActionKind.CARTESIAN_DELTA:
+            action, goal = np.array([1.0, 0.0, 0.0]), ee0 + np.array([0.05, 0.0, 0.0])
+        elif kind is ActionKind.CARTESIAN_ABSOLUTE:
+            goal = ee0 + np.array([0.1, 0.0, -0.05])
+            action = goal
+        elif kind is ActionKind.JOINT_DELTA:
+            action, goal = np.full(7, 0.5), q0 + 0.025
+        else:
+            goal = q0 + 0.1
+            action = goal
+        for _ in range(15):
+            obs, *_ = env.step(action.astype(np.float32))
+        reached = obs["observation"][14:17] if kind.cartesian else obs["observation"][:7]
+        start = ee0 if kind.cartesian else q0
+        if kind.delta:  # each step's target one step on: it went further than one step
+            moved = reached - start
+            if kind.cartesian:
+                assert moved[0] > 0.05 and np.abs(moved[1:]).max() < 0.01
+            else:
+                assert moved.min() > 0.025
+        else:
+            assert np.abs(reached - goal).max() < 0.01
+    finally:
+        env.close()
+
+
+def test_the_vector_api_runs_them() -> None:
+    def make() -> gymnasium.Env:
+        return gymnasium.make("PandaReach-v0")
+
+    for vector in (gymnasium.vector.SyncVectorEnv, gymnasium.vector.AsyncVectorEnv):
+        envs = vector([make, make])
+        try:
+            obs, _ = envs.reset(seed=[1, 2])
+            assert obs["observation"].shape == (2, 21)
+            assert not np.array_equal(obs["desired_goal"][0], obs["desired_goal"][1])
+            for _ in range(3):
+                actions = np.stack([
+                    reach_policy({k: v[i] for k, v in obs.items()}) for i in range(2)
+                ])  # fmt: skip
+                obs, reward, _, truncated, _ = envs.step(actions)
+            assert reward.shape == (2,) and not truncated.any()
+        finally:
+            envs.close()
+
+
+def test_without_gymnasium_the_import_says_what_to_install() -> None:
+    code = (
+        "import sys; sys.modules['gymnasium'] = None\n"
+        "import panda_py, panda_py.controllers\n"  # the package itself imports without it
+        "try:\n    import panda_py.learning\nexcept ImportError as e:\n    print(e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert 'pip install "panda-py-pure[learning]"' in out.stdout, out.stderr
