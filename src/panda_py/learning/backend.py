@@ -46,6 +46,11 @@ class Backend:
     #: and a simulator in another process, give nearly the same)
     deterministic = False
 
+    def __deepcopy__(self, memo: dict[int, object]) -> Backend:
+        # a backend is one robot (a connection, a world): copies of what holds it (e.g.
+        # Gymnasium's copies of an environment's spec and its arguments) share it
+        return self
+
     def time_ms(self) -> int:
         """The robot's clock [ms]."""
         raise NotImplementedError
