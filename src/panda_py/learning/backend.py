@@ -51,6 +51,12 @@ class Backend:
         # Gymnasium's copies of an environment's spec and its arguments) share it
         return self
 
+    def __enter__(self) -> Backend:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def time_ms(self) -> int:
         """The robot's clock [ms]."""
         raise NotImplementedError
