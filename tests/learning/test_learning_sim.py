@@ -25,9 +25,9 @@ from panda_py.sim import Simulator, free_loopback_host
 pytestmark = pytest.mark.timeout(600)
 
 # The same seeded episode on both backends: both succeed, the achieved goals (the end
-# effector, the cube) end within ACHIEVED_APART of each other [m] (measured: under 7 mm),
-# and panda-sim's takes at most LONGER times the fast world's steps (measured: 1.1-1.2)
-ACHIEVED_APART = 0.015  # [m]
+# effector, the cube) end within ACHIEVED_APART of each other [m] (measured: 1-10 mm),
+# and panda-sim's takes at most LONGER times the fast world's steps (measured: 1.0-1.2)
+ACHIEVED_APART = 0.02  # [m]
 LONGER = 1.4
 POLICIES = {"PandaReach-v0": reach_policy, "PandaPickAndPlace-v0": pick_and_place_policy}
 

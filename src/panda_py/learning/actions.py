@@ -53,6 +53,7 @@ class ActionKind(enum.Enum):
 
     @classmethod
     def parse(cls, value: Any) -> ActionKind:
+        """The kind ``value`` names (a kind or its value); ValueError listing the kinds."""
         try:
             return cls(value) if not isinstance(value, cls) else value
         except ValueError:
@@ -63,10 +64,12 @@ class ActionKind(enum.Enum):
 
     @property
     def cartesian(self) -> bool:
+        """Whether it commands the end effector's position (else the joints)."""
         return self in (ActionKind.CARTESIAN_DELTA, ActionKind.CARTESIAN_ABSOLUTE)
 
     @property
     def delta(self) -> bool:
+        """Whether it commands a change from where the arm is (else a place)."""
         return self in (ActionKind.CARTESIAN_DELTA, ActionKind.JOINT_DELTA)
 
 

@@ -11,6 +11,7 @@ waiting for the answer; ``cube_position()``, e.g. from a camera), or none for re
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any, Protocol
 
@@ -34,9 +35,13 @@ GRASP_FORCE = 20.0  # [N] the hand's grasp force
 class Scene(Protocol):
     """Who places the cube and tells where it is (a ``Simulator`` is one)."""
 
-    def place_cube(self, position: Any) -> None: ...
+    def place_cube(self, position: Any) -> None:
+        """Have the cube's centre at ``position`` [m] (base frame), upright, at rest."""
+        ...
 
-    def cube_position(self) -> Any: ...
+    def cube_position(self) -> Any:
+        """Where the cube's centre is [m], (3,)."""
+        ...
 
 
 class RobotArm(Backend):
@@ -63,13 +68,37 @@ class RobotArm(Backend):
         self.scene = scene
         self.spec_name = self.panda.get_model().spec.name
         self._running = False
+        # the hand reports at 100 Hz: a thread keeps its newest width, so an observation
+        # never waits up to 10 ms for the next report
+        self._width: float | None = None
+        self._closing = threading.Event()
+        self._watch: threading.Thread | None = None
+        if self.gripper is not None:
+            self._watch = threading.Thread(
+                target=self._watch_hand, args=(self.gripper,), name="panda_py-hand", daemon=True
+            )
+            self._watch.start()
+
+    def _watch_hand(self, gripper: Gripper) -> None:
+        while not self._closing.is_set():
+            try:
+                self._width = float(gripper.read_once().width)
+            except Exception:  # closed (or gone): the next snapshot reads, and says so
+                self._width = None
+                return
+
+    def _hand_width(self) -> float:
+        if self.gripper is None:
+            return 0.0
+        width = self._width
+        return float(self.gripper.read_once().width) if width is None else width
 
     def time_ms(self) -> int:
         return int(self.panda.get_state().time.to_msec())
 
     def snapshot(self) -> Snapshot:
         state = self.panda.get_state()
-        width = self.gripper.read_once().width if self.gripper is not None else 0.0
+        width = self._hand_width()
         cube = None
         if self.scene is not None:
             cube = np.asarray(self.scene.cube_position(), dtype=np.float64)
@@ -145,9 +174,12 @@ class RobotArm(Backend):
                                asynchronous=True)  # fmt: skip
 
     def close(self) -> None:
+        self._closing.set()
         try:
             if self.gripper is not None:
                 self.gripper.close()
+            if self._watch is not None:
+                self._watch.join(timeout=5.0)
         finally:
             if self._own:
                 self.panda.close()

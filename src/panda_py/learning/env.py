@@ -195,6 +195,11 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         return self._observe(snap), self._info(snap, None)
 
     def step(self, action: Any) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Send the action's target (and the hand's command), let the robot's clock run to
+        the end of this step, observe: ``(observation, reward, terminated, truncated,
+        info)``. Terminated when the goal is reached (``info["is_success"]``, panda-gym's
+        rule); truncated by a reflex (``info["reflex"]`` says which). A bad action raises
+        ``ValueError`` and sends nothing."""
         if not self._started:
             raise RuntimeError("step: call reset() first")
         if self._ended is not None:

@@ -44,13 +44,13 @@ GRASP_FORCE = 20.0  # [N] the hand's grasp force
 
 
 class FastWorld(Backend):
-    deterministic = True
-
     """A simulated ``robot`` (``"fer"`` or ``"fr3"``) with the Franka Hand, the table and
     the 4 cm cube, stepped in this process at 1 kHz of simulated time (as fast as the
     computer goes); deterministic: the same start and actions give the same episode,
     bit for bit. It speaks the newest protocol version its robot's systems do (the
     state layout and limits a ``Panda`` on ``panda-sim`` would get)."""
+
+    deterministic = True
 
     def __init__(self, robot: str = "fer") -> None:
         spec = self.spec = get_robot(robot)
