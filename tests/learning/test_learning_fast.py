@@ -14,7 +14,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import panda_py.learning as learning
+from panda_py.controllers import TorqueController
 from panda_py.learning import ActionKind, pick_and_place_policy, reach_policy
+from panda_py.robots.params import START_POSE
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -189,3 +191,71 @@ def test_without_gymnasium_the_import_says_what_to_install() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert 'pip install "panda-py-pure[learning]"' in out.stdout, out.stderr
+
+
+def test_any_policy_rate_keeps_its_schedule_on_the_robots_clock() -> None:
+    env = learning.PandaReachEnv(policy_rate=15.0)  # DROID's: 66.7 ms, not a whole ms
+    try:
+        obs, info = env.reset(seed=0)
+        times = [info["time"]]
+        for _ in range(30):
+            obs, _, _, _, info = env.step(reach_policy(obs))
+            times.append(info["time"])
+        assert times[-1] - times[0] == pytest.approx(2.0, abs=1e-3)  # 30 steps, 2 s: no drift
+        assert set(np.round(np.diff(times), 3)) <= {0.066, 0.067}
+    finally:
+        env.close()
+    for rate in (0.5, 200.0, float("nan")):
+        with pytest.raises(ValueError, match="policy_rate: expected a rate in"):
+            learning.PandaReachEnv(policy_rate=rate)
+
+
+def test_the_fr3_runs_its_own_protocol_and_limits() -> None:
+    env = gymnasium.make("PandaPickAndPlace-v0", robot="fr3")
+    try:
+        world = env.unwrapped.backend
+        assert world.version == 10 and world.spec_name == "fr3"
+        _, info = run(env, 0, pick_and_place_policy)
+        assert info["is_success"]
+    finally:
+        env.close()
+
+
+class Shove(TorqueController):
+    """Asks joint 1 for ``tau`` [Nm] (far beyond its limit, or NaN) from the first tick."""
+
+    def __init__(self, tau: float) -> None:
+        super().__init__()
+        self.tau = tau
+
+    def step(self, state, model):  # type: ignore[no-untyped-def]
+        return np.array([self.tau, 0, 0, 0, 0, 0, 0])
+
+
+def test_the_fast_world_keeps_the_loops_limits_and_the_robots_reflexes() -> None:
+    world = learning.FastWorld()
+    try:
+        world.start(Shove(1000.0))
+        tau_max = np.asarray(world.spec.joints.tau_max)
+        steps = []
+        while world.failure() is None and world.ticks < 3000:
+            world.advance(world.ticks + 1)
+            tau = world.core.state["tau_J_d"].copy()
+            assert np.all(np.abs(tau) <= tau_max + 1e-9)  # clipped to the joint's limit
+            steps.append(tau[0])
+        # until the reflex (which drops the command), the torque rose by at most the
+        # loop's 1 Nm a tick, then libfranka's filter
+        assert np.abs(np.diff(steps[:-1])).max() <= 1.0 + 1e-9
+        # and the robot itself stopped the arm as it left its limits, as panda-sim does
+        assert world.failure() is not None and "reflex" in world.failure()
+        assert set(world.reflex_flags()) & {
+            "joint_velocity_violation", "joint_position_limits_violation"
+        }  # fmt: skip
+        world.recover()
+        world.home(np.array(START_POSE), None)
+        world.start(Shove(float("nan")))
+        world.advance(world.ticks + 10)
+        assert "non-finite" in world.failure()
+        assert np.isfinite(world.core.state["tau_J_d"]).all()  # nothing non-finite was sent
+    finally:
+        world.close()

@@ -86,11 +86,6 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         kind = ActionKind.parse(action)
         if not (isinstance(policy_rate, (int, float)) and 1.0 <= policy_rate <= 100.0):
             raise ValueError(f"policy_rate: expected a rate in [1, 100] Hz, got {policy_rate!r}")
-        if 1000.0 / policy_rate != round(1000.0 / policy_rate):
-            raise ValueError(
-                f"policy_rate: expected a whole number of ms per step (1000 / rate), got "
-                f"{policy_rate!r} Hz"
-            )
         if reward not in (Reward.SPARSE, Reward.DENSE):
             raise ValueError(f"reward: expected 'sparse' or 'dense', got {reward!r}")
         if not (isinstance(distance_threshold, (int, float)) and distance_threshold > 0.0):
@@ -126,7 +121,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
             "achieved_goal": _box(3),
             "desired_goal": _box(3),
         })  # fmt: skip
-        self.period_ms = round(1000.0 / policy_rate)
+        self.period = 1.0 / float(policy_rate)  # [s]
         self.policy_rate = float(policy_rate)
         self.speed_factor = float(speed_factor)
         self.reward_type = reward
@@ -135,7 +130,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         self._down = rotation.from_matrix(T[:3, :3])  # the fingers down: (x, y, z, w)
         self.goal = np.zeros(3)
         self._controller: controllers.JointTarget | controllers.CartesianTarget | None = None
-        self._t_next = 0
+        self._t0, self._steps = 0, 0  # the episode's start [ms], steps taken
         self._hand_open: bool | None = None
         self._ended: str | None = None  # why the episode ended early (a reflex)
         self._started = False
@@ -180,7 +175,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         backend.recover()
         cube = self._sample(self.np_random)
         backend.home(HOME, cube)
-        timeout = max(controllers.streaming.TIMEOUT, STALE_STEPS * self.period_ms * 1e-3)
+        timeout = max(controllers.streaming.TIMEOUT, STALE_STEPS * self.period)
         if self.kind.cartesian:
             ctrl: Any = controllers.CartesianTarget(self.speed_factor, timeout=timeout)
         else:
@@ -190,7 +185,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         self._hand_open = True if self.uses_hand else None
         self._ended = None
         self._started = True
-        self._t_next = backend.time_ms()
+        self._t0, self._steps = backend.time_ms(), 0
         snap = backend.snapshot()
         return self._observe(snap), self._info(snap, None)
 
@@ -217,8 +212,9 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         if wants_open is not None and wants_open != self._hand_open:
             backend.hand_open() if wants_open else backend.hand_close()
             self._hand_open = wants_open
-        self._t_next += self.period_ms
-        backend.advance(self._t_next)
+        # the n-th step ends n periods after the start, to the ms of the robot's clock
+        self._steps += 1
+        backend.advance(self._t0 + round(self._steps * 1000.0 * self.period))
         failure = backend.failure()
         snap = backend.snapshot()
         obs = self._observe(snap)
