@@ -40,8 +40,7 @@ def run_all(ids, episodes, where, **options):
         rate, speed = success_rate(env, POLICIES[env_id], episodes)
         print(f"{env_id:<22} on {where:<16} succeeded {rate:4.0%} of {episodes} "
               f"episodes ({speed:.0f} steps/s)")  # fmt: skip
-        if "backend" not in options:
-            env.close()  # a backend given is closed by its owner
+        env.close()  # a backend given stays open: its owner closes it
 
 
 if __name__ == "__main__":

@@ -259,3 +259,22 @@ def test_the_fast_world_keeps_the_loops_limits_and_the_robots_reflexes() -> None
         assert np.isfinite(world.core.state["tau_J_d"]).all()  # nothing non-finite was sent
     finally:
         world.close()
+
+
+def test_picking_refuses_a_backend_without_the_hand_or_the_cube_at_once() -> None:
+    world = learning.FastWorld()
+    try:
+        world.has_hand = False  # as RobotArm(..., hand=False)
+        with pytest.raises(ValueError, match="needs the hand"):
+            learning.PandaPickAndPlaceEnv(world)
+        world.has_hand, world.has_cube = True, False  # as RobotArm(...) without a scene
+        with pytest.raises(ValueError, match=r"place the cube.*scene="):
+            learning.PandaPickAndPlaceEnv(world)
+        env = learning.PandaReachEnv(world)  # reaching needs neither
+        env.reset(seed=0)
+        env.close()  # a backend given stays its owner's: still usable
+        world.start(Shove(0.0))
+        world.advance(world.ticks + 5)
+        assert world.failure() is None
+    finally:
+        world.close()

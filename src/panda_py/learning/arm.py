@@ -66,6 +66,8 @@ class RobotArm(Backend):
                 self.panda.close()
             raise
         self.scene = scene
+        self.has_hand = self.gripper is not None
+        self.has_cube = scene is not None
         self.spec_name = self.panda.get_model().spec.name
         self._running = False
         # the hand reports at 100 Hz: a thread keeps its newest width, so an observation

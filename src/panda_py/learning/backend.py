@@ -45,6 +45,10 @@ class Backend:
     #: whether the same start and actions give the same episode, bit for bit (a robot,
     #: and a simulator in another process, give nearly the same)
     deterministic = False
+    #: whether it has the hand (picking needs it)
+    has_hand = True
+    #: whether it places the cube and reports where it is (picking needs it)
+    has_cube = True
 
     def __deepcopy__(self, memo: dict[int, object]) -> Backend:
         # a backend is one robot (a connection, a world): copies of what holds it (e.g.

@@ -58,7 +58,8 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
 
     ``backend``: ``"fast"`` (a :class:`~panda_py.learning.world.FastWorld` of ``robot``,
     made and closed by the environment) or a :class:`Backend` (e.g. a
-    :class:`~panda_py.learning.arm.RobotArm`; closed with the environment). ``action``: an
+    :class:`~panda_py.learning.arm.RobotArm`, which stays its owner's to close: several
+    environments may run on one robot, one after the other). ``action``: an
     :class:`ActionKind` or its value. ``policy_rate`` [Hz], 1 to 100. ``speed_factor``:
     the share of the robot's velocity, acceleration and jerk limits the targets are
     followed with."""
@@ -94,6 +95,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
             )
         if not (isinstance(speed_factor, (int, float)) and 0.0 < speed_factor <= 1.0):
             raise ValueError(f"speed_factor: expected a value in (0, 1], got {speed_factor!r}")
+        self._owns_backend = isinstance(backend, str)
         if isinstance(backend, str):
             if backend != "fast":
                 raise ValueError(
@@ -107,6 +109,16 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
             raise ValueError(
                 f"backend: expected 'fast' or a Backend (e.g. RobotArm(hostname)), got "
                 f"{type(backend).__name__}"
+            )
+        if self.uses_hand and not backend.has_hand:
+            raise ValueError(
+                f"backend: {type(self).__name__} needs the hand; this backend has none "
+                "(RobotArm(..., hand=True))"
+            )
+        if self.uses_cube and not backend.has_cube:
+            raise ValueError(
+                f"backend: {type(self).__name__} needs someone to place the cube and tell "
+                "where it is; give the robot backend a scene (RobotArm(..., scene=sim))"
             )
         self.backend = backend
         spec = get_robot(backend.spec_name)
@@ -233,11 +245,14 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         return -d.astype(np.float32)
 
     def close(self) -> None:
-        """Stop the controller and close the backend."""
+        """Stop the controller; close the backend if the environment made it."""
         backend = getattr(self, "backend", None)
         if backend is not None:
             self.backend = None  # type: ignore[assignment]
-            backend.close()
+            if self._owns_backend:
+                backend.close()
+            else:
+                backend.stop()
         super().close()
 
     # --- observations -------------------------------------------------------------------

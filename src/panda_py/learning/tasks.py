@@ -79,9 +79,5 @@ class PandaPickAndPlaceEnv(PandaEnv):
 
     @staticmethod
     def _cube(snap: Snapshot) -> FloatArray:
-        if snap.cube is None:
-            raise ValueError(
-                "scene: picking needs the cube's position; give the robot backend a scene "
-                "(RobotArm(..., scene=sim))"
-            )
+        assert snap.cube is not None  # the environment's backend has a cube (checked)
         return snap.cube
