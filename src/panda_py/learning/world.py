@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from panda_py import fci
-from panda_py.controllers import TorqueController, laws
+from panda_py.controllers import CartesianTarget, JointTarget, TorqueController, laws
 from panda_py.controllers.model import ControlModel
 from panda_py.fci import ERROR_NAMES, MoveControllerMode, MoveMotionGeneratorMode, RobotMode
 from panda_py.learning.backend import Backend, Snapshot
@@ -39,6 +39,8 @@ CUTOFF_FREQUENCY = 100.0  # [Hz]
 _GAIN = DT / (DT + 1.0 / (2.0 * math.pi * CUTOFF_FREQUENCY))
 # A Move's maximum deviations, as libfranka sends them for a torque loop (any positive)
 _DEVIATIONS = np.array([10.0, 3.12, 2.0 * math.pi])
+_START_POSITION = np.array([0.31, 0.0, 0.48])  # [m] by the start pose's TCP (warm-up only)
+_DOWN = np.array([1.0, 0.0, 0.0, 0.0])  # the fingers down (x, y, z, w)
 GRIPPER_SPEED = 0.1  # [m/s] the hand's open and close speed
 GRASP_FORCE = 20.0  # [N] the hand's grasp force
 
@@ -77,6 +79,20 @@ class FastWorld(Backend):
         self._hand_id = 0
         self.ticks = 0  # [ms] the robot's clock
         self._fail: str | None = None  # why the running controller stopped
+        self._warm_up()
+
+    def _warm_up(self) -> None:
+        """Run both streamed controllers toward a new target for a few ticks (then
+        power up again), so nothing compiles or loads in an episode's first step, as
+        the control process warms its laws before its loop."""
+        q = np.asarray(START_POSE, dtype=float)
+        joint, pose = JointTarget(), CartesianTarget()
+        for ctrl, target in ((joint, (q + 0.01,)), (pose, (_START_POSITION, _DOWN))):
+            self.start(ctrl)
+            ctrl.set_target(*target)
+            self.advance(self.ticks + 20)
+            self.stop()
+        self.home(q, None)
 
     # --- the loop ---------------------------------------------------------------------
 
