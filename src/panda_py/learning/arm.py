@@ -153,7 +153,15 @@ class RobotArm(Backend):
         self.panda.recover()
         if self.gripper is not None:
             self.gripper.move(FRANKA_HAND.max_width, GRIPPER_SPEED)
-        self.panda.move_to_joint_position(np.asarray(q), speed_factor=HOME_SPEED_FACTOR)
+        for attempt in (1, 2):  # a reflex on the way (e.g. a bump): recover, once more
+            if self.panda.move_to_joint_position(np.asarray(q), speed_factor=HOME_SPEED_FACTOR):
+                break
+            if attempt == 2:
+                raise RuntimeError(
+                    "reset: the arm did not reach its home pose (see the log for why); "
+                    "clear its way and reset again"
+                )
+            self.panda.recover()
         if cube is not None:
             if self.scene is None:
                 raise ValueError(
