@@ -12,6 +12,9 @@ per second and the real-time factor (simulated over wall time), and the ratio to
 panda-gym's steps per second. Resets are timed apart. The issue's targets: the fast world
 >= 10x panda-gym's steps per second and >= 100x real time; panda-sim >= 10x real time.
 The machine is a noisy 2-core VM: run it more than once.
+
+``--vector N`` adds the fast world in ``gymnasium.vector.AsyncVectorEnv`` with 1 and with
+N worker processes (steps of all environments per second, and the ratio).
 """
 
 from __future__ import annotations
@@ -109,9 +112,36 @@ def peer(steps: int) -> dict[str, list[float]] | None:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def vector(workers: int, steps: int) -> None:
+    import gymnasium
+
+    from panda_py.learning import reach_policy
+
+    def make():  # type: ignore[no-untyped-def]
+        return gymnasium.make("PandaReach-v0", policy_rate=RATE)
+
+    rates = {}
+    for n in sorted({1, workers}):
+        envs = gymnasium.vector.AsyncVectorEnv([make] * n)
+        try:
+            obs, _ = envs.reset(seed=list(range(n)))
+            count, t0 = 0, time.perf_counter()
+            while count < steps:
+                actions = np.stack([reach_policy({k: v[i] for k, v in obs.items()})
+                                    for i in range(n)])  # fmt: skip
+                obs, *_ = envs.step(actions)  # ended environments reset themselves
+                count += n
+            rates[n] = count / (time.perf_counter() - t0)
+        finally:
+            envs.close()
+        print(f"{'AsyncVectorEnv, ' + str(n) + ' workers':<28} {rates[n]:8.1f} steps/s"
+              f"  {rates[n] / rates[1]:5.2f}x one worker")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="environment steps each")
+    parser.add_argument("--vector", type=int, default=0, help="also N vectorised workers")
     args = parser.parse_args()
     import gymnasium
 
@@ -134,6 +164,9 @@ def main() -> None:
             report("panda-sim (lockstep)", measure(env, max(args.steps // 4, 50)), peer_rate)
         finally:
             env.close()
+            arm.close()
+    if args.vector:
+        vector(args.vector, args.steps)
 
 
 if __name__ == "__main__":
