@@ -18,7 +18,9 @@ def test_the_cube_rests_where_it_was_placed() -> None:
     with Simulator(free_loopback_host(), lockstep=True) as sim:
         assert np.allclose(sim.cube_position(), [0.5, 0.0, 0.02], atol=1e-3)
         sim.place_cube([0.45, -0.1, 0.02])
-        assert np.allclose(sim.cube_position(), [0.45, -0.1, 0.02], atol=1e-6)
+        # (the idle simulator runs on meanwhile: the cube may settle into the table's soft
+        # contact by a fraction of a millimetre)
+        assert np.allclose(sim.cube_position(), [0.45, -0.1, 0.02], atol=5e-4)
         # dropped from 5 cm it falls onto the table and rests there (the idle simulator
         # runs on the wall clock: wait for its time, not for a fixed while)
         sim.place_cube([0.55, 0.1, 0.07])
