@@ -70,4 +70,3 @@ def test_camera_size_and_render_refuse_bad_use() -> None:
             Simulator(camera_size=bad)  # type: ignore[arg-type]
     with pytest.raises(SimulatorError, match="has no camera"):
         Simulator().render()
-

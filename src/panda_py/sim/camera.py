@@ -8,9 +8,9 @@ headless) once per process, when it is first imported. The tick copies the world
 positions into a ring every tick (``fps`` 1000, only the newest kept); ``render`` asks
 the camera's process for an image of the newest of them. So an image shows the world as
 it was when it was asked for, to the millisecond of simulated time. A lockstep simulator's
-time stands still while the image is drawn (the camera holds its next tick, as lockstep
-waits for its client), so seeing costs a policy no simulated time; a realtime one never
-waits.
+time stands still from the request until the image is in the caller's hands (the camera
+holds its next tick, as lockstep waits for its client), so seeing costs a policy no
+simulated time; a realtime one never waits.
 """
 
 from __future__ import annotations
@@ -69,14 +69,17 @@ class Camera(DrawingProcess):
             conn = self._conn
             if conn is None or not self.running:
                 raise RuntimeError("camera: its process is not running (the simulator stopped)")
+            # lockstep: the world waits at its next tick until the image is here
+            hold(self.feed)
             try:
-                hold(self.feed)  # lockstep: the world waits at its next tick until drawn
                 conn.send("render")
                 if not conn.poll(RENDER_TIMEOUT):
                     raise RuntimeError(f"camera: no image within {RENDER_TIMEOUT:g} s")
                 kind, value = conn.recv()
             except (OSError, EOFError) as exc:
                 raise RuntimeError("camera: its process is gone") from exc
+            finally:
+                hold(self.feed, False)
         if kind != "frame":
             raise RuntimeError(f"camera: {value}")
         return np.frombuffer(value, np.uint8).reshape(self.height, self.width, 3).copy()
@@ -122,9 +125,7 @@ def _camera_main(feed: FrameFeed, conn: Any, config: SimConfig, width: int, heig
                 data.qpos[:] = row[1:]
             mujoco.mj_forward(model, data)
             renderer.update_scene(data, cam)
-            image = renderer.render().tobytes()
-            reader.release()
-            conn.send(("frame", image))
+            conn.send(("frame", renderer.render().tobytes()))
             frames += 1
     except (OSError, EOFError):
         pass  # the simulator's handle is gone

@@ -12,9 +12,9 @@ lose frames (a realtime simulator drops them instead, counted in ``dropped``).
 Ring layout (float64): ``[written, read, closed, consumer_gone, dropped, hold]`` then
 ``slots`` rows of ``[time, qpos...]``. The writer owns ``written`` and ``dropped``, the
 reader ``read`` and ``consumer_gone``; ``closed`` is set when the simulator ends. ``hold``
-is the camera's (:mod:`.camera`): set while it draws a requested image, it stops a
-lockstep simulator's time (at its next tick) until the image is drawn, as the lockstep
-simulator waits for its client: an image costs no simulated time.
+is the camera's (:mod:`.camera`): set while an image is asked for, drawn and handed over,
+it stops a lockstep simulator's time (at its next tick), as the lockstep simulator waits
+for its client: an image costs no simulated time.
 """
 
 from __future__ import annotations
@@ -131,15 +131,11 @@ class FrameReader:
         """The reader stopped: the writer no longer waits for room."""
         self._head[_GONE] = 1.0
 
-    def release(self) -> None:
-        """The image asked for with :func:`hold` is drawn: a lockstep simulator goes on."""
-        self._head[_HOLD] = 0.0
 
-
-def hold(feed: FrameFeed) -> None:
-    """Stop a lockstep simulator's time at its next tick until the feed's reader calls
-    :meth:`FrameReader.release` (a realtime simulator never waits)."""
-    feed.view()[0][_HOLD] = 1.0
+def hold(feed: FrameFeed, on: bool = True) -> None:
+    """Stop a lockstep simulator's time at its next tick until ``hold(feed, False)`` (a
+    realtime simulator never waits)."""
+    feed.view()[0][_HOLD] = float(on)
 
 
 class FrameTaps:
