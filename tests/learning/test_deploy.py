@@ -13,6 +13,7 @@ from conftest import Rig
 
 from panda_py.learning import ActionSpace, DroidActions, PolicyRunner
 from panda_py.learning.deploy import DROID_MAX_JOINT_DELTA, LIMIT_MARGIN, as_chunk
+from panda_py.libfranka import ControlException, RobotMode
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -177,22 +178,66 @@ def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Ri
     assert max(stats.latency) >= 3.2 / RATE
 
 
+def test_a_chunk_that_runs_out_holds_until_the_next_call(rig: Rig) -> None:
+    chunk = np.zeros((3, 8))
+    chunk[:, 0] = 0.15  # [rad/s]
+    with DroidActions(rig.panda, timeout=None) as actions:
+        start = actions.target.copy()
+        stats = PolicyRunner(actions, lambda obs: chunk, replan_every=5).run(10)
+        np.testing.assert_allclose(actions.target, start + np.array([6 * 0.01, 0, 0, 0, 0, 0, 0]))
+        settle(rig, actions)
+    assert stats.policy_calls == 2  # at periods 0 and 5
+    # periods 3, 4, 8 and 9 had no action left (fewer if a late step jumped over one)
+    assert stats.held == 4 or stats.late > 0
+    assert stats.held + len(stats.latency) <= 10
+
+
+def test_a_reflex_mid_run_raises_and_nothing_more_is_sent(rig: Rig) -> None:
+    calls: list[np.ndarray] = []
+
+    def policy(obs: dict) -> np.ndarray:
+        calls.append(obs["observation/joint_position"])
+        if len(calls) == 3:
+            rig.sim.inject_reflex("joint_reflex")
+            deadline = time.monotonic() + 30  # until the control process has seen it
+            while rig.panda.get_state().robot_mode != RobotMode.kReflex:
+                assert time.monotonic() < deadline
+                time.sleep(0.001)
+        return np.array([0.1, 0, 0, 0, 0, 0, 0, 0.0])
+
+    with DroidActions(rig.panda, timeout=None) as actions:
+        start = actions.target.copy()
+        with pytest.raises(ControlException) as raised:
+            PolicyRunner(actions, policy).run(10)
+        assert "joint_reflex" in raised.value.reflex_reason
+        assert len(calls) == 3
+        # two actions went out, the third was not
+        np.testing.assert_allclose(
+            actions.target, start + np.array([2 * 0.1 / RATE, 0, 0, 0, 0, 0, 0])
+        )
+        rig.panda.recover()
+    assert rig.panda.move_to_joint_position(start)  # usable again
+
+
 def test_a_camera_costs_a_lockstep_policy_no_robot_time(rig: Rig) -> None:
     """An image takes milliseconds to draw; a lockstep simulator's time stands still
     meanwhile (its camera holds the next tick), as it does while it waits for commands."""
+    simulated, wall = [], []  # [s] robot and wall time across each image
     with DroidActions(rig.panda, timeout=None, cameras={"front": rig.sim.render}) as actions:
-        simulated = wall = 0.0
-        for _ in range(5):
+        for _ in range(7):
             t, w = robot_s(rig), time.perf_counter()
             actions.cameras["front"]()
-            simulated += robot_s(rig) - t
-            wall += time.perf_counter() - w
+            simulated.append(robot_s(rig) - t)
+            wall.append(time.perf_counter() - w)
             deadline = time.monotonic() + 30.0  # between images, the clock runs on
             while robot_s(rig) < t + 0.01:
                 assert time.monotonic() < deadline, "the robot's clock stopped"
                 time.sleep(0.001)
-    print(f"\n5 images: {wall * 1e3:.0f} ms of wall time, {simulated * 1e3:.0f} ms of robot time")
-    assert simulated <= 5 * 0.002 + 1e-9  # a tick or two an image: the one under way
+    print(f"\nan image: {np.median(wall) * 1e3:.0f} ms of wall time, "
+          f"{np.median(simulated) * 1e3:.0f} ms of robot time (medians)")  # fmt: skip
+    # a tick or two (the one under way); the clock runs free only where this process was
+    # descheduled between reading it and asking (rare on a loaded machine: the median)
+    assert np.median(simulated) <= 0.002 + 1e-9
 
 
 def test_bad_actions_are_refused_and_nothing_is_sent(rig: Rig) -> None:

@@ -282,7 +282,7 @@ class DroidActions:
         """The robot as a policy sees it, under openpi's DROID names:
         ``observation/joint_position`` (7,) [rad], ``observation/joint_velocity`` (7,)
         [rad/s], ``observation/gripper_position`` (1,) (0 open, 1 closed; DROID's
-        ``1 - width / max_width``), ``observation/cartesian_position`` (6,) (end effector
+        ``1 - width / max_width``; 0 without a hand), ``observation/cartesian_position`` (6,) (end effector
         [m] and extrinsic x-y-z Euler angles [rad], DROID's), ``observation/<camera>``
         images, and ``time`` [s] of the robot's clock."""
         state = self.panda.get_state()

@@ -113,7 +113,9 @@ class PolicyRunner:
 
     def run(self, steps: int) -> RunStats:
         """Run ``steps`` policy periods (about ``steps / rate`` seconds of the robot's
-        clock) and return their :class:`RunStats`."""
+        clock) and return their :class:`RunStats`. A reflex that ends the controller
+        raises its :class:`~panda_py.libfranka.ControlException` before the next action
+        (``panda.recover()``, then ``DroidActions.start()`` again)."""
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"steps: expected a whole number >= 1, got {steps!r}")
         actions = self.actions
@@ -125,7 +127,6 @@ class PolicyRunner:
         k = 0
         while k < steps:
             self._wait_until(t0 + k * T)
-            self.actions.panda.raise_error()
             obs = actions.observation()
             if self.prompt is not None:
                 obs["prompt"] = self.prompt
@@ -136,6 +137,8 @@ class PolicyRunner:
                 stats.policy_seconds.append(time.perf_counter() - wall)
                 stats.policy_calls += 1
                 chunk_k, next_row = k, 0
+            # a reflex (or a lost connection) ended the controller: raise it, act no more
+            actions.panda.raise_error()
             now = self._clock()
             k_now = min(steps - 1, max(k, math.floor((now - t0) / T + 1e-9)))
             if next_row < len(chunk):
