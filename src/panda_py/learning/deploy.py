@@ -170,6 +170,10 @@ class DroidActions:
         """Start the streamed-target controller where the arm is."""
         if self.gripper is not None:
             self.max_width = self.gripper.read_once().max_width
+            if not self.max_width > 0.0:  # a Franka Hand learns its stroke by homing
+                raise RuntimeError(
+                    "gripper: the hand reports no maximum width; home it first (gripper.homing())"
+                )
         self.panda.start_controller(self.controller)
         self.target = self.panda.q
         self._gripper_sent = None
@@ -282,9 +286,9 @@ class DroidActions:
         """The robot as a policy sees it, under openpi's DROID names:
         ``observation/joint_position`` (7,) [rad], ``observation/joint_velocity`` (7,)
         [rad/s], ``observation/gripper_position`` (1,) (0 open, 1 closed; DROID's
-        ``1 - width / max_width``; 0 without a hand), ``observation/cartesian_position`` (6,) (end effector
-        [m] and extrinsic x-y-z Euler angles [rad], DROID's), ``observation/<camera>``
-        images, and ``time`` [s] of the robot's clock."""
+        ``1 - width / max_width``; 0 without a hand), ``observation/cartesian_position``
+        (6,) (end effector [m] and extrinsic x-y-z Euler angles [rad], DROID's),
+        ``observation/<camera>`` images, and ``time`` [s] of the robot's clock."""
         state = self.panda.get_state()
         T = np.asarray(state.O_T_EE).reshape(4, 4).T
         R = T[:3, :3]

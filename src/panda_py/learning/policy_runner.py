@@ -74,8 +74,9 @@ class PolicyRunner:
     (openpi's ``open_loop_horizon``: 8 of its 10-15 actions). A chunk is checked whole
     before its first action is sent: a bad one raises ValueError and sends nothing.
     ``prompt`` goes into every observation (openpi's ``"prompt"``); ``recorder`` gets
-    every step that sent an action: the observation it was chosen on, the action and
-    the joint target it became."""
+    every step that sent an action: the observation taken at that step, the action
+    executed (a late step's: the newest of those it folded in) and the joint target it
+    became."""
 
     def __init__(
         self,
