@@ -24,7 +24,7 @@ LAYERS: list[set[str]] = [
     {"controllers"},
     {"rt", "conditions"},
     {"panda"},
-    {"cli", "demo", "doctor", "__init__"},
+    {"cli", "demo", "doctor", "learning", "__init__"},
 ]
 LEVEL = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 CLIENT = {"libfranka", "controllers", "rt", "panda", "desk", "cli", "doctor"}

@@ -207,3 +207,18 @@ def test_17_a_streamed_target_is_followed_and_the_arm_stops_when_targets_stop(
     assert number(r"(\d+) mm short of the last one", out) > 50
     assert number(r"acceleration: (\d+) % of the FER's limits", out) <= 100
     assert number(r"largest joint velocity: (\d+) %", out) <= 100
+
+
+@needs("h5py")
+def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
+    tmp_path: Path,
+) -> None:
+    out = run_example("19", cwd=tmp_path)
+    for n in (0, 1):
+        assert number(rf"episode {n} \(.*?\): (\d+) steps at 15 Hz", out) == 60
+        assert number(rf"episode {n} .*?(\d+) policy calls", out) == 8  # every 8 of 60
+        assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.01
+    assert number(r"episode 0 .*, hand (\d+) mm", out) < 5  # closed at the goal
+    assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
+    assert "recorded 2 episodes" in out and "180x320 frames to episodes.hdf5" in out
+    assert (tmp_path / "episodes.hdf5").is_file()
