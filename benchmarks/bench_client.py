@@ -159,11 +159,15 @@ def overhead(ticks: int, lockstep: bool, repeat: int, kinds: tuple[str, ...]) ->
     header = f"{'version':>7} {'control':>18} {'mean':>7} {'p50':>7} {'p99':>7} {'worst':>8}"
     print(header)
     rows: dict[tuple[int, str], list[tuple[float, float, float]]] = {}
-    with Simulator(free_loopback_host(), robot="fer", lockstep=lockstep) as sim:
+    # a FER speaks protocol 5 (systems up to 4.2), an FR3 from 5.x speaks 10
+    with (
+        Simulator(free_loopback_host(), robot="fer", lockstep=lockstep) as fer,
+        Simulator(free_loopback_host(), robot="fr3", lockstep=lockstep) as fr3,
+    ):
         for _ in range(repeat):
-            for version in (5, 10):
+            for version, sim in ((5, fer), (10, fr3)):
                 for kind in kinds:
-                    with lf.Robot(sim.host, version=version, robot="fer") as robot:
+                    with lf.Robot(sim.host, version=version, robot=sim.config.robot) as robot:
                         callbacks, kw = _callbacks(kind, ticks)
                         response, _, count = _instrument(robot, ticks)
                         gc.collect()

@@ -34,14 +34,18 @@ def robot_host(
     options: Callable[[argparse.ArgumentParser], None] | None = None,
     *,
     desk: bool = False,
+    camera: tuple[int, int] | None = None,
 ) -> Iterator[tuple[str, argparse.Namespace]]:
     """Parse the example's arguments and yield ``(hostname, args)``: ``--host`` if given,
     otherwise the address of a simulator started here (``--robot``, ``--realtime``).
     ``desk``: the simulator also serves its Desk, locked as after power-up, and
-    ``args.desk_host`` is its address (a real robot's Desk is at ``--host``)."""
+    ``args.desk_host`` is its address (a real robot's Desk is at ``--host``).
+    ``camera=(width, height)``: ``args.render()`` returns the simulator's image of the
+    robot (None on a real robot: bring your own camera)."""
     parser = _parser(description, options)
     parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
     args = parser.parse_args(argv)
+    args.render = None
     if args.host:
         args.desk_host = args.host
         yield args.host, args
@@ -51,10 +55,16 @@ def robot_host(
 
     config = DeskConfig(port=0, locked=True) if desk else None  # port 0: any free port
     with Simulator(
-        free_loopback_host(), robot=args.robot, lockstep=not args.realtime, desk=config
+        free_loopback_host(),
+        robot=args.robot,
+        lockstep=not args.realtime,
+        desk=config,
+        camera_size=camera,
     ) as sim:
         print(f"(a simulated {args.robot.upper()} on {sim.host})")
         args.desk_host = sim.desk.hostname if sim.desk is not None else sim.host
+        if camera is not None:
+            args.render = sim.render
         yield sim.host, args
 
 

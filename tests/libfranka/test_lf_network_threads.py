@@ -80,3 +80,41 @@ def test_a_wait_ends_at_its_timeout(pair):
     with pytest.raises(NetworkException, match="Timeout"):
         net.wait_response(1, timeout=0.2)
     assert time.monotonic() - start >= 0.2
+
+
+def test_requests_from_two_threads_take_distinct_ids_and_go_out_whole() -> None:
+    # libfranka lets another thread call e.g. stop() while a control loop runs: a second
+    # request waits until the first is on the wire (one id each, never interleaved)
+    import threading
+
+    from panda_py.libfranka._connection import RobotConnection
+
+    sent: list[bytes] = []
+    entered, release = threading.Event(), threading.Event()
+
+    class SlowNet:
+        def send(self, data: bytes) -> None:
+            if not sent and not entered.is_set():
+                entered.set()
+                assert release.wait(5.0)
+            sent.append(data)
+
+    class Dialect:
+        def encode_request(self, command: object, cid: int, **fields: object) -> bytes:
+            return f"{command}:{cid}".encode()
+
+    conn = RobotConnection.__new__(RobotConnection)
+    conn._next_id, conn._send_lock = 7, threading.Lock()
+    conn.net, conn.dialect = SlowNet(), Dialect()  # type: ignore[assignment]
+    ids: list[int] = []
+    first = threading.Thread(target=lambda: ids.append(conn.send_request("A")))  # type: ignore[arg-type]
+    first.start()
+    assert entered.wait(5.0)
+    second = threading.Thread(target=lambda: ids.append(conn.send_request("B")))  # type: ignore[arg-type]
+    second.start()
+    second.join(0.2)
+    assert second.is_alive() and sent == []  # waits while the first is being sent
+    release.set()
+    first.join(5.0)
+    second.join(5.0)
+    assert sorted(ids) == [7, 8] and sent == [b"A:7", b"B:8"]

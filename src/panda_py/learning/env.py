@@ -19,10 +19,16 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
-import gymnasium
 import numpy as np
-from gymnasium import spaces
-from gymnasium.envs.registration import EnvSpec
+
+try:  # the one dependency of the environments (the learning extra)
+    import gymnasium
+    from gymnasium import spaces
+    from gymnasium.envs.registration import EnvSpec
+except ImportError as exc:
+    raise ImportError(
+        'panda_py.learning\'s environments need gymnasium: pip install "panda-py-pure[learning]"'
+    ) from exc
 
 from panda_py import controllers, kinematics
 from panda_py.learning.actions import ActionKind, ActionMap

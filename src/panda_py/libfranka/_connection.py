@@ -3,6 +3,7 @@ and status-to-exception translation (libfranka's ``Robot::Impl`` plumbing)."""
 
 from __future__ import annotations
 
+import threading
 from enum import Enum
 from typing import Any
 
@@ -85,6 +86,9 @@ class RobotConnection:
         self.layout = layout(self.dialect)
         self._header = self.layout.header.struct_.unpack_from  # the header is at offset 0
         self._next_id = 0
+        # ids and requests from several threads (a Robot's stop() beside its control loop,
+        # as libfranka allows) stay unique and whole
+        self._send_lock = threading.Lock()
         self.last_data = b""  # newest RobotState datagram (empty before the first)
         #: (message_id, motion_generator_mode, controller_mode, robot_mode) of last_data
         self.last_header: tuple[int, int, int, int] = (0, 0, 0, 0)
@@ -97,8 +101,9 @@ class RobotConnection:
             raise
 
     def _connect(self, version: int) -> None:
-        cid = self._take_id()
-        self.net.send(fci.encode_connect_request(version, self.net.udp_port, command_id=cid))
+        with self._send_lock:
+            cid = self._take_id()
+            self.net.send(fci.encode_connect_request(version, self.net.udp_port, command_id=cid))
         msg = self.net.wait_response(cid)
         try:
             _, status, server_version = fci.decode_connect_response(msg.raw)
@@ -119,6 +124,7 @@ class RobotConnection:
         self.net.close()
 
     def _take_id(self) -> int:
+        """The next command id (caller holds ``_send_lock``)."""
         cid = self._next_id
         self._next_id = (cid + 1) & 0xFFFFFFFF
         return cid
@@ -127,8 +133,9 @@ class RobotConnection:
 
     def send_request(self, command: Command, **fields: Any) -> int:
         """Send ``command`` and return its command id (the caller collects responses)."""
-        cid = self._take_id()
-        self.net.send(self.dialect.encode_request(command, cid, **fields))
+        with self._send_lock:
+            cid = self._take_id()
+            self.net.send(self.dialect.encode_request(command, cid, **fields))
         return cid
 
     def _decode(self, command: Command, msg: fci.Message) -> tuple[Any, dict[str, Any]]:

@@ -238,7 +238,11 @@ def _pose_options(kwargs: dict[str, Any], joint_opts: dict[str, Any]) -> PoseMov
         )
     return PoseMoveOptions(
         speed_factor=_speed(opts["speed_factor"]),
-        impedance=np.array(checks.matrix6("impedance", opts["impedance"])).reshape(6, 6),
+        impedance=(
+            np.array(checks.matrix6("impedance", opts["impedance"])).reshape(6, 6)
+            if "impedance" in kwargs or not kwargs  # (the defaults' own check: below)
+            else _default_pose_options().impedance  # checked once (its PSD test costs)
+        ),
         damping_ratio=checks.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
         nullspace_stiffness=checks.nonnegative_scalar(
             "nullspace_stiffness", opts["nullspace_stiffness"]

@@ -25,6 +25,7 @@ import numpy as np
 
 from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE
+from panda_py.sim.camera import Camera, check_camera_size
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
 from panda_py.sim.drawing import DrawingError, DrawingProcess, start_drawing, stop_drawing
@@ -96,6 +97,8 @@ class Simulator:
     drawn offscreen at ``record_fps`` frames per simulated second and finished when the
     simulator stops (needs the ``video`` extra). Both draw in processes of their own and
     never make a tick late; :attr:`recording` then tells what was written.
+    ``camera_size=(width, height)`` [px] lets :meth:`render` return images of the robot
+    as it is (for policies that see, and recorded episodes), drawn the same way.
     """
 
     def __init__(
@@ -118,6 +121,7 @@ class Simulator:
         viewer: bool = False,
         record: str | Path | None = None,
         record_fps: float = DEFAULT_FPS,
+        camera_size: tuple[int, int] | None = None,
     ) -> None:
         self.config = SimConfig(
             host=host,
@@ -142,6 +146,7 @@ class Simulator:
         self.viewer = bool(viewer)
         self.record = check_record(record, record_fps) if record is not None else None
         self.record_fps = float(record_fps)
+        self.camera_size = None if camera_size is None else check_camera_size(camera_size)
         self._drawing: list[DrawingProcess] = []  # the viewer's and recorder's processes
         # What the recorder wrote, after stop(): path, frames, dropped, error, ms_per_frame.
         self.recording: dict[str, Any] | None = None
@@ -231,7 +236,7 @@ class Simulator:
         try:
             self._drawing = start_drawing(
                 self.config, viewer=self.viewer, record=self.record, fps=self.record_fps,
-                timeout=self.start_timeout,
+                timeout=self.start_timeout, camera_size=self.camera_size,
             )  # fmt: skip
         except DrawingError as exc:
             raise SimulatorError(str(exc)) from exc
@@ -322,6 +327,23 @@ class Simulator:
         if self.desk is None:
             raise SimulatorError("this simulator has no Desk (Simulator(..., desk=DeskConfig()))")
         self.desk.press_pilot_button(button)
+
+    def render(self) -> np.ndarray:
+        """An image of the robot and its scene as they are now, (height, width, 3) uint8
+        RGB, seen from the front left (``camera_size``'s width and height [px]); drawn
+        offscreen in the camera's own process, so it never makes a tick late (tens of ms
+        a frame with software OpenGL)."""
+        if self.camera_size is None:
+            raise SimulatorError(
+                "this simulator has no camera (Simulator(..., camera_size=(320, 240)))"
+            )
+        camera = next((d for d in self._drawing if isinstance(d, Camera)), None)
+        if camera is None or not self.running:
+            raise SimulatorError("simulator is not running")
+        try:
+            return camera.render()
+        except RuntimeError as exc:
+            raise SimulatorError(str(exc)) from exc
 
     def stats(self) -> dict[str, Any]:
         """Tick counts, late ticks, lost commands, wall, simulated and CPU time."""

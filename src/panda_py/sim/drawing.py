@@ -112,11 +112,18 @@ class DrawingProcess:
 
 
 def start_drawing(
-    config: SimConfig, *, viewer: bool, record: str | Path | None, fps: float, timeout: float
+    config: SimConfig,
+    *,
+    viewer: bool,
+    record: str | Path | None,
+    fps: float,
+    timeout: float,
+    camera_size: tuple[int, int] | None = None,
 ) -> list[DrawingProcess]:
-    """Start the viewer's and the recorder's processes, before the simulator (which
-    writes into their feeds: ``config.frame_feeds`` is set). Raises
+    """Start the viewer's, the recorder's and the camera's processes, before the
+    simulator (which writes into their feeds: ``config.frame_feeds`` is set). Raises
     :class:`DrawingError` (one line, with the fix) with none left running."""
+    from panda_py.sim.camera import Camera
     from panda_py.sim.video import Recorder
     from panda_py.sim.viewer import Viewer
 
@@ -126,6 +133,8 @@ def start_drawing(
             started.append(Viewer(config).start(timeout))
         if record is not None:
             started.append(Recorder(config, record, fps).start(timeout))
+        if camera_size is not None:
+            started.append(Camera(config, camera_size).start(timeout))
     except BaseException:
         stop_drawing(started)
         raise

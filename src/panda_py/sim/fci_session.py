@@ -142,16 +142,21 @@ class FciSession(ServerState):
         (a lock, a safety error) end a running motion, and an FCI switched off ends the
         motion and, a tick later (once a state has told the client), closes the FCI
         connection. Three loads a tick; the gripper's server is not the FCI's and keeps its
-        client. Between motions, the arm is placed where the Desk asks (the pack pose)."""
+        client. Between motions, the arm is driven where the Desk asks (the pack pose)."""
         desk, conn, core = self.desk, self.robot_conn, self.core
         if desk is None:
             return
         fci_on = accept_fci_connect(desk)
         request = desk.move_request()
-        if request is not None and core.robot_mode != RobotMode.MOVE:
-            # The Desk moves the arm (the pack pose) between motions: placed, not driven.
-            core.reset(request[1])
-            desk.move_finished(request[0])
+        if request is not None:
+            # The Desk moves the arm (the pack pose) between motions, on a path of the
+            # robot's own; its request is done once the drive ended (there, or stopped)
+            if self.desk_move != request[0]:
+                if core.robot_mode != RobotMode.MOVE:
+                    core.drive_to(request[1])
+                    self.desk_move = request[0]
+            elif not core.driving:
+                desk.move_finished(request[0])
         if core.robot_mode == RobotMode.MOVE and not (fci_on and may_start_move(desk)):
             version = conn.dialect.version if conn is not None and conn.dialect else 0
             # v6 added the status for "preempted due to activated safety functions"

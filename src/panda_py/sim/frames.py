@@ -9,9 +9,12 @@ takes a lock and never waits on a drawing process, except a lockstep recorder wh
 is full: lockstep time is the client's, and a video that follows simulated time must not
 lose frames (a realtime simulator drops them instead, counted in ``dropped``).
 
-Ring layout (float64): ``[written, read, closed, consumer_gone, dropped]`` then ``slots``
-rows of ``[time, qpos...]``. The writer owns ``written`` and ``dropped``, the reader
-``read`` and ``consumer_gone``; ``closed`` is set when the simulator ends.
+Ring layout (float64): ``[written, read, closed, consumer_gone, dropped, hold]`` then
+``slots`` rows of ``[time, qpos...]``. The writer owns ``written`` and ``dropped``, the
+reader ``read`` and ``consumer_gone``; ``closed`` is set when the simulator ends. ``hold``
+is the camera's (:mod:`.camera`): set while an image is asked for, drawn and handed over,
+it stops a lockstep simulator's time (at its next tick), as the lockstep simulator waits
+for its client: an image costs no simulated time.
 """
 
 from __future__ import annotations
@@ -28,8 +31,8 @@ from panda_py.sim.config import SimConfig
 
 log = logging.getLogger("panda_py.sim")
 
-_WRITTEN, _READ, _CLOSED, _GONE, _DROPPED = range(5)
-_HEADER = 5
+_WRITTEN, _READ, _CLOSED, _GONE, _DROPPED, _HOLD = range(6)
+_HEADER = 6
 # A lockstep simulator waits at most this long for a stalled recorder, then drops [s].
 _FULL_WAIT = 10.0
 _TICK_RATE = 1000  # ticks per simulated second (fci.PERIOD = 1 ms)
@@ -129,6 +132,12 @@ class FrameReader:
         self._head[_GONE] = 1.0
 
 
+def hold(feed: FrameFeed, on: bool = True) -> None:
+    """Stop a lockstep simulator's time at its next tick until ``hold(feed, False)`` (a
+    realtime simulator never waits)."""
+    feed.view()[0][_HOLD] = float(on)
+
+
 class FrameTaps:
     """The simulator's end: copies ``qpos`` into each feed at its frame instants.
 
@@ -154,6 +163,10 @@ class FrameTaps:
             k = self._frame[i] = self._frame[i] + 1
             self._due[i] = math.ceil(k * _TICK_RATE / feed.fps - 1e-9)
         self._next_due = min(self._due)
+        if self._lockstep:
+            for feed, head, _ in self._feeds:
+                if head[_HOLD]:
+                    self._wait_for_release(feed, head)
 
     def _write(
         self, feed: FrameFeed, head: np.ndarray, rows: np.ndarray, tick: int, qpos: np.ndarray
@@ -184,6 +197,16 @@ class FrameTaps:
             time.sleep(0.001)
         return True
 
+    def _wait_for_release(self, feed: FrameFeed, head: np.ndarray) -> None:
+        """Lockstep: the camera draws the newest frame; time stands still meanwhile."""
+        deadline = time.monotonic() + _FULL_WAIT
+        while head[_HOLD] and not head[_GONE]:
+            if time.monotonic() > deadline:
+                log.warning("the camera stalled for %g s; not waiting for it", _FULL_WAIT)
+                head[_GONE] = 1.0  # never wait for it again
+                return
+            time.sleep(0.0005)
+
     def close(self) -> None:
         """The simulator ends: readers finish with what they have."""
         for _, head, _ in self._feeds:
@@ -195,4 +218,12 @@ def close_feed(feed: FrameFeed) -> None:
     feed.view()[0][_CLOSED] = 1.0
 
 
-__all__ = ["FrameFeed", "FrameReader", "FrameTaps", "build_model", "close_feed", "set_camera"]
+__all__ = [
+    "FrameFeed",
+    "FrameReader",
+    "FrameTaps",
+    "build_model",
+    "close_feed",
+    "hold",
+    "set_camera",
+]

@@ -33,6 +33,7 @@ class ServerState:
     gripper: GripperCore | None
     pump: VacuumCore | None
     desk: Any  # DeskLink | None: the simulated Desk's state (brakes, FCI)
+    desk_move: float  # the Desk's move request being driven (0: none yet)
     stats: Stats
     tick_count: int
     drop_commands: int

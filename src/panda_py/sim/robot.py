@@ -30,6 +30,7 @@ from panda_py.kinematics import get_kinematics
 from panda_py.robots.end_effectors import end_effector_load
 from panda_py.robots.params import RobotSpec
 from panda_py.sim.async_motion import AsyncJointGenerator, async_refusal
+from panda_py.sim.drive import JointDrive
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
     START_CARTESIAN_TOLERANCE,
@@ -135,6 +136,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.tau_ext = np.zeros(7)
         self.contact_active = False
         self.q_hold = q.copy()
+        self.drive: JointDrive | None = None  # a move of the robot's own (the Desk's)
         self.first_command = True
         self.consecutive_lost = 0
         self.lost_total = 0
@@ -316,10 +318,31 @@ class RobotCore(RobotSettings, StateAssembly):
             torque = self._hold_torque()
         self._apply(torque)
 
+    def drive_to(self, q: np.ndarray) -> None:
+        """Move the arm to ``q`` [rad] on a path of the robot's own (the Desk's pack pose),
+        while idle; :attr:`driving` says when it is there. Anything else the robot does
+        (a motion, guiding, a stop) ends the drive where the arm is."""
+        self.drive = JointDrive(self.spec, self.physics.q, q)
+
+    @property
+    def driving(self) -> bool:
+        return self.drive is not None
+
     def _hold_torque(self) -> np.ndarray:
+        drive = self.drive
+        if drive is not None and self.robot_mode != RobotMode.IDLE:
+            self.drive = drive = None
+            self.q_hold = self.physics.q.copy()
         if self.robot_mode == RobotMode.GUIDING:
             return -2.0 * self.physics.dq  # hand guiding: gravity-compensated, lightly damped
         scale = np.maximum(self.K_theta / self._K_default, 1e-3)
+        if drive is not None:
+            q_d, dq_d, ddq_d = drive.advance(DT)
+            if drive.finished:
+                self.drive = None
+                self.q_hold = drive.goal.copy()
+            self.joint.reset(q_d)  # the state's q_d: the path, as the robot reports it
+            return self.physics.joint_tracking_torque(q_d, dq_d, ddq_d, scale)
         return self.physics.joint_tracking_torque(self.q_hold, np.zeros(7), np.zeros(7), scale)
 
     def _motion_tick(self, command: Command | None, excused: bool = False) -> np.ndarray:

@@ -32,7 +32,7 @@ PACK_POSE = {
     "fer": (0.0, -0.5599, 0.0, -2.97, 0.0, 0.0, 0.7854),
     "fr3": (0.0, -0.5599, 0.0, -2.97, 0.0, 0.6, 0.7854),
 }
-PACK_POSE_WAIT = 5.0  # [s] the Desk waits this long for the loop to place the arm
+PACK_POSE_WAIT = 30.0  # [s] the Desk waits this long for the arm to get there
 PACK_POSE_POLL = 0.005  # [s]
 
 
@@ -260,8 +260,8 @@ class DeskDuties:
         return self._blocked()
 
     async def move_to_pack_pose(self) -> Reply:
-        """Have the simulator's loop place the arm at the pack pose; answer once it is
-        there (503 if the loop did not within ``PACK_POSE_WAIT``)."""
+        """Have the simulator drive the arm to the pack pose; answer once it is there
+        (503 if it was not within ``PACK_POSE_WAIT``)."""
         blocked = self.pack_pose_blocked()
         if blocked is not None:
             return blocked

@@ -23,7 +23,7 @@ BRAKES_OPEN, FCI_ACTIVE, SEQ, ROBOT_MODE, SIM_TIME = 0, 1, 2, 3, 4
 MOVE_REQUESTED, MOVE_DONE = 5, 6  # counters: the Desk's requests, the loop's completions
 Q = slice(8, 15)  # [rad]
 O_T_EE = slice(16, 32)  # column-major 4x4
-MOVE_TARGET = slice(32, 39)  # [rad] where the Desk asks the arm to be placed
+MOVE_TARGET = slice(32, 39)  # [rad] where the Desk asks the arm to go
 SIZE = 40
 PUBLISH_EVERY = 50  # [ticks] 20 Hz for the page's live view
 
@@ -95,7 +95,7 @@ class DeskLink:
         v[SEQ] += 1.0
 
     def move_request(self) -> tuple[float, np.ndarray] | None:
-        """(request, joint positions [rad]) the Desk asks the arm to be placed at, or None."""
+        """(request, joint positions [rad]) the Desk asks the arm to go to, or None."""
         v = self.view
         request = float(v[MOVE_REQUESTED])
         if request == v[MOVE_DONE]:
@@ -103,7 +103,7 @@ class DeskLink:
         return request, v[MOVE_TARGET].copy()
 
     def move_finished(self, request: float) -> None:
-        """The simulator placed the arm as the Desk's ``request`` asked (its number from
+        """The simulator moved the arm as the Desk's ``request`` asked (its number from
         :meth:`move_request`)."""
         self.view[MOVE_DONE] = request
 
