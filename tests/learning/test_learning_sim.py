@@ -24,11 +24,15 @@ from panda_py.sim import Simulator, free_loopback_host
 
 pytestmark = pytest.mark.timeout(600)
 
-# The same seeded episode on both backends: both succeed, the achieved goals (the end
-# effector, the cube) end within ACHIEVED_APART of each other [m] (measured: 1-10 mm),
-# and panda-sim's takes at most LONGER times the fast world's steps (measured: 1.0-1.2)
-ACHIEVED_APART = 0.02  # [m]
-LONGER = 1.4
+# The same seeded episode on both backends, run to its full length: both succeed, the
+# achieved goals (the end effector, the cube) end within ACHIEVED_APART of each other
+# [m] (measured: 0.1-6.4 mm), and panda-sim's first success comes within LONGER times the
+# fast world's steps plus LATER steps. Its actions reach the robot some ms into each step,
+# the more the busier the machine (the robot's clock runs on meanwhile): measured 0-3 steps
+# later on a quiet machine, 16 of 55 at a load of 5 on these 2 cores
+ACHIEVED_APART = 0.015  # [m]
+LONGER = 1.5
+LATER = 5
 POLICIES = {"PandaReach-v0": reach_policy, "PandaPickAndPlace-v0": pick_and_place_policy}
 
 
@@ -47,16 +51,21 @@ def arm(sim: Simulator) -> Iterator[RobotArm]:
         backend.close()
 
 
-def run(env: gymnasium.Env, seed: int) -> tuple[list[dict], dict]:
+def run(env: gymnasium.Env, seed: int) -> tuple[list[dict], dict, int | None]:
+    """The seeded episode, its whole length (not ended at the first success: both arms
+    then hold at the goal): its observations, its last info, and the step of its first
+    success (None if none)."""
     policy = POLICIES[env.spec.id]
     obs, info = env.reset(seed=seed)
-    seen = [obs]
-    for _ in range(env.spec.max_episode_steps):
+    seen, first = [obs], None
+    for k in range(env.spec.max_episode_steps):
         obs, _, terminated, truncated, info = env.step(policy(obs))
         seen.append(obs)
-        if terminated or truncated:
+        if terminated and first is None:
+            first = k + 1
+        if truncated:
             break
-    return seen, info
+    return seen, info, first
 
 
 def test_gymnasiums_checker_passes(arm: RobotArm) -> None:
@@ -75,15 +84,16 @@ def test_a_seeded_episode_ends_as_on_the_fast_world(arm: RobotArm, env_id: str) 
     try:
         successes = {"fast world": 0, "panda-sim": 0}
         for seed in (0, 1):
-            on_fast, fast_info = run(fast, seed)
-            on_sim, sim_info = run(robot, seed)
+            on_fast, fast_info, fast_first = run(fast, seed)
+            on_sim, sim_info, sim_first = run(robot, seed)
+            np.testing.assert_array_equal(on_fast[0]["desired_goal"], on_sim[0]["desired_goal"])
             successes["fast world"] += fast_info["is_success"]
             successes["panda-sim"] += sim_info["is_success"]
             assert fast_info["is_success"] and sim_info["is_success"], (fast_info, sim_info)
             apart = np.linalg.norm(on_fast[-1]["achieved_goal"] - on_sim[-1]["achieved_goal"])
             assert apart < ACHIEVED_APART
-            assert len(on_sim) <= LONGER * len(on_fast)
-            np.testing.assert_array_equal(on_fast[0]["desired_goal"], on_sim[0]["desired_goal"])
+            assert fast_first is not None and sim_first is not None
+            assert sim_first <= LONGER * fast_first + LATER
         print(f"{env_id}: succeeded " + ", ".join(f"{k} {n} of 2" for k, n in successes.items()))
     finally:
         fast.close()

@@ -27,6 +27,7 @@ __all__ = ["RobotArm", "Scene"]
 
 POLL = 2e-4  # [s] how often the robot's clock is read while waiting for it
 CLOCK_TIMEOUT = 30.0  # [s] of wall time the robot's clock may stand still before it counts as gone
+LOOP_END_TIMEOUT = 5.0  # [s] for the control process to end its loop after a reflex
 HOME_SPEED_FACTOR = 0.3  # of the joint limits, the move home
 GRIPPER_SPEED = 0.1  # [m/s] the hand's open and close speed
 GRASP_FORCE = 20.0  # [N] the hand's grasp force
@@ -122,8 +123,9 @@ class RobotArm(Backend):
         panda = self.panda
         last, still = -1, time.monotonic()
         while True:
-            now = int(panda.get_state().time.to_msec())
-            if now >= ms or (self._running and not panda.is_moving()):
+            state = panda.get_state()
+            now = int(state.time.to_msec())
+            if now >= ms or (self._running and self._ended(state)):
                 return
             if now != last:
                 last, still = now, time.monotonic()
@@ -132,10 +134,19 @@ class RobotArm(Backend):
                                    f"{CLOCK_TIMEOUT} s")  # fmt: skip
             time.sleep(POLL)
 
+    def _ended(self, state: Any) -> bool:
+        """Whether the controller stopped, or the robot has just stopped it (a reflex the
+        control process has yet to see)."""
+        return state.robot_mode == RobotMode.kReflex or not self.panda.is_moving()
+
     def failure(self) -> str | None:
-        if not self._running or self.panda.is_moving():
+        if not self._running or not self._ended(self.panda.get_state()):
             return None
         self._running = False
+        # the control process ends its loop at the reflex: wait for it to say why
+        deadline = time.monotonic() + LOOP_END_TIMEOUT
+        while self.panda.is_moving() and time.monotonic() < deadline:
+            time.sleep(POLL)
         state = self.panda.get_state()
         flags = list(state.last_motion_errors.active) or list(state.current_errors.active)
         try:
