@@ -114,6 +114,54 @@ def test_the_payload_written_persists_and_every_dialect_reads_it(
         d.set_payload(before.mass, before.center_of_mass, before.inertia)
 
 
+def test_the_robot_reports_the_end_effector_its_desk_configures(
+    fr3: Simulator, tokens: str
+) -> None:
+    # as a real robot: RobotState's m_ee, F_x_Cee, I_ee and F_T_NE (and so O_T_EE) are
+    # the Desk's end-effector configuration, applied between motions
+    from panda_py.desk import duty_api
+    from panda_py.desk.end_effector import legacy_payload_document
+
+    sim = fr3
+    ready(sim)
+    sim.set_joint_positions(START_POSE)
+    d = desk(sim, tokens, "legacy")
+    d.unlock()
+    d.activate_fci()
+    before = d.end_effector()
+    inertia = np.array([[0.02, 0.001, 0.0], [0.001, 0.03, 0.0], [0.0, 0.0, 0.025]])
+    try:
+        with lf.Robot(sim.host) as r:
+            s0 = r.read_once()
+            assert s0.m_ee == pytest.approx(before.mass)
+            d.set_payload(1.5, (0.0, 0.01, 0.06), inertia)
+            s1 = r.read_once()
+            deadline = time.monotonic() + 5.0
+            while s1.m_ee != 1.5 and time.monotonic() < deadline:
+                s1 = r.read_once()
+            assert s1.m_ee == 1.5
+            np.testing.assert_allclose(s1.F_x_Cee, [0.0, 0.01, 0.06])
+            np.testing.assert_allclose(np.asarray(s1.I_ee).reshape(3, 3, order="F"), inertia)
+            # a longer tool: 5 cm further along the flange's z axis
+            doc = legacy_payload_document(before, 1.5, np.array([0.0, 0.01, 0.06]), inertia)
+            T = np.array(doc["transformation"], dtype=float).reshape(4, 4, order="F")
+            T[2, 3] += 0.05
+            doc["transformation"] = T.reshape(16, order="F").tolist()
+            d._send(duty_api.request("set_end_effector", "legacy", token=d._need_token(),
+                                     body=doc))  # fmt: skip
+            s2 = r.read_once()
+            while not np.allclose(s2.F_T_NE, T.reshape(16, order="F")):
+                assert time.monotonic() < deadline + 5.0, "the frame never arrived"
+                s2 = r.read_once()
+            O0 = np.asarray(s0.O_T_EE).reshape(4, 4, order="F")
+            O2 = np.asarray(s2.O_T_EE).reshape(4, 4, order="F")
+            # the same arm: O_T_EE moved 5 cm along the EE's own z axis
+            np.testing.assert_allclose(O2[:3, 3], O0[:3, 3] + 0.05 * O0[:3, 2], atol=2e-4)
+    finally:
+        d._send(duty_api.request("set_end_effector", "legacy", token=d._need_token(),
+                                 body=before.raw))  # fmt: skip
+
+
 @pytest.mark.parametrize(("name", "api"), DIALECTS)
 def test_the_arm_goes_to_the_pack_pose(
     name: str, api: str, tokens: str, request: pytest.FixtureRequest

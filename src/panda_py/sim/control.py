@@ -93,6 +93,7 @@ class ControlRpc(ServerState):
             if q.shape != (7,) or not np.all(np.isfinite(q)):
                 raise ValueError(f"q: expected 7 finite joint positions, got {q.tolist()}")
             core.reset(q)
+            self.desk_ee = 0.0  # the Desk's end-effector configuration applies again
             return None
         if op == "place_cube":
             p = np.asarray(args[0], dtype=float)

@@ -147,6 +147,11 @@ class FciSession(ServerState):
         if desk is None:
             return
         fci_on = accept_fci_connect(desk)
+        if core.robot_mode != RobotMode.MOVE:  # a new end-effector configuration
+            update = desk.end_effector_update(self.desk_ee)
+            if update is not None:
+                self.desk_ee = update[0]
+                core.configure_end_effector(*update[1:])
         request = desk.move_request()
         if request is not None:
             # The Desk moves the arm (the pack pose) between motions, on a path of the

@@ -34,6 +34,7 @@ class ServerState:
     pump: VacuumCore | None
     desk: Any  # DeskLink | None: the simulated Desk's state (brakes, FCI)
     desk_move: float  # the Desk's move request being driven (0: none yet)
+    desk_ee: float  # the Desk's end-effector configuration applied (0: the mounted one's)
     stats: Stats
     tick_count: int
     drop_commands: int

@@ -29,6 +29,7 @@ from panda_py.fci import (
 from panda_py.kinematics import get_kinematics
 from panda_py.robots.end_effectors import end_effector_load
 from panda_py.robots.params import RobotSpec
+from panda_py.sim import fastpath
 from panda_py.sim.async_motion import AsyncJointGenerator, async_refusal
 from panda_py.sim.drive import JointDrive
 from panda_py.sim.physics import DT, Physics
@@ -91,6 +92,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self._dtau_step = (self._dtau_max * (1 + 1e-6) + 1e-6) * DT
         # The hand's TCP kinematics, fast generated fk (O_T_EE of the nominal EE).
         self._kin = get_kinematics(spec, F_T_EE=physics.F_T_NE)
+        self._kin_frame = np.array(physics.F_T_NE, dtype=float)
         self._new_state()
         self.reset(q_start)
 
@@ -113,7 +115,7 @@ class RobotCore(RobotSettings, StateAssembly):
         self.filters = np.full(5, 1000.0)
         # The mounted end effector as Desk configures it: its TCP and its load.
         load = end_effector_load(self.physics.end_effector)
-        self.F_T_NE = self.physics.F_T_NE.copy()
+        self._set_frame(self.physics.F_T_NE)
         self.NE_T_EE = np.eye(4)
         self.EE_T_K = np.eye(4)
         self.m_ee = load.mass
@@ -317,6 +319,30 @@ class RobotCore(RobotSettings, StateAssembly):
         else:
             torque = self._hold_torque()
         self._apply(torque)
+
+    def configure_end_effector(
+        self, mass: float, com: np.ndarray, inertia: np.ndarray, F_T_NE: np.ndarray
+    ) -> None:
+        """The end effector as the Desk now configures it (checked there): the load
+        (``mass`` [kg], ``com`` [m], ``inertia`` [kg m^2]) and the frame ``F_T_NE`` the
+        robot reports and computes ``O_T_EE`` with. The physics keeps the hand the scene
+        mounts (the simulated robot compensates its true weight, where a real one would
+        compensate the configured load)."""
+        self.m_ee = float(mass)
+        self.F_x_Cee = np.array(com, dtype=float)
+        self.I_ee = np.array(inertia, dtype=float)
+        self._set_frame(F_T_NE)
+        self._fill_static()
+        self.cart.reset(self.physics.flange_pose_at(self.physics.q) @ self.F_T_EE)
+
+    def _set_frame(self, F_T_NE: np.ndarray) -> None:
+        """The end effector's frame (flange to nominal EE), with the kinematics and the
+        compiled tick that compute O_T_EE in it."""
+        self.F_T_NE = np.array(F_T_NE, dtype=float)
+        if not np.array_equal(self.F_T_NE, self._kin_frame):
+            self._kin = get_kinematics(self.spec, F_T_EE=self.F_T_NE)
+            self._kin_frame = self.F_T_NE.copy()
+            self._fast = fastpath.load(self)
 
     def drive_to(self, q: np.ndarray) -> None:
         """Move the arm to ``q`` [rad] on a path of the robot's own (the Desk's pack pose),

@@ -80,6 +80,7 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         # the simulated Desk's view of this robot (brakes, FCI), read without waiting
         self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
         self.desk_move = 0.0
+        self.desk_ee = 0.0
         self.tick_count = 0
         self.drop_commands = 0
         # Snapshots for the viewer and the video recorder (their own processes draw them).

@@ -245,6 +245,8 @@ class DeskDuties:
             "name": name, "mass": mass, "com": com.tolist(), "inertia": inertia.tolist(),
             "T": T.tolist(),
         }  # fmt: skip
+        # the robot reports what its Desk configures (m_ee, F_x_Cee, I_ee, F_T_NE)
+        self.link.publish_end_effector(mass, com, inertia, T)
         return Reply(200)
 
     # -- pack pose, shutdown ---------------------------------------------------------------

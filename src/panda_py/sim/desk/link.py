@@ -5,9 +5,11 @@ brake and FCI switches; the loop reads them without waiting (one load each) when
 connects or a motion starts. The loop publishes the arm's joint positions and end-effector
 pose at 20 Hz under a sequence counter (a seqlock: odd while writing) for the Desk's page.
 
-The Desk can also ask the loop to place the arm at joint positions (the pack pose): it
-writes the target, then counts a request up; the loop, between motions, places the arm
-and counts the request done. One writer per double, so no lock either.
+The Desk can also ask the loop to move the arm to joint positions (the pack pose): it
+writes the target, then counts a request up; the loop, between motions, drives the arm
+there and counts the request done. The Desk's end-effector configuration travels the
+same way: the values, then a counter the loop compares with the last one it applied. One
+writer per double, so no lock either.
 """
 
 from __future__ import annotations
@@ -24,7 +26,12 @@ MOVE_REQUESTED, MOVE_DONE = 5, 6  # counters: the Desk's requests, the loop's co
 Q = slice(8, 15)  # [rad]
 O_T_EE = slice(16, 32)  # column-major 4x4
 MOVE_TARGET = slice(32, 39)  # [rad] where the Desk asks the arm to go
-SIZE = 40
+EE_COUNT = 7  # end-effector configurations the Desk stored
+EE_MASS = 40  # [kg]
+EE_COM = slice(41, 44)  # [m] in the flange frame
+EE_INERTIA = slice(44, 53)  # [kg m^2] about the centre of mass, row-major 3x3
+EE_T = slice(53, 69)  # flange to EE (F_T_NE), column-major 4x4
+SIZE = 72
 PUBLISH_EVERY = 50  # [ticks] 20 Hz for the page's live view
 
 
@@ -58,6 +65,17 @@ class DeskLink:
             raise ValueError(f"q: expected 7 finite joint positions [rad], got {q!r}")
         self.view[MOVE_TARGET] = target
         self.view[MOVE_REQUESTED] += 1.0  # after the target: the loop reads it complete
+
+    def publish_end_effector(self, mass: float, com: Any, inertia: Any, F_T_NE: Any) -> None:
+        """Hand the loop a new end-effector configuration (written by the Desk process,
+        checked there): ``mass`` [kg], ``com`` (3,) [m], ``inertia`` (3, 3) [kg m^2],
+        ``F_T_NE`` (4, 4)."""
+        v = self.view
+        v[EE_MASS] = float(mass)
+        v[EE_COM] = np.asarray(com, dtype=float).reshape(3)
+        v[EE_INERTIA] = np.asarray(inertia, dtype=float).reshape(9)
+        v[EE_T] = np.asarray(F_T_NE, dtype=float).reshape(16, order="F")
+        v[EE_COUNT] += 1.0  # after the values: the loop reads them complete
 
     def move_done(self) -> bool:
         """Whether the loop has done every move asked for."""
@@ -101,6 +119,19 @@ class DeskLink:
         if request == v[MOVE_DONE]:
             return None
         return request, v[MOVE_TARGET].copy()
+
+    def end_effector_update(
+        self, applied: float
+    ) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The Desk's newest end-effector configuration if it is not the ``applied``
+        one: (its count, mass [kg], centre of mass (3,) [m], inertia (3, 3) [kg m^2],
+        F_T_NE (4, 4)); else None (one load)."""
+        v = self.view
+        count = float(v[EE_COUNT])
+        if count == applied:
+            return None
+        return (count, float(v[EE_MASS]), v[EE_COM].copy(), v[EE_INERTIA].reshape(3, 3).copy(),
+                v[EE_T].reshape(4, 4, order="F").copy())  # fmt: skip
 
     def move_finished(self, request: float) -> None:
         """The simulator moved the arm as the Desk's ``request`` asked (its number from
