@@ -53,6 +53,7 @@ PUBLIC_MODULES = (
     "panda_py.robots",
     "panda_py.sim",
     "panda_py.sim.desk",
+    "panda_py.learning",
     "panda_py.cli",
     "panda_py.fci",
 )

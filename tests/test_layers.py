@@ -28,8 +28,9 @@ LAYERS: list[set[str]] = [
 ]
 LEVEL = {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
 CLIENT = {"libfranka", "controllers", "rt", "panda", "desk", "cli", "doctor"}
-# the only way from the client to the simulator: the demo starts an embedded one (lazily)
-SIM_ALLOWED_FROM = {"demo"}
+# the only ways from the client to the simulator: the demo starts an embedded one (lazily);
+# learning runs the simulator's robot core in process (its fast training world)
+SIM_ALLOWED_FROM = {"demo", "learning"}
 
 
 def _unit(module: str) -> str:

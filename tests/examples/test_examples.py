@@ -209,6 +209,16 @@ def test_17_a_streamed_target_is_followed_and_the_arm_stops_when_targets_stop(
     assert number(r"largest joint velocity: (\d+) %", out) <= 100
 
 
+def test_18_the_scripted_policies_succeed_on_the_fast_world_and_on_panda_sim(
+    tmp_path: Path,
+) -> None:
+    out = run_example("18", "--episodes", "3", cwd=tmp_path)
+    for env_id in ("PandaReach-v0", "PandaPickAndPlace-v0"):
+        for where in ("the fast world", "panda-sim"):
+            rate = number(rf"{env_id}\s+on {where}\s+succeeded\s+(\d+)% of 3", out)
+            assert rate >= 66, out  # at least 2 of 3 (measured: all)
+
+
 @needs("h5py")
 def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
     tmp_path: Path,

@@ -1,40 +1,102 @@
-"""Robot learning on the same code: deploying policies (DROID's action contract, chunked
-actions at a policy rate, :mod:`~panda_py.learning.deploy`,
-:mod:`~panda_py.learning.policy_runner`) and recording episodes
-(:mod:`~panda_py.learning.recording`).
+"""Robot learning on the same code: Gymnasium environments that run unchanged on a fast
+in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
+(:mod:`~panda_py.learning.env`, :mod:`~panda_py.learning.tasks`,
+:mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
+(DROID's action contract, chunked actions at a policy rate,
+:mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`) and recording
+episodes (:mod:`~panda_py.learning.recording`).
+
+    import gymnasium
+    import panda_py.learning  # registers the environments
+
+    env = gymnasium.make("PandaReach-v0")  # the fast world
+    env = gymnasium.make("PandaPickAndPlace-v0", backend=RobotArm(sim.host, scene=sim))
 
 Importing this package is cheap: its modules load on first use of one of the names below
-(PEP 562); recording needs the ``learning`` extra (h5py).
+(PEP 562). The environments need gymnasium and recording needs h5py: the ``learning``
+extra (``pip install "panda-py-pure[learning]"``); without gymnasium, the environments'
+names raise an ImportError saying so and no id is registered.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from panda_py.learning.actions import ActionKind
+    from panda_py.learning.arm import RobotArm, Scene
+    from panda_py.learning.backend import Backend, Snapshot
     from panda_py.learning.deploy import ActionSpace, DroidActions
+    from panda_py.learning.env import PandaEnv, Reward
+    from panda_py.learning.policies import pick_and_place_policy, reach_policy
     from panda_py.learning.policy_runner import PolicyRunner, RunStats
     from panda_py.learning.recording import EpisodeWriter, read_recording
+    from panda_py.learning.tasks import PandaPickAndPlaceEnv, PandaReachEnv
+    from panda_py.learning.world import FastWorld
 
 # public name -> submodule that defines it
 _LAZY: dict[str, str] = {
+    "ActionKind": "panda_py.learning.actions",
     "ActionSpace": "panda_py.learning.deploy",
+    "Backend": "panda_py.learning.backend",
     "DroidActions": "panda_py.learning.deploy",
     "EpisodeWriter": "panda_py.learning.recording",
+    "FastWorld": "panda_py.learning.world",
+    "PandaEnv": "panda_py.learning.env",
+    "PandaPickAndPlaceEnv": "panda_py.learning.tasks",
+    "PandaReachEnv": "panda_py.learning.tasks",
     "PolicyRunner": "panda_py.learning.policy_runner",
+    "Reward": "panda_py.learning.env",
+    "RobotArm": "panda_py.learning.arm",
     "RunStats": "panda_py.learning.policy_runner",
+    "Scene": "panda_py.learning.arm",
+    "Snapshot": "panda_py.learning.backend",
+    "pick_and_place_policy": "panda_py.learning.policies",
+    "reach_policy": "panda_py.learning.policies",
     "read_recording": "panda_py.learning.recording",
 }
 
 __all__ = [
+    "ENVIRONMENTS",
+    "ActionKind",
     "ActionSpace",
+    "Backend",
     "DroidActions",
     "EpisodeWriter",
+    "FastWorld",
+    "PandaEnv",
+    "PandaPickAndPlaceEnv",
+    "PandaReachEnv",
     "PolicyRunner",
+    "Reward",
+    "RobotArm",
     "RunStats",
+    "Scene",
+    "Snapshot",
+    "pick_and_place_policy",
+    "reach_policy",
     "read_recording",
 ]
+
+#: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
+ENVIRONMENTS = {
+    "PandaReach-v0": ("panda_py.learning.tasks:PandaReachEnv", 50),
+    "PandaPickAndPlace-v0": ("panda_py.learning.tasks:PandaPickAndPlaceEnv", 100),
+}
+
+
+def _register() -> None:
+    """Register the environments' ids with Gymnasium, where it is installed (the entry
+    points are strings: nothing of the environments loads until one is made)."""
+    if importlib.util.find_spec("gymnasium") is None:
+        return
+    import gymnasium
+
+    for env_id, (entry, steps) in ENVIRONMENTS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps)
 
 
 def __getattr__(name: str) -> Any:
@@ -48,3 +110,6 @@ def __getattr__(name: str) -> Any:
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
+
+
+_register()

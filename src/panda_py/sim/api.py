@@ -308,6 +308,19 @@ class Simulator:
         """Teleport the (idle) arm to ``q`` [rad], at rest."""
         self._request("set_joint_positions", list(q))
 
+    def place_cube(self, position: Sequence[float]) -> None:
+        """Put the scene's cube, upright and at rest, with its centre at ``position`` [m]
+        (base frame; the table top is z = 0, so 0.02 rests it on the table): a learning
+        task's reset, or a test's setup. Anything in the way is pushed aside by physics."""
+        self._request("place_cube", [float(x) for x in position])
+
+    def cube_position(self) -> np.ndarray:
+        """The centre of the scene's cube [m], (3,)."""
+        position = self.state()["cube_position"]
+        if position is None:
+            raise SimulatorError("this simulator has no cube (Simulator(..., scene=True))")
+        return np.asarray(position)
+
     def press_pilot_button(self, button: str = "circle") -> None:
         """Press and release a Pilot button on the simulated Desk (``circle`` confirms a
         forced take on the FER, ``top`` on the FR3)."""

@@ -95,6 +95,12 @@ class ControlRpc(ServerState):
             core.reset(q)
             self.desk_ee = 0.0  # the Desk's end-effector configuration applies again
             return None
+        if op == "place_cube":
+            p = np.asarray(args[0], dtype=float)
+            if p.shape != (3,) or not np.all(np.isfinite(p)):
+                raise ValueError(f"position: expected 3 finite coordinates [m], got {args[0]!r}")
+            self.physics.place_body("cube", p)
+            return None
         if op == "stats":
             st = self.stats
             wall = time.monotonic() - st.started

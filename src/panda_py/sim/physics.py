@@ -142,6 +142,20 @@ class Physics:
         mujoco.mj_forward(self.model, self.data)
         self.tau_applied[:] = 0.0
 
+    def place_body(self, name: str, position: np.ndarray) -> None:
+        """Put the free body ``name`` (e.g. the cube), upright and at rest, with its origin
+        at ``position`` [m]; ValueError if the scene has no such free body."""
+        m, d = self.model, self.data
+        body = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+        joint = int(m.body_jntadr[body]) if body >= 0 else -1
+        if joint < 0 or m.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError(f"name: expected a free body of the scene, got {name!r}")
+        a, v = int(m.jnt_qposadr[joint]), int(m.jnt_dofadr[joint])
+        d.qpos[a : a + 3] = position
+        d.qpos[a + 3 : a + 7] = (1.0, 0.0, 0.0, 0.0)
+        d.qvel[v : v + 6] = 0.0
+        mujoco.mj_forward(m, d)
+
     def gripper_width(self) -> float:
         """The fingers' opening [m] (0 without the hand)."""
         if self.finger_q < 0:

@@ -1,0 +1,173 @@
+"""Benchmark the learning environments: environment steps per second on one core, on the
+fast in-process world and on ``panda-sim`` in lockstep, and panda-gym's PyBullet
+``PandaReach-v3`` in the same run where it installs (a peer virtual environment:
+``tests/peer_envs.py``; the package never imports it).
+
+Run: ``python benchmarks/bench_learning.py [--steps N]``.
+
+All at panda-gym's policy rate, 25 Hz (a step is 40 ms of simulated time), reaching random
+goals with the proportional policy (panda-gym: with its own equivalent, the same gain on
+its end effector). Each prints the time a step takes (median, p99, worst [ms]), the steps
+per second and the real-time factor (simulated over wall time), and the ratio to
+panda-gym's steps per second. Resets are timed apart. The issue's targets: the fast world
+>= 10x panda-gym's steps per second and >= 100x real time; panda-sim >= 10x real time.
+The machine is a noisy 2-core VM: run it more than once.
+
+``--vector N`` adds the fast world in ``gymnasium.vector.AsyncVectorEnv`` with 1 and with
+N worker processes (steps of all environments per second, and the ratio).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))
+
+RATE = 25.0  # [Hz] panda-gym's (its step: 20 PyBullet steps of 2 ms)
+PERIOD = 1.0 / RATE  # [s]
+
+PEER_SCRIPT = """
+import json, sys, time
+import numpy as np
+import gymnasium, panda_gym  # noqa: F401 (registers the environments)
+
+steps = int(sys.argv[1])
+env = gymnasium.make("PandaReach-v3")
+times, resets = [], []
+obs, _ = env.reset(seed=0)
+episode = 0
+while len(times) < steps:
+    action = np.clip((obs["desired_goal"] - obs["achieved_goal"]) / 0.05, -1.0, 1.0)
+    t0 = time.perf_counter()
+    obs, _, terminated, truncated, _ = env.step(action.astype(np.float32))
+    times.append(time.perf_counter() - t0)
+    if terminated or truncated:
+        episode += 1
+        t0 = time.perf_counter()
+        obs, _ = env.reset(seed=episode)
+        resets.append(time.perf_counter() - t0)
+print(json.dumps({"steps": times, "resets": resets}))
+"""
+
+
+def stats(seconds: list[float]) -> str:
+    a = np.asarray(seconds) * 1e3
+    return (f"median {np.median(a):7.2f}  p99 {np.percentile(a, 99):7.2f}  "
+            f"worst {a.max():7.2f} ms")  # fmt: skip
+
+
+def measure(env, steps: int) -> dict[str, list[float]]:  # type: ignore[no-untyped-def]
+    from panda_py.learning import reach_policy
+
+    times: list[float] = []
+    resets: list[float] = []
+    episode = 0
+    obs, _ = env.reset(seed=0)
+    while len(times) < steps:
+        action = reach_policy(obs)
+        t0 = time.perf_counter()
+        obs, _, terminated, truncated, _ = env.step(action)
+        times.append(time.perf_counter() - t0)
+        if terminated or truncated:
+            episode += 1
+            t0 = time.perf_counter()
+            obs, _ = env.reset(seed=episode)
+            resets.append(time.perf_counter() - t0)
+    return {"steps": times, "resets": resets}
+
+
+def report(name: str, result: dict[str, list[float]], peer_rate: float | None) -> float:
+    steps = result["steps"]
+    rate = len(steps) / sum(steps)
+    line = f"{name:<28} step {stats(steps)}  {rate:8.1f} steps/s  {rate * PERIOD:6.1f}x real time"
+    if peer_rate:
+        line += f"  {rate / peer_rate:5.2f}x panda-gym"
+    print(line)
+    if result["resets"]:
+        print(f"{'':<28} reset {stats(result['resets'])} (n={len(result['resets'])})")
+    return rate
+
+
+def peer(steps: int) -> dict[str, list[float]] | None:
+    from peer_envs import PeerUnavailable, peer_python
+
+    try:
+        python = peer_python("panda-gym")
+    except PeerUnavailable as exc:
+        print(f"panda-gym: not installable here ({exc}); ours only")
+        return None
+    out = subprocess.run([str(python), "-c", PEER_SCRIPT, str(steps)], capture_output=True,
+                         text=True, timeout=1800)  # fmt: skip
+    if out.returncode != 0:
+        print(f"panda-gym: failed to run ({out.stderr.strip().splitlines()[-1:]}); ours only")
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def vector(workers: int, steps: int) -> None:
+    import gymnasium
+
+    from panda_py.learning import reach_policy
+
+    def make():  # type: ignore[no-untyped-def]
+        return gymnasium.make("PandaReach-v0", policy_rate=RATE)
+
+    rates = {}
+    for n in sorted({1, workers}):
+        envs = gymnasium.vector.AsyncVectorEnv([make] * n)
+        try:
+            obs, _ = envs.reset(seed=list(range(n)))
+            count, t0 = 0, time.perf_counter()
+            while count < steps:
+                actions = np.stack([reach_policy({k: v[i] for k, v in obs.items()})
+                                    for i in range(n)])  # fmt: skip
+                obs, *_ = envs.step(actions)  # ended environments reset themselves
+                count += n
+            rates[n] = count / (time.perf_counter() - t0)
+        finally:
+            envs.close()
+        print(f"{'AsyncVectorEnv, ' + str(n) + ' workers':<28} {rates[n]:8.1f} steps/s"
+              f"  {rates[n] / rates[1]:5.2f}x one worker")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2000, help="environment steps each")
+    parser.add_argument("--vector", type=int, default=0, help="also N vectorised workers")
+    args = parser.parse_args()
+    import gymnasium
+
+    from panda_py.learning import RobotArm
+    from panda_py.sim import Simulator, free_loopback_host
+
+    print(f"PandaReach at {RATE:.0f} Hz, {args.steps} steps each, one process (one core)")
+    gym_result = peer(args.steps)
+    peer_rate = None
+    if gym_result is not None:
+        peer_rate = report("panda-gym PandaReach-v3", gym_result, None)
+    env = gymnasium.make("PandaReach-v0", policy_rate=RATE)
+    env.reset(seed=0)  # the first build and compile, not timed
+    report("fast world PandaReach-v0", measure(env, args.steps), peer_rate)
+    env.close()
+    with Simulator(free_loopback_host(), lockstep=True) as sim:
+        arm = RobotArm(sim.host, scene=sim, hand=False)
+        env = gymnasium.make("PandaReach-v0", backend=arm, policy_rate=RATE)
+        try:
+            report("panda-sim (lockstep)", measure(env, max(args.steps // 4, 50)), peer_rate)
+        finally:
+            env.close()
+            arm.close()
+    if args.vector:
+        vector(args.vector, args.steps)
+
+
+if __name__ == "__main__":
+    main()
