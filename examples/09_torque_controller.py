@@ -33,8 +33,11 @@ if __name__ == "__main__":
         errors = []
         with panda.create_context(frequency=100, max_runtime=3.0) as ctx:
             while ctx.ok():
+                # the sine advances with the script's own 100 Hz updates (on the lockstep
+                # simulator the robot's clock runs ahead of a script: a stalled script then
+                # holds its target instead of making it jump when it wakes)
                 target = q0.copy()
-                target[3] += 0.2 * np.sin(np.pi * ctrl.get_time())  # elbow, 0.5 Hz, 0.2 rad
+                target[3] += 0.2 * np.sin(np.pi * ctx.num_ticks / 100)  # elbow, 0.5 Hz, 0.2 rad
                 ctrl.set_signals(target=target)
                 errors.append(abs(panda.q[3] - target[3]))
         panda.stop_controller()

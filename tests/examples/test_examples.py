@@ -226,7 +226,11 @@ def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
     out = run_example("19", cwd=tmp_path)
     for n in (0, 1):
         assert number(rf"episode {n} \(.*?\): (\d+) steps at 15 Hz", out) == 60
-        assert number(rf"episode {n} .*?(\d+) policy calls", out) == 8  # every 8 of 60
+        calls = number(rf"episode {n} .*?(\d+) policy calls", out)
+        late = number(rf"episode {n} .*?policy calls; late (\d+)", out)
+        # every 8 of 60; a step the loaded machine made late skips actions of its chunk,
+        # which then runs out sooner (the arm stays on the chunk's timeline)
+        assert calls == 8 if late == 0 else 4 <= calls <= 8, out
         assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.01
     assert number(r"episode 0 .*, hand (\d+) mm", out) < 5  # closed at the goal
     assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
