@@ -177,7 +177,8 @@ def test_the_robot_proxy_binds_arguments_as_robot_does() -> None:
         assert list(ours) == list(theirs), name
 
 
-def test_named_filter_frequencies_reach_the_robot(panda: panda_py.Panda) -> None:
+def test_named_filter_frequencies_reach_the_robot(reset_panda: panda_py.Panda) -> None:
+    panda = reset_panda
     robot = panda.get_robot()  # a FER on protocol 5, which has SetFilters
     robot.set_filters(
         joint_position_filter_frequency=100.0, joint_velocity_filter_frequency=100.0,

@@ -56,7 +56,8 @@ def test_state_getters_agree(panda: panda_py.Panda, sim: Simulator) -> None:
     assert fresh.time.to_msec() >= state.time.to_msec()
 
 
-def test_setters_reach_the_robot(panda: panda_py.Panda) -> None:
+def test_setters_reach_the_robot(reset_panda: panda_py.Panda) -> None:
+    panda = reset_panda
     robot = panda.get_robot()
     robot.set_load(0.5, [0.0, 0.0, 0.05], np.eye(3) * 1e-3)
     assert panda.get_robot().read_once().m_load == pytest.approx(0.5)
@@ -64,7 +65,8 @@ def test_setters_reach_the_robot(panda: panda_py.Panda) -> None:
     robot.automatic_error_recovery()
 
 
-def test_logging_keeps_the_newest_states(panda: panda_py.Panda) -> None:
+def test_logging_keeps_the_newest_states(reset_panda: panda_py.Panda) -> None:
+    panda = reset_panda
     panda.enable_logging(2e3)  # the paper's call: an integral float
     assert all(v == [] for v in panda.get_log().values()) or len(panda.get_log()["q"]) < 50
     deadline = time.monotonic() + 10
@@ -84,7 +86,8 @@ def test_logging_keeps_the_newest_states(panda: panda_py.Panda) -> None:
     assert len(panda.get_log()["q"]) == 10
 
 
-def test_context_counts_and_stops(panda: panda_py.Panda) -> None:
+def test_context_counts_and_stops(reset_panda: panda_py.Panda) -> None:
+    panda = reset_panda
     with panda.create_context(frequency=200, max_iter=20) as ctx:
         n = 0
         while ctx.ok():
