@@ -39,13 +39,17 @@ def panda(sim: Simulator) -> Iterator[panda_py.Panda]:
 
 
 @pytest.fixture(scope="module")
-def shared_panda() -> Iterator[panda_py.Panda]:
+def shared_sim() -> Iterator[Simulator]:
+    """The lockstep simulator of the module's Panda (``shared_panda``)."""
+    with Simulator(free_loopback_host(), lockstep=True) as s:
+        yield s
+
+
+@pytest.fixture(scope="module")
+def shared_panda(shared_sim: Simulator) -> Iterator[panda_py.Panda]:
     """One lockstep simulator and Panda for a whole module, for tests that leave no trace
     on them (refused input): starting both takes about 2.5 s a test."""
-    with (
-        Simulator(free_loopback_host(), lockstep=True) as s,
-        panda_py.Panda(s.host) as p,
-    ):
+    with panda_py.Panda(shared_sim.host) as p:
         yield p
 
 

@@ -113,7 +113,8 @@ def test_every_controller_checks_its_arguments(factory, bad) -> None:
         bad(ctrl)
 
 
-def test_reflex_during_a_move(panda: panda_py.Panda, sim: Simulator) -> None:
+def test_reflex_during_a_move(reset_panda: panda_py.Panda, shared_sim: Simulator) -> None:
+    panda, sim = reset_panda, shared_sim
     panda.move_to_start()
     target = constants.JOINT_POSITION_START + np.array([0.4, 0, 0, 0, 0, 0, 0])
 
