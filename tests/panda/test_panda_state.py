@@ -85,8 +85,13 @@ def test_logging_keeps_the_newest_states(reset_panda: panda_py.Panda) -> None:
     assert log["O_T_EE"][0].shape == (16,) and log["elbow"][0].shape == (2,)
     assert panda.get_log()["time"][-1] == log["time"][-1]  # nothing logged after disable
     panda.enable_logging(10)
-    time.sleep(0.1)
-    assert len(panda.get_log()["q"]) == 10
+    t0 = panda.get_state().time.to_msec()
+    deadline = time.monotonic() + 10
+    while panda.get_state().time.to_msec() < t0 + 30 and time.monotonic() < deadline:
+        time.sleep(1e-3)  # until 30 ms of the robot's time passed (not 0.1 s of ours)
+    log = panda.get_log()
+    assert len(log["q"]) == 10
+    assert log["time"][0][0] > t0  # the newest ten: the first ones logged were dropped
 
 
 def test_context_counts_and_stops(reset_panda: panda_py.Panda) -> None:
