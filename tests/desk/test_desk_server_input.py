@@ -13,7 +13,7 @@ import time
 from typing import Any
 
 import pytest
-from desk_support import HEADER_TIMEOUT
+from desk_support import HEADER_TIMEOUT, desk_sim
 
 from panda_py.desk import Desk, encode_password
 from panda_py.sim import Simulator
@@ -158,6 +158,20 @@ def test_a_client_sending_no_request_head_is_closed(fr3: Simulator) -> None:
     assert slow.recv(4096) == b""  # closed by the robot
     assert time.monotonic() - t0 < 2 * HEADER_TIMEOUT + 1.0
     slow.close()
+
+
+def test_a_connection_a_client_holds_does_not_keep_a_stopped_desk_alive(tmp_path: Any) -> None:
+    """A client that never closes its connection (nor answers the TLS close): the Desk
+    still ends with the simulator's stop (it waited 10 s, then was left running)."""
+    with desk_sim("fer", tmp_path / "cert") as sim:
+        assert sim.desk is not None
+        process = sim.desk._process
+        raw = socket.create_connection((sim.host, sim.desk.port), timeout=30)
+        held = _context().wrap_socket(raw)
+    try:
+        assert process.exitcode is not None, "the Desk's process outlived the stop"
+    finally:
+        held.close()
 
 
 def test_the_client_never_shows_the_password_or_token(

@@ -3,6 +3,7 @@ to the FCI, forced takes, token reuse, certificate pinning."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
@@ -187,9 +188,13 @@ def test_a_changed_certificate_is_refused_then_repinned(tmp_path: Path, tokens: 
         assert sim2.desk is not None
         presented = sim2.desk.fingerprint
         assert presented != pinned
+        fds = len(os.listdir("/proc/self/fd"))
         with pytest.raises(CertificateChangedError) as info:
             desk(sim2, tokens)
         assert pinned in str(info.value) and presented in str(info.value)
+        # the refused connection is closed, not held open by the error (the Desk's stop
+        # then waited 10 s for it, and left its process running)
+        assert len(os.listdir("/proc/self/fd")) == fds
         again = desk(sim2, tokens, repin=True)
         assert again.has_control() and again.token != first
         assert desk(sim2, tokens).has_control()  # pinned anew: accepted from now on

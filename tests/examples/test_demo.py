@@ -172,10 +172,19 @@ def test_demo_bad_host_says_so() -> None:
     assert "no robot answers at 127.0.0.1" in done.stderr
 
 
+def _ctrl_c_as_in_a_terminal() -> None:
+    """In the demo's process before Python starts: Ctrl-C's default action. A suite run as
+    a shell's background job (``pytest &``, nohup) ignores SIGINT, its children inherit
+    that, and Python then installs no KeyboardInterrupt handler: the demo ran to its end
+    and exited 0."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_demo_ctrl_c_leaves_no_process(tmp_path: Path) -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "panda_py.demo", "--figure", str(tmp_path / "f.png")],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
+        preexec_fn=_ctrl_c_as_in_a_terminal,
     )  # fmt: skip
     try:
         assert proc.stdout is not None

@@ -69,8 +69,14 @@ def test_the_blocks_run_and_do_what_they_say(tmp_path: Path, monkeypatch) -> Non
             exec(blocks[1], ns)  # logging
             y = np.array(ns["log"]["O_T_EE"])[:, 13]
             assert y[0] == pytest.approx(0.25, abs=5e-3) and y[-1] == pytest.approx(-0.25, abs=5e-3)
-            exec(blocks[2], ns)  # Cartesian impedance
+            # Cartesian impedance, for a quarter of the 4 pi s (wall clock) it gives itself:
+            # every line runs the same; the other three periods of its sine held this test
+            # 9.4 s and assert nothing more (tests/panda/test_paper.py judges the sine)
+            impedance = blocks[2].replace("max_runtime=np.pi * 4", "max_runtime=np.pi")
+            assert impedance != blocks[2]
+            exec(impedance, ns)
             assert ns["ctx"].num_ticks > 1000
+            assert ns["ctrl"].get_time() > 1.0  # [s] the controller ran on the robot's clock
         finally:
             if "panda" in ns:
                 ns["panda"].close()

@@ -15,6 +15,14 @@ from panda_py.rt.process import ControlProcessError
 
 pytestmark = pytest.mark.timeout(300)
 
+
+@pytest.fixture
+def panda(reset_panda: panda_py.Panda) -> panda_py.Panda:
+    """The module's Panda, reset before each test (conftest.reset_panda): no test here
+    needs a fresh process or simulator, and starting them took about 2 s a test."""
+    return reset_panda
+
+
 OFFSET = np.array([0.3, 0.2, -0.2, 0.2, 0.3, 0.3, 0.5])  # [rad] a move of about 1 s
 
 

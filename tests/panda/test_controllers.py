@@ -15,6 +15,13 @@ from panda_py import constants, controllers
 pytestmark = pytest.mark.timeout(120)
 
 
+@pytest.fixture
+def panda(reset_panda: panda_py.Panda) -> panda_py.Panda:
+    """The module's Panda, reset before each test (conftest.reset_panda): no test here
+    needs a fresh process or simulator, and starting them took about 2 s a test."""
+    return reset_panda
+
+
 def _run_for(panda: panda_py.Panda, ctrl: controllers.TorqueController, seconds: float) -> None:
     """Wait until the controller has run ``seconds`` of robot time."""
     deadline = time.monotonic() + 60.0

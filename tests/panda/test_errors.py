@@ -113,7 +113,8 @@ def test_every_controller_checks_its_arguments(factory, bad) -> None:
         bad(ctrl)
 
 
-def test_reflex_during_a_move(panda: panda_py.Panda, sim: Simulator) -> None:
+def test_reflex_during_a_move(reset_panda: panda_py.Panda, shared_sim: Simulator) -> None:
+    panda, sim = reset_panda, shared_sim
     panda.move_to_start()
     target = constants.JOINT_POSITION_START + np.array([0.4, 0, 0, 0, 0, 0, 0])
 
@@ -177,7 +178,8 @@ def test_the_robot_proxy_binds_arguments_as_robot_does() -> None:
         assert list(ours) == list(theirs), name
 
 
-def test_named_filter_frequencies_reach_the_robot(panda: panda_py.Panda) -> None:
+def test_named_filter_frequencies_reach_the_robot(reset_panda: panda_py.Panda) -> None:
+    panda = reset_panda
     robot = panda.get_robot()  # a FER on protocol 5, which has SetFilters
     robot.set_filters(
         joint_position_filter_frequency=100.0, joint_velocity_filter_frequency=100.0,

@@ -15,6 +15,14 @@ from panda_py.robots.params import START_POSE, get_robot
 
 pytestmark = pytest.mark.timeout(300)
 
+
+@pytest.fixture
+def panda(reset_panda: panda_py.Panda) -> panda_py.Panda:
+    """The module's Panda, reset before each test (conftest.reset_panda): no test here
+    needs a fresh process or simulator, and starting them took about 2 s a test."""
+    return reset_panda
+
+
 FER = get_robot("fer")
 ABOVE_TABLE = (0.45, 0.25, 0.04)  # [m] the TCP 4 cm above the table, away from the cube
 

@@ -14,6 +14,13 @@ from panda_py.sim import Simulator
 pytestmark = pytest.mark.timeout(180)
 
 
+@pytest.fixture
+def panda(reset_panda: panda_py.Panda) -> panda_py.Panda:
+    """The module's Panda, reset before each test (conftest.reset_panda): no test here
+    needs a fresh process or simulator, and starting them took about 2 s a test."""
+    return reset_panda
+
+
 def _xy_deviation_from_line(log: dict) -> float:
     """Largest distance [m] of the logged end-effector path from the line between its
     ends."""

@@ -22,6 +22,14 @@ from panda_py.robots.params import get_robot
 
 pytestmark = pytest.mark.timeout(300)
 
+
+@pytest.fixture
+def panda(reset_panda: panda_py.Panda) -> panda_py.Panda:
+    """The module's Panda, reset before each test (conftest.reset_panda): no test here
+    needs a fresh process or simulator, and starting them took about 2 s a test."""
+    return reset_panda
+
+
 FER = get_robot("fer")  # the simulator's default robot
 PERIOD_MS = 50  # 20 Hz
 SPEED_FACTOR = 0.2

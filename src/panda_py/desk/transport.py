@@ -127,14 +127,16 @@ class HTTPSTransport:
             raw = socket.create_connection((self.host, self.port), timeout=timeout)
         except OSError as exc:
             raise DeskConnectionError(f"cannot reach the Desk at {self.hostname}: {exc}") from exc
+        sock: ssl.SSLSocket | None = None
         try:
             sock = self._context.wrap_socket(raw, server_hostname=self.host)
             self._check_pin(sock)
-        except ssl.SSLError as exc:
-            raw.close()
-            raise DeskConnectionError(f"TLS with the Desk at {self.hostname}: {exc}") from exc
-        except BaseException:
-            raw.close()
+        except BaseException as exc:
+            # once wrapped, the TLS socket holds the connection (raw is detached): closing
+            # only raw left a refused Desk's connection open for as long as the error lived
+            (raw if sock is None else sock).close()
+            if isinstance(exc, ssl.SSLError):
+                raise DeskConnectionError(f"TLS with the Desk at {self.hostname}: {exc}") from exc
             raise
         return sock
 

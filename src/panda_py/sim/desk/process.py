@@ -27,6 +27,7 @@ DEFAULT_USER = "franka"
 DEFAULT_PASSWORD = "franka123"
 """The simulated Desk's documented default password (``panda-sim --desk-password``)."""
 DESK_NICE = 5  # the Desk yields the CPU to the simulator's loop
+STOP_GRACE = 1  # [s] a stopping Desk waits this long for open connections (whole seconds)
 
 
 class DeskStartError(RuntimeError):
@@ -160,6 +161,9 @@ def desk_main(
             ws="websockets-sansio",
             ws_max_size=64 * 1024,
             timeout_keep_alive=5,
+            # a client that holds a connection (one it never closes, or a TLS close it never
+            # answers) must not keep a stopping Desk alive: stop waited 10 s, then left it
+            timeout_graceful_shutdown=STOP_GRACE,
             limit_concurrency=64,
         )
     )
