@@ -162,6 +162,20 @@ class Bad(controllers.TorqueController):
         return np.full(7, np.nan)
 
 
+def test_a_started_controller_or_move_shows_as_moving_at_once(panda: panda_py.Panda) -> None:
+    # from the moment start_controller (or an asynchronous move) returns, not only once the
+    # robot has accepted the motion a millisecond or two later: a loop of
+    # `while panda.is_moving()` after it must not end before it began
+    for _ in range(5):
+        panda.start_controller(controllers.AppliedTorque())
+        assert panda.is_moving()
+        panda.stop_controller()
+        assert not panda.is_moving()
+    handle = panda.move_to_joint_position(panda.q + 0.05, asynchronous=True)
+    assert panda.is_moving()
+    assert handle.wait(30.0)
+
+
 @pytest.mark.parametrize(
     ("ctrl", "error"), [(Broken(), ZeroDivisionError), (Bad(), panda_py.libfranka.ControlException)]
 )

@@ -271,8 +271,9 @@ class Panda:
         self._proc.call(rq.Recover())
 
     def is_moving(self) -> bool:
-        """True while a controller or a move runs."""
-        return bool(self._proc.block.header[HEADER.RUNNING])
+        """True while a controller or a move runs: from the return of
+        ``start_controller`` or ``move_to_*(..., asynchronous=True)`` until it ended."""
+        return bool(self._proc.block.header[HEADER.RUNNING]) or self._moving()
 
     def set_default_behavior(self) -> None:
         """Recover, then set panda-py's default collision thresholds and impedances."""

@@ -302,8 +302,15 @@ class ControlServer:
         ctrl.t = ctrl.dt = 0.0
         ctrl.start(self._fresh_state(), self.model)
         values = ctrl.open_slot(self.block)
-        self.pending = (ctrl, None)
+        self._schedule(ctrl, None)
         return values
+
+    def _schedule(self, law: ControlLaw, move_rid: int | None) -> None:
+        """Run ``law`` once this request is answered: it shows as running from now on, so
+        whoever sees the answer and asks ``is_moving()`` sees it running (or, once it
+        ended, finds its error posted first)."""
+        self.pending = (law, move_rid)
+        self.block.header[HEADER.RUNNING] = 1
 
     def _move(self, request: rq.Move, fds: list[int], running: bool) -> Any:
         law = tracker_for(request.plan)
@@ -320,7 +327,7 @@ class ControlServer:
                 self._answer_replaced(self.replacement[0], self.replacement[1], None)
             self.replacement = (law, self._current_rid)
         else:
-            self.pending = (law, self._current_rid)
+            self._schedule(law, self._current_rid)
         return DEFERRED
 
     def _cancel(self, request: rq.Cancel, fds: list[int], running: bool) -> Any:
@@ -473,8 +480,9 @@ class ControlServer:
         if error is not None and move_rid is None:
             self.event(rq.LoopError(error))
         # the error is posted before the loop shows as stopped: whoever sees is_moving()
-        # turn False finds it in raise_error()
-        header[HEADER.RUNNING] = 0
+        # turn False finds it in raise_error() (a replacement that starts next runs on)
+        if self.pending is None:
+            header[HEADER.RUNNING] = 0
         if move_rid is not None and isinstance(law, Tracker):
             self._finish_move(law, move_rid, error)
         for rid in self.stop_waiters:
