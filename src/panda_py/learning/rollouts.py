@@ -39,6 +39,9 @@ __all__ = ["EpisodeResult", "RolloutWorkers", "run_rollouts"]
 
 START_TIMEOUT = 120.0  # [s] for every actor to be placed and to have made its environment
 CLOSE_TIMEOUT = 10.0  # [s] for the actors to close their environments before being killed
+# episodes queued at each worker: the next is there when one ends, so a worker does not
+# wait for the driver's round trip (milliseconds on a loaded machine) between episodes
+QUEUED = 2
 ROBOT_RESOURCE = "robot:{host}"  # the Ray resource of the node next to the robot at host
 
 
@@ -226,8 +229,9 @@ class RolloutWorkers:
                     actor = self._actors[worker]
                     pending[actor.episode.remote(shipped, index, seed + index)] = worker
 
-            for worker in range(min(self.n_workers, episodes)):
-                hand_out(worker)
+            for _ in range(QUEUED):
+                for worker in range(self.n_workers):
+                    hand_out(worker)
             while pending:
                 (ref,), _ = ray.wait(list(pending), num_returns=1)
                 worker = pending.pop(ref)
