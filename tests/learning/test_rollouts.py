@@ -2,13 +2,16 @@
 whatever the number of workers (and the same as in this process); bad input is refused
 before Ray is touched; the workers' processes are gone after closing, after an error
 too; with ``hosts`` a worker drives the robot (here ``panda-sim``) on the node that has
-its resource. One local Ray instance (2 CPUs) is shared by the module."""
+its resource; the README's block runs. One local Ray instance (2 CPUs) is shared by the
+module."""
 
 from __future__ import annotations
 
 import os
+import re
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import gymnasium
 import numpy as np
@@ -112,6 +115,8 @@ def test_results_arrive_as_they_finish_and_the_workers_are_reused(cluster: None)
         (lambda: RolloutWorkers("PandaReach-v0", n_workers=1.5), "n_workers"),  # type: ignore[arg-type]
         (lambda: RolloutWorkers("CartPole-v1"), "env_id"),
         (lambda: RolloutWorkers("PandaReach-v0", hosts=[]), "hosts"),
+        (lambda: RolloutWorkers("PandaReach-v0", hosts=["a", "a"]), "hosts"),
+        (lambda: RolloutWorkers("PandaReach-v0", env_kwargs=[("reward", "dense")]), "env_kwargs"),  # type: ignore[arg-type]
         (lambda: RolloutWorkers("PandaPickAndPlace-v0", hosts=["172.16.0.2"]), "env_id"),
         (lambda: RolloutWorkers("PandaReach-v0", env_kwargs={"backend": "fast"}), "env_kwargs"),
         (lambda: run_rollouts("PandaReach-v0", reach_policy, episodes=0), "episodes"),
@@ -165,3 +170,13 @@ def test_a_worker_drives_the_robot_at_its_host(cluster: None, robot_host: str) -
     assert all(r.success for r in results)  # measured: both
     assert [r.seed for r in results] == [0, 1]
     assert_gone(pids)  # and with it its control process (which exits with its parent)
+
+
+def test_the_readme_block_runs_and_says_what_it_did(
+    cluster: None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    readme = Path(__file__).resolve().parents[2] / "README.md"
+    section = readme.read_text().split("**Rollouts beyond one machine**")[1]
+    (block,) = re.findall(r"```python\n(.*?)```", section.split("\n## ")[0], flags=re.S)
+    exec(block, {})
+    assert capsys.readouterr().out == "8 of 8 reached their goal\n"  # measured: all

@@ -8,10 +8,10 @@ policy it is sent. By default the environment runs on the fast world
 it. With ``hosts=[...]`` actor ``k`` drives a :class:`~panda_py.learning.arm.RobotArm` on
 ``hosts[k]`` (a robot's FCI address or a ``panda-sim``): its control process, and so the
 1 kHz loop, runs on the actor's node. On a lab cluster, start each robot PC's Ray node
-with the resource ``robot:<host>``, e.g.
-``ray start --address=HEAD:6379 --resources='{"robot:172.16.0.2": 1}'``, and that robot's
-actor is placed there; without the resource the actor goes wherever Ray has a free CPU
-(see ``docs/learning-cluster.md``).
+with the resource ``robot:<host>`` and no CPUs, e.g. ``ray start --address=HEAD:6379
+--num-cpus=0 --resources='{"robot:172.16.0.2": 1}'``: that robot's actor is placed there
+(asking for no CPU) and no other actor is; without the resource the actor goes wherever
+Ray has a free CPU (see ``docs/learning-cluster.md``).
 
 Ray: with a cluster the caller joined (``ray.init(address=...)``) the actors run on it;
 otherwise :class:`RolloutWorkers` starts a local Ray instance (``ray.init()``: Ray's
@@ -132,8 +132,8 @@ def _env_class(entry: str) -> Any:
 class RolloutWorkers:
     """``n_workers`` Ray actors, each with its own ``env_id`` environment (made with
     ``env_kwargs``): on the fast world, or with ``hosts`` one actor per robot or
-    ``panda-sim`` (``n_workers`` is then ``len(hosts)``). Started here, ready to
-    :meth:`run`; a context manager: :meth:`close` ends the actors (and the Ray instance
+    ``panda-sim`` (then ``len(hosts)`` actors: ``n_workers`` is not used). Started here,
+    ready to :meth:`run`; a context manager: :meth:`close` ends the actors (and the Ray instance
     started here, if any). Bad input raises ``ValueError`` before any actor starts."""
 
     def __init__(
@@ -149,6 +149,8 @@ class RolloutWorkers:
         if hosts is not None:
             if not hosts or not all(isinstance(h, str) and h for h in hosts):
                 raise ValueError(f"hosts: expected a non-empty list of host names, got {hosts!r}")
+            if len(set(hosts)) < len(hosts):
+                raise ValueError(f"hosts: expected distinct hosts (a worker each), got {hosts!r}")
             if _env_class(ENVIRONMENTS[env_id][0]).uses_cube:
                 raise ValueError(
                     "env_id: expected a task without the cube on hosts (PandaReach-v0: "
@@ -157,6 +159,8 @@ class RolloutWorkers:
             n_workers = len(hosts)
         if isinstance(n_workers, bool) or not isinstance(n_workers, int) or n_workers < 1:
             raise ValueError(f"n_workers: expected an integer >= 1, got {n_workers!r}")
+        if env_kwargs is not None and not isinstance(env_kwargs, dict):
+            raise ValueError(f"env_kwargs: expected a dict of options, got {env_kwargs!r}")
         kwargs = dict(env_kwargs or {})
         if "backend" in kwargs:
             raise ValueError(
@@ -177,7 +181,9 @@ class RolloutWorkers:
                 options: dict[str, Any] = {}
                 place = ROBOT_RESOURCE.format(host=host)
                 if host is not None and place in resources:
-                    options["resources"] = {place: 1}
+                    # the robot PC's node: no CPU asked, so that a robot PC started with
+                    # --num-cpus=0 gets its robot's worker and no fast-world workers
+                    options.update(resources={place: 1}, num_cpus=0)
                 self._actors.append(remote.options(**options).remote(k, env_id, host, kwargs))
             ready = [actor.ready.remote() for actor in self._actors]
             done, _ = ray.wait(ready, num_returns=len(ready), timeout=START_TIMEOUT)
