@@ -2,13 +2,15 @@
 whatever the number of workers (and the same as in this process); bad input is refused
 before Ray is touched; the workers' processes are gone after closing, after an error
 too; with ``hosts`` a worker drives the robot (here ``panda-sim``) on the node that has
-its resource; the README's block runs. One local Ray instance (2 CPUs) is shared by the
-module."""
+its resource; without a cluster a local Ray is started and shut down; the README's block
+runs. One local Ray instance (2 CPUs) is shared by the module."""
 
 from __future__ import annotations
 
 import os
 import re
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -99,9 +101,15 @@ def test_results_arrive_as_they_finish_and_the_workers_are_reused(cluster: None)
     with RolloutWorkers("PandaReach-v0", n_workers=2) as workers:
         first = list(workers.run(reach_policy, 4, seed=0))
         again = list(workers.run(reach_policy, 4, seed=0))
+        for _ in workers.run(reach_policy, 20, seed=0):
+            break  # the rest is dropped: the workers go on with the next run
+        after = list(workers.run(reach_policy, 4, seed=0))
         pids = workers.pids
         assert all(alive(pid) for pid in pids)
     assert sorted(outcome(r) for r in first) == sorted(outcome(r) for r in again)
+    assert sorted((r.index, outcome(r)) for r in after) == sorted(
+        (r.index, outcome(r)) for r in first
+    )
     assert sorted(r.index for r in first) == [0, 1, 2, 3]
     assert_gone(pids)
     with pytest.raises(RuntimeError, match="closed"):
@@ -180,3 +188,27 @@ def test_the_readme_block_runs_and_says_what_it_did(
     (block,) = re.findall(r"```python\n(.*?)```", section.split("\n## ")[0], flags=re.S)
     exec(block, {})
     assert capsys.readouterr().out == "8 of 8 reached their goal\n"  # measured: all
+
+
+OWN_RAY = """
+import ray
+from panda_py.learning import RolloutWorkers, reach_policy
+
+with RolloutWorkers("PandaReach-v0", n_workers=1) as workers:
+    print("started", ray.is_initialized(), len(list(workers.run(reach_policy, 2))))
+print("after", ray.is_initialized(), workers.pids[0])
+"""
+
+
+def test_without_a_cluster_a_local_ray_is_started_and_shut_down() -> None:
+    # in a process of its own: this module's shared instance would be used otherwise
+    src = str(Path(rollouts.__file__).resolve().parents[2])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
+    env.pop("RAY_ADDRESS", None)
+    done = subprocess.run([sys.executable, "-c", OWN_RAY], env=env, capture_output=True,
+                          text=True, timeout=100)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == "started True 2"
+    assert lines[1].startswith("after False ")
+    assert_gone([int(lines[1].split()[2])])

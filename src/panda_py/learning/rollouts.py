@@ -214,7 +214,8 @@ class RolloutWorkers:
         an object holding its weights), episode ``i`` seeded ``seed + i``; yield each
         result as it finishes (in any order). An error in an episode closes all workers
         and is raised as the worker raised it (Ray's error, with the worker's traceback,
-        as its cause)."""
+        as its cause); leaving the loop early drops the episodes not yet gathered and
+        keeps the workers."""
         _check_run(policy, episodes, seed)
         if not self._actors:
             raise RuntimeError("these rollout workers are closed")
@@ -252,6 +253,12 @@ class RolloutWorkers:
                     raise cause from exc
                 hand_out(worker)  # the next episode before the caller sees this one
                 yield result
+        except GeneratorExit:
+            # the caller left the loop early: the workers stay, and finish the episodes
+            # queued at them (at most QUEUED each; their results are dropped). Not
+            # ray.cancel: a cancelled task of an actor left the actor waiting for it in
+            # its order of tasks (here, 30 s, then the actor was unavailable; Ray 2.58)
+            raise
         except BaseException:
             self.close()
             raise
