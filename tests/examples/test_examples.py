@@ -236,3 +236,16 @@ def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
     assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
     assert "recorded 2 episodes" in out and "180x320 frames to episodes.hdf5" in out
     assert (tmp_path / "episodes.hdf5").is_file()
+
+
+@needs("ray", "gymnasium")
+def test_20_ray_rollouts_on_two_workers_succeed(tmp_path: Path) -> None:
+    out = run_example("20", cwd=tmp_path)
+    assert "2 workers ready" in out
+    # every episode ran once, seeded by its index, on one of the two workers
+    episodes = re.findall(r"episode (\d+) \(seed (\d+)\) on worker (\d+)", out)
+    assert sorted(int(i) for i, _, _ in episodes) == list(range(8))
+    assert all(i == s for i, s, _ in episodes)
+    assert {w for _, _, w in episodes} == {"0", "1"}
+    assert number(r"succeeded (\d+)% of 8 episodes", out) == 100  # measured: all
+    assert number(r"throughput: ([\d.]+) episodes/s", out) > 0

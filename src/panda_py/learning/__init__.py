@@ -4,7 +4,8 @@ in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
 :mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
 (DROID's action contract, chunked actions at a policy rate,
 :mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`) and recording
-episodes (:mod:`~panda_py.learning.recording`).
+episodes (:mod:`~panda_py.learning.recording`); rollouts on many processes and machines
+with Ray (:mod:`~panda_py.learning.rollouts`).
 
     import gymnasium
     import panda_py.learning  # registers the environments
@@ -13,9 +14,10 @@ episodes (:mod:`~panda_py.learning.recording`).
     env = gymnasium.make("PandaPickAndPlace-v0", backend=RobotArm(sim.host, scene=sim))
 
 Importing this package is cheap: its modules load on first use of one of the names below
-(PEP 562). The environments need gymnasium and recording needs h5py: the ``learning``
-extra (``pip install "panda-py-pure[learning]"``); without gymnasium, the environments'
-names raise an ImportError saying so and no id is registered.
+(PEP 562). The environments need gymnasium, recording needs h5py and the rollouts need
+Ray: the ``learning`` extra (``pip install "panda-py-pure[learning]"``); without
+gymnasium, the environments' names raise an ImportError saying so and no id is
+registered.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ if TYPE_CHECKING:
     from panda_py.learning.policies import pick_and_place_policy, reach_policy
     from panda_py.learning.policy_runner import PolicyRunner, RunStats
     from panda_py.learning.recording import EpisodeWriter, read_recording
+    from panda_py.learning.rollouts import EpisodeResult, RolloutWorkers, run_rollouts
     from panda_py.learning.tasks import PandaPickAndPlaceEnv, PandaReachEnv
     from panda_py.learning.world import FastWorld
 
@@ -42,6 +45,7 @@ _LAZY: dict[str, str] = {
     "ActionSpace": "panda_py.learning.deploy",
     "Backend": "panda_py.learning.backend",
     "DroidActions": "panda_py.learning.deploy",
+    "EpisodeResult": "panda_py.learning.rollouts",
     "EpisodeWriter": "panda_py.learning.recording",
     "FastWorld": "panda_py.learning.world",
     "PandaEnv": "panda_py.learning.env",
@@ -50,12 +54,14 @@ _LAZY: dict[str, str] = {
     "PolicyRunner": "panda_py.learning.policy_runner",
     "Reward": "panda_py.learning.env",
     "RobotArm": "panda_py.learning.arm",
+    "RolloutWorkers": "panda_py.learning.rollouts",
     "RunStats": "panda_py.learning.policy_runner",
     "Scene": "panda_py.learning.arm",
     "Snapshot": "panda_py.learning.backend",
     "pick_and_place_policy": "panda_py.learning.policies",
     "reach_policy": "panda_py.learning.policies",
     "read_recording": "panda_py.learning.recording",
+    "run_rollouts": "panda_py.learning.rollouts",
 }
 
 __all__ = [
@@ -64,6 +70,7 @@ __all__ = [
     "ActionSpace",
     "Backend",
     "DroidActions",
+    "EpisodeResult",
     "EpisodeWriter",
     "FastWorld",
     "PandaEnv",
@@ -72,12 +79,14 @@ __all__ = [
     "PolicyRunner",
     "Reward",
     "RobotArm",
+    "RolloutWorkers",
     "RunStats",
     "Scene",
     "Snapshot",
     "pick_and_place_policy",
     "reach_policy",
     "read_recording",
+    "run_rollouts",
 ]
 
 #: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
