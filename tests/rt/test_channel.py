@@ -69,3 +69,14 @@ def test_an_out_of_band_message_without_its_data_is_refused(pair) -> None:  # ty
     sender.sock.sendall(ch._LEN.pack(len(payload) | ch._OOB_FLAG) + payload)
     with pytest.raises(ChannelClosed, match="without its data"):
         receiver.recv()
+
+
+def test_without_memfd_a_temporary_file_carries_the_arrays(pair, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # macOS has no memfd_create: an unlinked temporary file does the same
+    sender, receiver = pair
+    monkeypatch.delattr(os, "memfd_create")
+    q = np.arange(20_000.0).reshape(-1, 4)
+    sender.send({"q": q})
+    msg, fds = receiver.recv()
+    np.testing.assert_array_equal(msg["q"], q)
+    assert fds == []

@@ -21,6 +21,7 @@ import pickle
 import select
 import socket
 import struct
+import tempfile
 from typing import Any
 
 __all__ = ["Channel", "ChannelClosed"]
@@ -141,8 +142,13 @@ class Channel:
 
 
 def _write_memfd(views: list[memoryview]) -> int:
-    """A new anonymous memory file holding ``views`` one after another (its descriptor)."""
-    fd = os.memfd_create("panda-py-message", os.MFD_CLOEXEC)
+    """A new anonymous memory file holding ``views`` one after another (its descriptor);
+    where the system has no ``memfd_create`` (macOS), an unlinked temporary file."""
+    if hasattr(os, "memfd_create"):
+        fd = os.memfd_create("panda-py-message", os.MFD_CLOEXEC)
+    else:
+        with tempfile.TemporaryFile() as f:  # unlinked at once; our descriptor keeps it
+            fd = os.dup(f.fileno())
     try:
         for data in views:  # (raw(): flat byte views)
             while data:
