@@ -15,7 +15,6 @@ simulated time; a realtime one never waits.
 
 from __future__ import annotations
 
-import os
 import threading
 from typing import Any
 
@@ -23,7 +22,7 @@ import numpy as np
 
 from panda_py.sim.config import SimConfig
 from panda_py.sim.drawing import DrawingProcess, child_setup, parent_alive
-from panda_py.sim.frames import FrameFeed, FrameReader, build_model, hold, set_camera
+from panda_py.sim.frames import FrameFeed, FrameReader, build_model, hold, offscreen
 
 # [px] the largest image: MuJoCo's default offscreen buffer (the model's <visual><global
 # offwidth offheight>), which the generated model keeps
@@ -87,22 +86,13 @@ class Camera(DrawingProcess):
 
 def _camera_main(feed: FrameFeed, conn: Any, config: SimConfig, width: int, height: int) -> None:
     child_setup()
-    os.environ.setdefault("MUJOCO_GL", "egl")
     try:
-        import mujoco
-
-        model = build_model(config)
-        renderer = mujoco.Renderer(model, height, width)
-    except Exception as exc:  # no GL here: the parent reports it
-        why = " ".join(f"MUJOCO_GL={os.environ['MUJOCO_GL']}: {exc}".split())
-        fix = "install EGL (Debian: libegl1 libegl-mesa0) or OSMesa (libosmesa6, MUJOCO_GL=osmesa)"
-        conn.send(("error", f"camera: offscreen rendering failed ({why}): {fix}"))
+        model, renderer, cam = offscreen(config, width, height, "camera")
+    except RuntimeError as exc:  # no GL here: the parent reports it
+        conn.send(("error", str(exc)))
         return
-    # Shadows and reflections triple the cost of a frame with software OpenGL.
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-    cam = mujoco.MjvCamera()
-    set_camera(cam)
+    import mujoco
+
     data = mujoco.MjData(model)
     data.qpos[:7] = config.q_start  # the world before its first tick
     mujoco.mj_forward(model, data)

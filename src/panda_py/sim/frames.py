@@ -67,6 +67,30 @@ def set_camera(cam: Any) -> None:
     cam.elevation = -20.0  # [deg]
 
 
+def offscreen(config: SimConfig, width: int, height: int, what: str) -> tuple[Any, Any, Any]:
+    """In a drawing process: ``(model, renderer, camera)`` to draw ``config``'s world
+    offscreen at ``width`` x ``height`` (EGL unless ``MUJOCO_GL`` says otherwise; shadows and
+    reflections off, which triple a frame's cost with software OpenGL), or raise
+    RuntimeError naming ``what`` failed and the fix."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco's import reads it
+    try:
+        import mujoco
+
+        model = build_model(config)
+        renderer = mujoco.Renderer(model, height, width)
+    except Exception as exc:  # no GL here
+        why = " ".join(f"MUJOCO_GL={os.environ['MUJOCO_GL']}: {exc}".split())
+        fix = "install EGL (Debian: libegl1 libegl-mesa0) or OSMesa (libosmesa6, MUJOCO_GL=osmesa)"
+        raise RuntimeError(f"{what}: offscreen rendering failed ({why}): {fix}") from exc
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
+    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
+    cam = mujoco.MjvCamera()
+    set_camera(cam)
+    return model, renderer, cam
+
+
 @dataclass
 class FrameFeed:
     """One drawing process's ring: ``fps`` frames per simulated second; ``latest`` (the

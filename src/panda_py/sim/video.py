@@ -22,7 +22,7 @@ import numpy as np
 
 from panda_py.sim.config import SimConfig
 from panda_py.sim.drawing import DrawingProcess, child_setup, parent_alive
-from panda_py.sim.frames import FrameFeed, FrameReader, build_model, set_camera
+from panda_py.sim.frames import FrameFeed, FrameReader, build_model, offscreen
 
 WIDTH, HEIGHT = 640, 480  # [px] MuJoCo's default offscreen buffer
 DEFAULT_FPS = 30.0  # frames per simulated second
@@ -62,17 +62,13 @@ def _recorder_main(feed: FrameFeed, conn: Any, config: SimConfig, path: str) -> 
     child_setup()
     ending = []  # SIGTERM (e.g. multiprocessing ending its daemons): finish the file now
     signal.signal(signal.SIGTERM, lambda *_: ending.append(True))
-    os.environ.setdefault("MUJOCO_GL", "egl")
     try:
-        import mujoco
-
-        model = build_model(config)
-        renderer = mujoco.Renderer(model, HEIGHT, WIDTH)
-    except Exception as exc:  # no GL here: the parent reports it
-        why = " ".join(f"MUJOCO_GL={os.environ['MUJOCO_GL']}: {exc}".split())
-        fix = "install EGL (Debian: libegl1 libegl-mesa0) or OSMesa (libosmesa6, MUJOCO_GL=osmesa)"
-        conn.send(("error", f"record: offscreen rendering failed ({why}): {fix}"))
+        model, renderer, cam = offscreen(config, WIDTH, HEIGHT, "record")
+    except RuntimeError as exc:  # no GL here: the parent reports it
+        conn.send(("error", str(exc)))
         return
+    import mujoco
+
     try:
         import imageio_ffmpeg
 
@@ -85,11 +81,6 @@ def _recorder_main(feed: FrameFeed, conn: Any, config: SimConfig, path: str) -> 
         conn.send(("error", f"record: cannot start the encoder for {path!r}: {exc} "
                             f"({INSTALL_HINT})"))  # fmt: skip
         return
-    # Shadows and reflections triple the cost of a frame with software OpenGL.
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-    renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-    cam = mujoco.MjvCamera()
-    set_camera(cam)
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     renderer.update_scene(data, cam)
