@@ -38,4 +38,6 @@ def test_state_prints_as_panda_pythons() -> None:
     ours, theirs = _untimed(ours), _untimed(theirs)
     assert re.sub(number, "N", ours) == re.sub(number, "N", theirs)
     values = [np.array(re.findall(number, text), dtype=float) for text in (ours, theirs)]
-    np.testing.assert_allclose(values[0], values[1], rtol=1e-5, atol=1e-5)
+    # two reads of the idle arm, moments apart: its torque derivative dtau_J wanders by
+    # ~1e-5 Nm/s between them (seen 1.07e-5 once on a loaded machine)
+    np.testing.assert_allclose(values[0], values[1], rtol=1e-5, atol=1e-4)
