@@ -45,6 +45,30 @@ def test_the_kernel_equals_the_numpy_law() -> None:
         np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.parametrize("alpha", [0.0, 0.03, 0.5, 1.0])
+def test_the_compiled_input_filter_equals_ema_and_slerp(alpha: float) -> None:
+    kernels = laws.compiled()
+    assert kernels is not None
+    rng = np.random.default_rng(int(alpha * 100))
+    for case in range(100):
+        K, K_t, Kd, Kd_t = (rng.normal(size=(6, 6)) for _ in range(4))
+        p, p_t, q_n, q_n_t = rng.normal(size=3), rng.normal(size=3), *rng.normal(size=(2, 7))
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        if case % 3 == 0:  # nearly the same orientation (the linear branch), either sign
+            quat_t = (quat + rng.normal(size=4) * 1e-11) * rng.choice([-1.0, 1.0])
+        else:
+            quat_t = rng.normal(size=4)
+        quat_t /= np.linalg.norm(quat_t)
+        want = [K.copy(), Kd.copy(), p.copy(), q_n.copy()]
+        for w, t in zip(want, (K_t, Kd_t, p_t, q_n_t), strict=True):
+            laws.ema(w, t, alpha)
+        want_quat = laws.slerp(quat, quat_t, alpha)
+        kernels.pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t)
+        for got, w in zip((K, Kd, p, q_n, quat), (*want, want_quat), strict=True):
+            np.testing.assert_allclose(got, w, rtol=1e-12, atol=1e-12)
+
+
 class _Model:
     def ee_jacobian(self, state):  # type: ignore[no-untyped-def]
         return KIN.zero_jacobian(state.q)

@@ -450,17 +450,22 @@ class CartesianImpedance(TorqueController):
 
     def step(self, state: Any, model: Any) -> FloatArray:
         a = self._scalar("filter_coeff")
-        laws.ema(self._K, self._K_t, a)
         # the damping's target depends on the inputs only: redone when they changed
-        laws.ema(self._Kd, self._damping_target() if self.inputs_changed else self._Kd_target, a)
-        laws.ema(self._p, self._p_t, a)
-        laws.ema(self._qn, self._qn_t, a)
+        Kd_t = self._damping_target() if self.inputs_changed else self._Kd_target
+        kernels = laws.compiled()
+        if kernels is not None:  # the same filter, compiled, in place
+            kernels.pose_filter(a, self._K, self._K_t, self._Kd, Kd_t, self._p, self._p_t,
+                                self._qn, self._qn_t, self._quat, self._quat_t)  # fmt: skip
+        else:
+            laws.ema(self._K, self._K_t, a)
+            laws.ema(self._Kd, Kd_t, a)
+            laws.ema(self._p, self._p_t, a)
+            laws.ema(self._qn, self._qn_t, a)
+            self._quat = laws.slerp(self._quat, self._quat_t, a)
         self._kn += a * (self._scalar("nullspace_stiffness") - self._kn)
-        self._quat = laws.slerp(self._quat, self._quat_t, a)
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
         kn = self._kn
-        kernels = laws.compiled()
         if kernels is not None:  # the same law, compiled
             tau = np.empty(7)
             kernels.cartesian_impedance_torque(

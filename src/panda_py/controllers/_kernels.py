@@ -19,6 +19,7 @@ __all__ = [
     "finalize_torques",
     "impedance_torque",
     "pose_feedforward",
+    "pose_filter",
 ]
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
@@ -61,8 +62,14 @@ def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
 def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
     definite): the damped pseudo-inverse of J^T."""
-    A = J @ J.T
+    A = np.empty((6, 6))  # J J^T + lambda^2 I (loops: numba's @ calls BLAS, dearer here)
     for i in range(6):
+        for j in range(i + 1):
+            s = 0.0
+            for c in range(J.shape[1]):
+                s += J[i, c] * J[j, c]
+            A[i, j] = s
+            A[j, i] = s
         A[i, i] += PINV_DAMPING * PINV_DAMPING
     L = np.zeros((6, 6))
     for i in range(6):
@@ -114,11 +121,18 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
     err[2] = O_T_EE[14] - p_d[2]
     for r in range(3):
         err[3 + r] = -(R[r, 0] * ex + R[r, 1] * ey + R[r, 2] * ez)
-    v = J @ dq
+    v = np.empty(6)
     for k in range(6):
-        v[k] -= v_d[k]
-    F = -(K @ err) - (D @ v)
-    task = J.T @ F
+        acc = -v_d[k]
+        for c in range(7):
+            acc += J[k, c] * dq[c]
+        v[k] = acc
+    F = np.empty(6)
+    for k in range(6):
+        acc = 0.0
+        for c in range(6):
+            acc -= K[k, c] * err[c] + D[k, c] * v[c]
+        F[k] = acc
     P = np.empty((6, 7))
     _damped_pinv_T(J, P)
     for i in range(7):
@@ -128,9 +142,17 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
     u = np.empty(7)
     for i in range(7):
         u[i] = k_n * (q_n[i] - q[i]) - s * dq[i]
-    JPu = J.T @ (P @ u)  # (J^T pinv(J^T)) u
-    for i in range(7):
-        tau[i] = task[i] + u[i] - JPu[i]
+    Pu = np.empty(6)
+    for k in range(6):
+        acc = 0.0
+        for c in range(7):
+            acc += P[k, c] * u[c]
+        Pu[k] = acc
+    for i in range(7):  # J^T F + u - (J^T pinv(J^T)) u
+        acc = u[i]
+        for k in range(6):
+            acc += J[k, i] * (F[k] - Pu[k])
+        tau[i] = acc
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -221,10 +243,58 @@ def pose_feedforward(J, J_prev, dq, dt, a_d, v_d, J_pinv, M, coulomb, friction_s
                 d += (J[r, c] - J_prev[r, c]) * dq[c]
             s -= d / dt
         a[r] = s
-    ddq = J_pinv @ a
-    dq_d = J_pinv @ v_d
+    ddq = np.empty(7)
+    dq_d = np.empty(7)
+    for i in range(7):
+        s1 = 0.0
+        s2 = 0.0
+        for k in range(6):
+            s1 += J_pinv[i, k] * a[k]
+            s2 += J_pinv[i, k] * v_d[k]
+        ddq[i] = s1
+        dq_d[i] = s2
     for i in range(7):
         f = 0.0
         for c in range(7):
             f += M[i, c] * ddq[c]
         tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
+    f = filtered.reshape(-1)
+    t = target.reshape(-1)
+    if alpha >= 1.0:
+        for i in range(f.size):
+            f[i] = t[i]
+    else:
+        for i in range(f.size):
+            f[i] += alpha * (t[i] - f[i])
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # type: ignore[no-untyped-def,unused-ignore]
+    """``CartesianImpedance``'s input filter in place (the reference: laws.ema on the
+    stiffness, damping, position and nullspace pose, laws.slerp on the orientation)."""
+    _ema(K, K_t, alpha)
+    _ema(Kd, Kd_t, alpha)
+    _ema(p, p_t, alpha)
+    _ema(q_n, q_n_t, alpha)
+    x0, y0, z0, w0 = quat[0], quat[1], quat[2], quat[3]
+    x1, y1, z1, w1 = quat_t[0], quat_t[1], quat_t[2], quat_t[3]
+    if alpha >= 1.0:
+        o0, o1, o2, o3 = x1, y1, z1, w1
+    else:
+        d = x0 * x1 + y0 * y1 + z0 * z1 + w0 * w1
+        if d < 0.0:
+            x1, y1, z1, w1, d = -x1, -y1, -z1, -w1, -d
+        if d > 1.0 - 1e-9:
+            a0, a1 = 1.0 - alpha, alpha
+        else:
+            theta = math.acos(d)
+            st = math.sin(theta)
+            a0, a1 = math.sin((1.0 - alpha) * theta) / st, math.sin(alpha * theta) / st
+        o0, o1 = a0 * x0 + a1 * x1, a0 * y0 + a1 * y1
+        o2, o3 = a0 * z0 + a1 * z1, a0 * w0 + a1 * w1
+    n = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
+    quat[0], quat[1], quat[2], quat[3] = o0 / n, o1 / n, o2 / n, o3 / n

@@ -75,8 +75,10 @@ def warmup() -> None:
         z7, K = np.zeros(7), np.eye(6)
         T = np.eye(4).reshape(16)
         z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        with progress.work("panda_py: compiling the control laws, once after installing", 4) as w:
+        with progress.work("panda_py: compiling the control laws, once after installing", 5) as w:
             k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
+            w.advance()
+            k.pose_filter(0.5, K, K, K, K, z3, z3, z7, z7, quat.copy(), quat)
             w.advance()
             # move_to_pose's tracker (controllers.moves.PoseMove)
             k.impedance_torque(T, J, z7, z7, z3, quat, np.zeros(6), K, K, z7, 1.0, np.empty(7),
