@@ -86,6 +86,26 @@ def test_robot_state_reads_every_field_from_the_bytes(version):
     assert s.q[0] == rec["q"][0]
 
 
+@pytest.mark.parametrize("version", VERSIONS)
+def test_a_tick_state_reads_every_array_field_as_the_robot_state_does(version):
+    from panda_py.libfranka.state import TickState
+
+    rng = np.random.default_rng(200 + version)
+    d = fci.dialect(version)
+    data = d.encode_state(_random_state(d, rng))
+    plain, tick = lf.RobotState(d, data), TickState(d, data)
+    names = list(_wire.layout(d).arrays)
+    assert len(_wire.layout(d).bulk_slices) >= len(names) - 2  # all but the error bits
+    for name in reversed(names):  # any order: the first read decodes the run
+        value = getattr(tick, name, None)
+        if value is None or not isinstance(value, np.ndarray):
+            continue  # (errors read as Errors)
+        want = getattr(plain, name)
+        assert value.dtype == np.float64 and value.shape == want.shape, name
+        np.testing.assert_array_equal(value, want)
+        assert not value.flags.writeable and getattr(tick, name) is value, name
+
+
 def test_a_command_array_handed_out_is_read_again():
     d = fci.dialect(10)
     data = d.encode_state(d.new_state())

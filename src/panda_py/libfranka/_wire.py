@@ -5,9 +5,11 @@ A control tick should touch as little code as possible: between two ticks the pr
 sleeps and its caches go cold, and then every NumPy entry point (``frombuffer``, a record
 field lookup, a slice assignment, ``tobytes``) costs 5-15 us instead of well under one. So
 the per-tick path reads the fields it needs straight out of the received ``bytes`` with
-pre-compiled :class:`struct.Struct` s and packs the command into one pre-allocated
-``bytearray`` that is sent as is. Offsets and formats come from the dialect's NumPy dtypes
-(:mod:`panda_py.fci` stays the single source of the layouts).
+pre-compiled :class:`struct.Struct` s, or (a control loop's ``TickState``) decodes the run
+of float fields once (:meth:`Layout.decode_bulk`, a view where they are float64) and
+slices it, and packs the command into one pre-allocated ``bytearray`` that is sent as is.
+Offsets and formats come from the dialect's NumPy dtypes (:mod:`panda_py.fci` stays the
+single source of the layouts).
 """
 
 from __future__ import annotations
@@ -88,6 +90,7 @@ class Layout:
             else:
                 shape = sub.shape if len(sub.shape) > 1 else None
                 self.arrays[name] = (block.struct_.unpack_from, offset, shape)
+        self._find_bulk()
         # state: (message_id, motion_generator_mode, controller_mode, robot_mode)
         self.header = _block(
             sd, ("message_id", "motion_generator_mode", "controller_mode", "robot_mode")
@@ -109,7 +112,41 @@ class Layout:
         self.c_elbow = _block(cd, ("elbow_c", "valid_elbow"))  # 2 values and a bool
         self.c_tau = _block(cd, ("tau_J_d",))
 
+    def _find_bulk(self) -> None:
+        """The run of array fields after the header that share one float dtype and follow
+        each other without a gap: decoded by a tick in one call (:meth:`decode_bulk`),
+        each field then a slice of it (``bulk_slices``: name -> start, stop, shape)."""
+        self.bulk: tuple[int, int, np.dtype[Any]] | None = None
+        self.bulk_slices: dict[str, tuple[int, int, tuple[int, ...] | None]] = {}
+        start = end = -1
+        dtype: np.dtype[Any] | None = None
+        for name, f in sorted(self.fields.items(), key=lambda item: item[1].offset):
+            if dtype is None:
+                if f.dtype.kind != "f":
+                    continue  # the header
+                dtype, start, end = f.dtype, f.offset, f.offset
+            if f.dtype != dtype or f.offset != end:
+                break  # the run ends at a field of another type, or a gap
+            if name in self.arrays:  # (floats between the arrays, e.g. m_ee, run on)
+                first = (end - start) // dtype.itemsize
+                self.bulk_slices[name] = (first, first + f.count, self.arrays[name][2])
+            end = f.offset + f.count * dtype.itemsize
+        if dtype is not None:
+            self.bulk = (start, (end - start) // dtype.itemsize, dtype)
 
+    def decode_bulk(self, data: bytes) -> Any:
+        """The bulk run of ``data`` as one read-only float64 array (a view of ``data``
+        where it is float64 already, else one converted copy)."""
+        assert self.bulk is not None
+        offset, count, dtype = self.bulk
+        out = np.frombuffer(data, dtype, count, offset)
+        if dtype != _F64:
+            out = out.astype(_F64)
+            out.flags.writeable = False
+        return out
+
+
+_F64 = np.dtype("<f8")
 _LAYOUTS: dict[int, Layout] = {}
 
 

@@ -370,16 +370,27 @@ class TickState(RobotState):
     read-only array (a law, the walls and the model read ``q`` five times a tick). Copy an
     array to keep it past the tick or to change it."""
 
-    __slots__ = ("_cache",)
+    __slots__ = ("_bulk", "_cache")
 
     def __init__(self, dialect: Dialect, data: bytes | np.void | np.ndarray) -> None:
         super().__init__(dialect, data)
         self._cache: dict[str, FloatArray] = {}
+        self._bulk: FloatArray | None = None
 
     def _field(self, name: str) -> FloatArray:
         out = self._cache.get(name)
         if out is None:
-            out = super()._field(name)
-            out.flags.writeable = False
+            # the state's array fields decoded in one call at the first read, each field
+            # a slice of that (one NumPy call a field instead of an unpack and an array)
+            where = self._layout.bulk_slices.get(name)
+            if where is not None:
+                bulk = self._bulk
+                if bulk is None:
+                    bulk = self._bulk = self._layout.decode_bulk(self._data)
+                start, stop, shape = where
+                out = bulk[start:stop] if shape is None else bulk[start:stop].reshape(shape)
+            else:
+                out = super()._field(name)
+                out.flags.writeable = False
             self._cache[name] = out
         return out
