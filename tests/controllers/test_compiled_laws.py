@@ -107,8 +107,11 @@ def test_cartesian_impedance_step_is_the_same_either_way(compiled: bool, monkeyp
         np.testing.assert_allclose(tau, ref_ctrl.step(s, _Model()), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.parametrize("gain", [1.0, 0.47])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_the_compiled_finalize_equals_walls_saturation_and_limits_in_numpy(seed: int) -> None:
+def test_the_compiled_finalize_equals_walls_saturation_and_limits_in_numpy(
+    seed: int, gain: float
+) -> None:
     """Over a run that starts inside a wall zone, crosses zones and saturates, the one
     compiled call gives what the reference (walls, then rate saturation, then limits)
     gives, tick by tick, with the walls' state evolving the same."""
@@ -124,11 +127,28 @@ def test_the_compiled_finalize_equals_walls_saturation_and_limits_in_numpy(seed:
         dq = rng.normal(scale=0.5, size=7)
         q = np.clip(q + 0.01 * dq, -2.05, 2.05)
         tau = rng.normal(scale=20.0, size=7)
-        assert fast.finalize(tau, q, dq, tau_J_d, tau_max, out)
+        assert fast.finalize(tau, q, dq, tau_J_d, tau_max, out, gain)
         walls = np.array(ref.torques(q, dq))
         expected = laws.clip_torques(laws.saturate_torque_rate(tau + walls, tau_J_d), tau_max)
+        expected = tau_J_d + gain * (expected - tau_J_d)  # libfranka's low-pass
         np.testing.assert_allclose(out, expected, rtol=1e-12, atol=1e-12)
         tau_J_d = out.copy()
+
+
+def test_finalize_filters_alike_compiled_or_not(monkeypatch) -> None:
+    rng = np.random.default_rng(7)  # (joints far from the walls: no wall torque)
+    q, dq, tau_J_d = rng.uniform(-1, 1, 7), rng.normal(size=7), rng.uniform(-5, 5, 7)
+    tau = tau_J_d + rng.uniform(-0.9, 0.9, 7)  # within a tick's rate bound
+    tau_max, compiled, plain = np.full(7, 87.0), np.empty(7), np.empty(7)
+    assert laws.JointWalls(np.full(7, -9.0), np.full(7, 9.0)).finalize(
+        tau, q, dq, tau_J_d, tau_max, compiled, 0.3
+    )
+    monkeypatch.setattr(laws, "_KERNELS", None)
+    assert laws.JointWalls(np.full(7, -9.0), np.full(7, 9.0)).finalize(
+        tau, q, dq, tau_J_d, tau_max, plain, 0.3
+    )
+    np.testing.assert_allclose(compiled, plain, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(compiled, tau_J_d + 0.3 * (tau - tau_J_d), rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -163,14 +163,15 @@ def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, t
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max, out):  # type: ignore[no-untyped-def,unused-ignore]
+def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max, gain, out):  # type: ignore[no-untyped-def,unused-ignore]
     """What the loop does to every law's torques, in one call: panda-py's joint walls
     (``laws.JointWalls.torques``, the reference: ``walls`` holds per joint lower, upper,
     PD width, D width, PD stiffness, PD damping, D damping; ``scale`` and ``flags``, the
     walls' state, are updated in place: flags[i] = 1 while joint i moves in a shrunken
     zone, flags[7] = 1 once initialised), the torque-rate saturation around ``tau_J_d``
-    (``dtau_max`` per tick) and the torque limits. Writes ``out``; False if a torque, the
-    law's or the result, is not finite."""
+    (``dtau_max`` per tick), the torque limits and libfranka's low-pass filter from
+    ``tau_J_d`` with ``gain`` (1: none). Writes ``out``; False if a torque, the law's or
+    the result, is not finite."""
     init = flags[7] != 0
     finite = True
     for i in range(7):
@@ -221,6 +222,8 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
             v = m
         elif v < -m:
             v = -m
+        if gain != 1.0:
+            v = tau_J_d[i] + gain * (v - tau_J_d[i])
         out[i] = v
         if not math.isfinite(v):
             finite = False

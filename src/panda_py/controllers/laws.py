@@ -202,22 +202,25 @@ class JointWalls:
         self._flags[:] = 0
 
     def finalize(self, tau: FloatArray, q: FloatArray, dq: FloatArray, tau_J_d: FloatArray,
-                 tau_max: FloatArray, out: FloatArray) -> bool:  # fmt: skip
+                 tau_max: FloatArray, out: FloatArray, gain: float = 1.0) -> bool:  # fmt: skip
         """What the loop does to a law's torques ``tau`` (7,): add the walls, saturate
-        the rate of change around the last command ``tau_J_d``, clip to ``tau_max``;
-        into ``out``. False if a torque (the law's or the result) is not finite. One
-        compiled call where numba is installed (the walls' state is kept apart for either
-        path: use one per loop)."""
+        the rate of change around the last command ``tau_J_d``, clip to ``tau_max``, then
+        libfranka's first-order low-pass toward the result from ``tau_J_d`` with ``gain``
+        (``limits.lowpass_filter``'s; 1: no filter); into ``out``. False if a torque (the
+        law's or the result) is not finite. One compiled call where numba is installed
+        (the walls' state is kept apart for either path: use one per loop)."""
         kernels = compiled()
         if kernels is not None:
             return bool(
                 kernels.finalize_torques(
                     tau, q, dq, tau_J_d, self._table, self._kernel_scale, self._flags,
-                    DTAU_MAX_PER_TICK, tau_max, out,
+                    DTAU_MAX_PER_TICK, tau_max, gain, out,
                 )
             )  # fmt: skip
         walls = self.torques(q, dq)
         out[:] = clip_torques(saturate_torque_rate(tau + walls, tau_J_d), tau_max)
+        if gain != 1.0:
+            out[:] = tau_J_d + gain * (out - tau_J_d)
         return bool(np.isfinite(tau).all() and np.isfinite(out).all())
 
     def _motion(self, i: int, q: float, dq: float) -> int:

@@ -24,10 +24,9 @@ from panda_py.controllers import CartesianTarget, JointTarget, TorqueController,
 from panda_py.controllers.model import ControlModel
 from panda_py.fci import ERROR_NAMES, MoveControllerMode, MoveMotionGeneratorMode, RobotMode
 from panda_py.learning.backend import Backend, Snapshot
-from panda_py.libfranka.limits import lowpass_filter
 from panda_py.libfranka.state import TickState
 from panda_py.robots.params import FRANKA_HAND, START_POSE, get_robot, robot_for_protocol
-from panda_py.rt.child import CUTOFF_FREQUENCY
+from panda_py.rt.child import FILTER_GAIN
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import Command, RobotCore
@@ -35,9 +34,6 @@ from panda_py.sim.wire import StateWire
 
 __all__ = ["FastWorld"]
 
-# The control process runs its controllers through libfranka's low-pass filter at its
-# cut-off (as panda-py); the filter's gain at 1 kHz (its step from 0 toward 1):
-_GAIN = float(lowpass_filter(DT, 1.0, 0.0, CUTOFF_FREQUENCY))
 # A Move's maximum deviations, as libfranka sends them for a torque loop (any positive)
 _DEVIATIONS = np.array([10.0, 3.12, 2.0 * math.pi])
 _START_POSITION = np.array([0.31, 0.0, 0.48])  # [m] by the start pose's TCP (warm-up only)
@@ -142,14 +138,16 @@ class FastWorld(Backend):
             ctrl.tick(DT)
             tau = np.ascontiguousarray(ctrl.step(state, self.model), dtype=np.float64)
             out = self._tau
-            if not self._walls.finalize(tau, state.q, state.dq, state.tau_J_d, self._tau_max, out):
+            # walls, saturations and the low-pass filter, as the control process does
+            if not self._walls.finalize(
+                tau, state.q, state.dq, state.tau_J_d, self._tau_max, out, FILTER_GAIN
+            ):
                 self._fail = f"the controller commanded non-finite torques: {tau.tolist()}"
                 self.stop()
             else:
-                last = state.tau_J_d
                 command = self._command
                 command.message_id = self.ticks
-                command.tau_J_d[:] = last + _GAIN * (out - last)
+                command.tau_J_d[:] = out
                 ctrl.published()
         self.hand.tick()
         core.finger_force = self.hand.force

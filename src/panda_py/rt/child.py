@@ -46,7 +46,9 @@ from panda_py.libfranka import (
     RobotMode,
     RobotState,
     Torques,
+    lowpass_filter,
 )
+from panda_py.libfranka.limits import MAX_CUTOFF_FREQUENCY
 from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
@@ -60,13 +62,17 @@ __all__ = ["ControlServer", "limits_spec_for_version", "main"]
 
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
-# libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz).
-# Its rate limiter stays off: the loop's own saturation (laws.DTAU_MAX_PER_TICK, 1 Nm a
-# tick around tau_J_d) is libfranka's torque-rate bound (1000 Nm/s), applied before the
-# filter, which only shrinks the step further; the limiter could never bind, so running
-# it (as panda-py does) would only cost time. tests/rt/test_loop_limits.py holds this.
+# libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz),
+# applied by the loop's compiled finalize (laws.JointWalls.finalize, the same formula
+# after the same checks) rather than by libfranka's Python command path, so libfranka is
+# asked for no filter. Its rate limiter stays off: the loop's own saturation
+# (laws.DTAU_MAX_PER_TICK, 1 Nm a tick around tau_J_d) is libfranka's torque-rate bound
+# (1000 Nm/s), applied before the filter, which only shrinks the step further; the
+# limiter could never bind, so running it (as panda-py does) would only cost time.
+# tests/rt/test_loop_limits.py holds this.
 LIMIT_RATE = False
 CUTOFF_FREQUENCY = 100.0  # [Hz]
+FILTER_GAIN = float(lowpass_filter(PERIOD, 1.0, 0.0, CUTOFF_FREQUENCY))
 # what Panda.get_robot() may run on the robot (between ticks)
 ROBOT_METHODS = frozenset({
     "set_collision_behavior", "set_joint_impedance", "set_cartesian_impedance",
@@ -401,7 +407,9 @@ class ControlServer:
         if values.shape != (7,):
             raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
         out = self._tau
-        if not self.walls.finalize(values, state.q, state.dq, state.tau_J_d, self.tau_max, out):
+        if not self.walls.finalize(
+            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
+        ):
             raise ControlException(
                 f"the controller commanded non-finite torques: {values.tolist()}"
             )
@@ -421,7 +429,7 @@ class ControlServer:
         active = None
         try:
             active = robot.start_torque_control(
-                limit_rate=LIMIT_RATE, cutoff_frequency=CUTOFF_FREQUENCY, state_type=TickState
+                limit_rate=LIMIT_RATE, cutoff_frequency=MAX_CUTOFF_FREQUENCY, state_type=TickState
             )
             while True:
                 state, dt = active.readOnce()
