@@ -1,6 +1,5 @@
 """The model the laws see (``ControlModel``): the feed-forward's inertia is the links' and
-the rotors', reused only while the arm stays within ``DRIVEN_MASS_REUSE`` of where it was
-computed and the load is unchanged."""
+the rotors', at each tick's state and load."""
 
 from __future__ import annotations
 
@@ -8,7 +7,7 @@ import numpy as np
 from test_law_steps import Q0, make_state
 
 from panda_py import dynamics, fci
-from panda_py.controllers.model import DRIVEN_MASS_REUSE, ControlModel
+from panda_py.controllers.model import ControlModel
 from panda_py.libfranka import RobotState
 
 
@@ -16,20 +15,17 @@ def _exact(model: ControlModel, q: np.ndarray) -> np.ndarray:
     return dynamics.LoadedArm(model.spec).mass_matrix(q) + np.diag(model.spec.drives.armature)
 
 
-def test_the_driven_inertia_is_reused_within_its_tolerance_and_recomputed_beyond() -> None:
+def test_the_driven_inertia_is_exact_at_each_state_and_computed_once_per_state() -> None:
     model = ControlModel("fer")
-    first = model.driven_mass_of(make_state(Q0))
+    state = make_state(Q0)
+    first = model.driven_mass_of(state)
     np.testing.assert_allclose(first, _exact(model, Q0), rtol=1e-12, atol=1e-12)
-    near = Q0 + 0.8 * DRIVEN_MASS_REUSE
-    again = model.driven_mass_of(make_state(near))
-    assert again is first  # reused: the same matrix, not recomputed
-    far = Q0 + np.array([0, 0, 0, 1.5 * DRIVEN_MASS_REUSE, 0, 0, 0])
-    moved = model.driven_mass_of(make_state(far))
+    assert model.driven_mass_of(state) is first  # the same tick: not recomputed
+    assert not first.flags.writeable  # shared within the tick: nobody may change it
+    near = Q0 + np.array([0, 0, 0, 1e-4, 0, 0, 0])  # the next tick, barely moved
+    moved = model.driven_mass_of(make_state(near))
     assert moved is not first
-    np.testing.assert_allclose(moved, _exact(model, far), rtol=1e-12, atol=1e-12)
-    # a reused matrix errs by what the tolerance allows, and no more (the comment's bound)
-    assert np.abs(again - _exact(model, near)).max() < 0.024
-    assert not moved.flags.writeable  # shared between ticks: nobody may change it
+    np.testing.assert_allclose(moved, _exact(model, near), rtol=1e-12, atol=1e-12)
 
 
 def test_a_new_load_recomputes_the_driven_inertia_at_once() -> None:

@@ -25,12 +25,6 @@ FloatArray = NDArray[np.float64]
 # A planned joint speed this fast gets most (76 %) of the drives' dry friction compensated
 # [rad/s] (tanh: smooth through zero, so a joint at rest is never pushed).
 FRICTION_SPEED = 0.01
-# The feed-forward's inertia is reused until a joint has moved this far [rad]: over it,
-# no entry of the FER's or FR3's mass matrix changes by more than 0.024 kg m^2 and its
-# norm by under 1 % of the driven inertia's (2000 random configurations, every joint
-# moved by it), so at a joint acceleration of 5 rad/s^2 the feed-forward errs by under
-# 0.12 Nm, less than a drive's dry friction.
-DRIVEN_MASS_REUSE = 0.005
 # the state fields that make the load the dynamics see (the end effector and the payload)
 LOAD_FIELDS = ("m_ee", "I_ee", "F_x_Cee", "m_load", "I_load", "F_x_Cload")
 
@@ -46,7 +40,7 @@ class ControlModel(Model):
         self._cor: tuple[Any, FloatArray] | None = None
         self._grav: tuple[Any, FloatArray] | None = None
         self._mass: tuple[Any, FloatArray] | None = None
-        self._driven: tuple[Any, FloatArray, FloatArray] | None = None  # (arm, q, M)
+        self._driven: tuple[Any, FloatArray] | None = None
         self._arm_key: bytes | None = None
         self._arm_state: Any = None
         self._arm_cached: dynamics.LoadedArm | None = None
@@ -111,22 +105,15 @@ class ControlModel(Model):
         (``robots.params.JointDrives``), which libfranka's model leaves out; a move's
         inertial feed-forward needs both.
 
-        For feed-forward only: the matrix is recomputed when a joint has moved more than
-        ``DRIVEN_MASS_REUSE`` since it was last computed (or the load changed), and
-        reused in between (read-only; a mass matrix costs more than the rest of a
-        tracking law's tick)."""
-        arm = self._arm(state)
-        q = state.q
+        Computed once per state (a mass matrix costs about 1.5 us compiled: as little as
+        a check whether an older one could be reused); read-only."""
         cached = self._driven
-        if (
-            cached is not None
-            and cached[0] is arm
-            and (np.abs(q - cached[1]).max() <= DRIVEN_MASS_REUSE)
-        ):
-            return cached[2]
-        M = arm.mass_matrix(q) + self._rotors
+        if cached is not None and cached[0] is state:
+            return cached[1]
+        M = self._arm(state).mass_matrix(state.q)
+        M += self._rotors
         M.flags.writeable = False
-        self._driven = (arm, q.copy(), M)
+        self._driven = (state, M)
         return M
 
     @property

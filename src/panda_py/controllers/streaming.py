@@ -308,9 +308,11 @@ class CartesianTarget(_Streamed):
         out[o + 7 : o + 13] = gen.twist
         x, y, z = p.tolist()
         px, py, pz = gen.position.tolist()
+        a, b, c, d = quat.tolist()
+        e, f, g, h = gen.orientation.tolist()
         out[o + 13] = math.sqrt((x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2)
-        out[o + 14] = 2.0 * math.acos(min(1.0, abs(float(quat @ gen.orientation))))
-        out[o + 15] = float(self._stale)
+        out[o + 14] = 2.0 * math.acos(min(1.0, abs(a * e + b * f + c * g + d * h)))
+        out[o + 15] = 1.0 if self._stale else 0.0
 
     def step(self, state: Any, model: Any) -> FloatArray:
         gen = self._gen

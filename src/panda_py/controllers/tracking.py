@@ -50,10 +50,10 @@ class PoseImpedance:
 
     def __init__(self, impedance: FloatArray, damping_ratio: float, q_nullspace: FloatArray,
                  nullspace_stiffness: float) -> None:  # fmt: skip
-        self.K = np.asarray(impedance, dtype=np.float64)
+        self.K = np.array(impedance, dtype=np.float64)
         w, v = np.linalg.eigh(self.K)
         self.D = 2.0 * damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
-        self.qn = np.asarray(q_nullspace, dtype=np.float64)
+        self.qn = np.array(q_nullspace, dtype=np.float64)  # its own: one kernel signature
         self.kn = float(nullspace_stiffness)
         self.err = np.empty(6)
         self.J_prev: FloatArray | None = None

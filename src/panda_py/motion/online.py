@@ -23,7 +23,9 @@ in frames aligned with where the motion must go (see there).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +47,26 @@ from panda_py.robots.params import RobotSpec
 __all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose"]
 
 FloatArray = NDArray[np.float64]
+_UNSET = object()
+_KERNELS: Any = _UNSET
+
+
+def _compiled() -> Any:
+    """:mod:`._online_jit` (OnlinePose's output compiled by numba), or None (numba
+    missing, or ``PANDA_PY_NO_JIT=1``): imported on first use."""
+    global _KERNELS
+    if _KERNELS is _UNSET:
+        _KERNELS = None
+        if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
+            try:
+                from panda_py.motion import _online_jit
+            except ImportError:
+                pass
+            else:
+                _KERNELS = _online_jit
+    return _KERNELS
+
+
 # below these a velocity [unit/s] or an acceleration [unit/s^2] is rest: ruckig 0.19 fails
 # to synchronize on velocities of 1e-14 (measurement noise of an arm at rest)
 _REST_VELOCITY = 1e-9
@@ -281,8 +303,8 @@ class OnlinePose:
         self._publish()
 
     def _anchor(self, quat: FloatArray) -> None:
-        self._q0 = quat
-        self._R0 = rotation.to_matrix(quat)
+        self._q0 = np.ascontiguousarray(quat, dtype=np.float64)
+        self._R0 = np.ascontiguousarray(rotation.to_matrix(quat), dtype=np.float64)
         self._R0_rows = self._R0.tolist()  # read per tick: plain floats are faster
 
     def _restart(
@@ -291,7 +313,8 @@ class OnlinePose:
     ) -> None:  # fmt: skip
         """Restart the generator from this state (translation in the base frame, rotation
         vector about the anchor) in the frames ``Ft``, ``Fr``."""
-        self._Ft, self._Fr = Ft, Fr
+        self._Ft = np.ascontiguousarray(Ft, dtype=np.float64)
+        self._Fr = np.ascontiguousarray(Fr, dtype=np.float64)
         self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
         self.gen.reset(
             np.concatenate([Ft.T @ p, Fr.T @ x]),
@@ -361,6 +384,16 @@ class OnlinePose:
         return done
 
     def _publish(self) -> None:
+        kernels = _compiled()
+        if kernels is None:
+            self._publish_python()
+        else:  # the same, compiled (about 1 us instead of 8-10)
+            g = self.gen
+            kernels.publish_pose(g.position, g.velocity, g.acceleration, self._Ft, self._Fr,
+                                 self._R0, self._q0, self.position, self.orientation,
+                                 self.twist, self.accel)  # fmt: skip
+
+    def _publish_python(self) -> None:
         # scalar arithmetic: numpy's per-call cost on 3-vectors would be most of a tick
         g = self.gen
         ct, cr = self._Ft_rows, self._Fr_rows

@@ -197,11 +197,15 @@ class ControlServer:
             c.AppliedTorque,
             c.AppliedForce,
             c.Force,
+            c.CartesianTarget,
+            c.JointTarget,
         ):
             ctrl = cls()
             ctrl.dt = PERIOD
             ctrl.start(state, self.model)
-            self._finalize(ctrl.step(state, self.model), state)
+            for _ in range(2):  # (the streamed targets' feed-forward starts on the second)
+                ctrl.tick(PERIOD)
+                self._finalize(ctrl.step(state, self.model), state)
         self.walls.reset()
         self.model.gravity_of(state)
         q = state.q
