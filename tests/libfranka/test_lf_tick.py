@@ -104,6 +104,10 @@ def test_a_tick_state_reads_every_array_field_as_the_robot_state_does(version):
         assert value.dtype == np.float64 and value.shape == want.shape, name
         np.testing.assert_array_equal(value, want)
         assert not value.flags.writeable and getattr(tick, name) is value, name
+    # raw_fields: neighbours read as one span, others joined, the same bytes either way
+    load = ("m_ee", "I_ee", "F_x_Cee", "m_load", "I_load", "F_x_Cload")
+    assert tick.raw_fields(load) == b"".join(tick.raw_fields((n,)) for n in load)
+    assert tick.raw_fields(("q", "m_ee")) == tick.raw_fields(("q",)) + tick.raw_fields(("m_ee",))
 
 
 def test_a_command_array_handed_out_is_read_again():

@@ -141,12 +141,20 @@ class RobotState:
                     f"names: expected a tuple of the state's field names (e.g. ('q', 'dq')), "
                     f"got {names!r}"
                 )
-            spans = tuple(
-                (fields[n].offset, fields[n].offset + fields[n].count * fields[n].dtype.itemsize)
-                for n in names
-            )
+            merged: list[tuple[int, int]] = []
+            for n in names:  # fields that follow each other become one span
+                a = fields[n].offset
+                b = a + fields[n].count * fields[n].dtype.itemsize
+                if merged and merged[-1][1] == a:
+                    merged[-1] = (merged[-1][0], b)
+                else:
+                    merged.append((a, b))
+            spans = tuple(merged)
             _SPANS[(self._layout.version, names)] = spans
         data = self._data
+        if len(spans) == 1:  # (the load's fields: one slice a tick)
+            a, b = spans[0]
+            return data[a:b]
         return b"".join([data[a:b] for a, b in spans])
 
     @property
