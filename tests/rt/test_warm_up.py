@@ -69,7 +69,13 @@ def _run(server: ControlServer, law: Any, ticks: int = 5) -> None:
 
 
 @pytest.mark.parametrize("version", [5, 10])
-def test_no_law_compiles_anything_after_the_warm_up(sim_for_version, version: int) -> None:
+def test_no_law_compiles_anything_after_the_warm_up(
+    sim_for_version, version: int, monkeypatch
+) -> None:
+    from panda_py.rt import child
+
+    # the test's own thread must keep its scheduling (pytest's processes inherit it)
+    monkeypatch.setattr(child, "set_current_thread_to_highest_priority", lambda: None)
     sim = sim_for_version(version)
     block, fd = SharedBlock.create()
     os.close(fd)
