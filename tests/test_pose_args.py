@@ -167,3 +167,28 @@ def test_the_compiled_and_the_numpy_rigid_tests_are_one() -> None:
         assert float(checks.rigid_errors(T)) == pytest.approx(
             _ik.rigid_error(*T.ravel().tolist()), rel=1e-9, abs=1e-15
         )
+
+
+def test_rigid_errors_of_a_few_matrices_equal_the_vectorised_ones() -> None:
+    """Up to 8 matrices are checked in scalars (a move's targets), more vectorised: the
+    same deviation either way, for rigid transforms, perturbed ones and non-rotations."""
+    from panda_py import checks
+    from panda_py.motion import rotation
+
+    rng = np.random.default_rng(11)
+    T = np.tile(np.eye(4), (20, 1, 1))
+    for i in range(20):
+        q = rng.normal(size=4)
+        T[i, :3, :3] = rotation.to_matrix(q / np.linalg.norm(q))
+        T[i, :3, 3] = rng.normal(size=3)
+    T[3] += rng.normal(scale=1e-3, size=(4, 4))  # off by a little everywhere
+    T[7, :3, :3] *= -1.0  # a reflection: det -1
+    T[12, 3, :] = [0.1, 0.0, 0.0, 0.9]  # a projective last row
+    batch = checks.rigid_errors(T)  # 20: vectorised
+    assert batch.shape == (20,)
+    singles = [float(checks.rigid_errors(T[i])) for i in range(20)]  # scalars
+    np.testing.assert_allclose(singles, batch, rtol=1e-12, atol=1e-15)
+    fours = np.concatenate([checks.rigid_errors(T[i : i + 4]) for i in range(0, 20, 4)])
+    np.testing.assert_allclose(fours, batch, rtol=1e-12, atol=1e-15)
+    assert batch[3] > checks.RIGID_TOL and batch[7] > 1.0 and batch[12] >= 0.1
+    assert max(batch[i] for i in range(20) if i not in (3, 7, 12)) < 1e-12

@@ -407,7 +407,12 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
         T[:3, :3] = to_matrix(quat)
         T[:3, 3] = p
         found = False
-        for q7 in (q_now[6], *np.linspace(spec.joints.q_min[6], spec.joints.q_max[6], 25)):
+        sweep: list[float] = []
+        for k in range(26):  # the current q7 first (usually enough), then a sweep
+            if k == 1:
+                j = spec.joints
+                sweep = np.linspace(j.q_min[6], j.q_max[6], 25).tolist()
+            q7 = q_now[6] if k == 0 else sweep[k - 1]
             sols = kin.ik_full(T, q_now, float(q7))
             if np.isfinite(sols).all(axis=1).any():
                 found = True

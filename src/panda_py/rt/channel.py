@@ -61,18 +61,18 @@ class Channel:
             pass
 
     def send(self, obj: Any, fds: tuple[int, ...] = ()) -> None:
-        buffers: list[pickle.PickleBuffer] = []
-        payload = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
+        # in band first: most messages are small, and one pickle is what they cost
+        payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
         memfd = -1
-        if buffers:
+        if len(payload) >= OUT_OF_BAND:  # large: its arrays, if they are, out of band
+            buffers: list[pickle.PickleBuffer] = []
+            oob = pickle.dumps(obj, protocol=5, buffer_callback=buffers.append)
             views = [b.raw() for b in buffers]
             if sum(v.nbytes for v in views) >= OUT_OF_BAND:
                 memfd = _write_memfd(views)
                 table = _COUNT.pack(len(views)) + b"".join(_SIZE.pack(v.nbytes) for v in views)
-                payload = table + payload
+                payload = table + oob
                 fds = (*fds, memfd)
-            else:  # small: in band after all
-                payload = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
         if len(payload) >= _OOB_FLAG:
             raise ValueError(f"control channel: message of {len(payload)} bytes is too large")
         data = _LEN.pack(len(payload) | (_OOB_FLAG if memfd >= 0 else 0)) + payload
