@@ -17,7 +17,7 @@ the next ``reset()`` recovers the robot. A bad action (outside the space, NaN) r
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -134,11 +134,13 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
             self.actions.low.astype(np.float32), self.actions.high.astype(np.float32),
             dtype=np.float32,
         )  # fmt: skip
-        self.observation_space = spaces.Dict({
+        # gymnasium 1.4 types Dict as a space of dicts of spaces; its samples are arrays
+        observations = spaces.Dict({
             "observation": _box(21 + self.task_size),
             "achieved_goal": _box(3),
             "desired_goal": _box(3),
         })  # fmt: skip
+        self.observation_space = cast("spaces.Space[dict[str, np.ndarray]]", observations)
         self.period = 1.0 / float(policy_rate)  # [s]
         self.policy_rate = float(policy_rate)
         self.speed_factor = float(speed_factor)
