@@ -9,10 +9,14 @@ import dataclasses
 import os
 import pickle
 import socket
+import threading
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
 
+from panda_py.controllers.moves import JointMove, tracker_for
 from panda_py.controllers.plans import JointPlan
 from panda_py.libfranka import InvalidOperationException
 from panda_py.motion.online import OnlineLimits
@@ -20,7 +24,7 @@ from panda_py.robots.params import get_robot
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel
 from panda_py.rt.child import ControlServer
-from panda_py.rt.shm import SharedBlock
+from panda_py.rt.shm import HEADER, SharedBlock
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -134,3 +138,53 @@ def test_peer_closed_sees_the_close_without_reading_or_waiting() -> None:
     user.close()
     assert loop.peer_closed()
     loop.close()
+
+
+@pytest.fixture
+def robot_socket():  # type: ignore[no-untyped-def]
+    """The robot's end and the loop's end of a datagram pair standing for the state socket."""
+    robot, loop = socket.socketpair(socket.AF_UNIX, socket.SOCK_DGRAM)
+    yield robot, loop
+    robot.close()
+    loop.close()
+
+
+def _running_move(srv: ControlServer) -> tuple[Any, Any]:
+    old = tracker_for(REQUESTS[2].plan)  # type: ignore[attr-defined]
+    srv.current = (old, 1)
+    return old, SimpleNamespace(q=np.zeros(7))  # the tick's state, as far as a result reads it
+
+
+def test_a_move_sent_between_ticks_takes_over_before_the_next_state(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    _, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))
+    srv.block.header[HEADER.REQUESTS] += 1  # the user's process counts after its send
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert rid == 2 and isinstance(law, JointMove) and law is not old
+    assert srv.current == (law, 2) and srv.replacement is None and srv.requests_taken == 1
+    reply, _ = user.recv()  # the replaced move is answered at once
+    assert reply.rid == 1 and reply.ok and "replaced by a new move" in reply.value.reason
+
+
+def test_a_queued_state_comes_before_a_request(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    robot, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))
+    srv.block.header[HEADER.REQUESTS] += 1
+    robot.send(b"state")
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert (law, rid) == (old, 1) and srv.requests_taken == 0  # taken after this tick
+
+
+def test_a_request_not_yet_counted_is_left_whole_for_a_later_tick(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    robot, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))  # sent, not yet counted: it may still be being written
+    threading.Timer(0.01, robot.send, (b"state",)).start()
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert (law, rid) == (old, 1) and srv.requests_taken == 0
+    assert loop.recv(16) == b"state"  # it returned for the state, having waited on it alone

@@ -62,6 +62,7 @@ __all__ = ["ControlServer", "limits_spec_for_version", "main"]
 
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
+STATE_WAIT = 0.05  # [s] longest wait between ticks before readOnce takes over the wait
 # libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz),
 # applied by the loop's compiled finalize (laws.JointWalls.finalize, the same formula
 # after the same checks) rather than by libfranka's Python command path, so libfranka is
@@ -419,6 +420,29 @@ class ControlServer:
             )
         return out.tolist()
 
+    def _await_state(
+        self, udp: int, requests: int, law: ControlLaw, move_rid: int | None, state: RobotState
+    ) -> tuple[ControlLaw, int | None]:
+        """Wait for the robot's next state, taking the requests that arrive meanwhile;
+        returns the law and move that run on. A move that replaces the running one is
+        unpacked and takes over here, from this tick's state and reference, as soon as it
+        arrives (it was noticed only once the next state had come: up to a period later).
+        A state already queued goes first. A request is whole once the user's process
+        counted it (it counts after its send): a channel readable before that is waited
+        out on the robot's socket alone."""
+        header = self.block.header
+        waits = [udp, requests]
+        while True:
+            readable = select.select(waits, [], [], STATE_WAIT)[0]
+            if not readable or udp in readable:
+                return law, move_rid  # the state, or silence: readOnce waits (and times out)
+            if header[HEADER.REQUESTS] > self.requests_taken:
+                self._receive(running=True)
+                if self.replacement is not None:
+                    law, move_rid = self._replace(law, move_rid, state)
+            else:  # being written (or the user's side closed: see PARENT_CHECK_TICKS)
+                waits = [udp]
+
     def _run(self, law: ControlLaw, move_rid: int | None) -> None:
         assert self.robot is not None and self.model is not None and self.walls is not None
         robot, model, block, chan = self.robot, self.model, self.block, self.chan
@@ -431,6 +455,7 @@ class ControlServer:
         self.current = (law, move_rid)
         ticks = 0
         active = None
+        udp, requests = robot.fileno(), chan.fileno()
         try:
             active = robot.start_torque_control(
                 limit_rate=LIMIT_RATE, cutoff_frequency=MAX_CUTOFF_FREQUENCY, state_type=TickState
@@ -460,13 +485,7 @@ class ControlServer:
                 law.published()
                 if finished:
                     break
-                # a request waits when the user's process counted more than were taken
-                # (one shared-memory read a tick, not a system call); it counts after
-                # its send, so the message is whole when the count says so
-                if header[HEADER.REQUESTS] > self.requests_taken:
-                    self._receive(running=True)
-                    if self.replacement is not None:
-                        law, move_rid = self._replace(law, move_rid, state)
+                law, move_rid = self._await_state(udp, requests, law, move_rid, state)
                 ticks += 1
                 if ticks % PARENT_CHECK_TICKS == 0 and (
                     self._parent_gone() or chan.peer_closed()  # the user's side is gone
