@@ -188,3 +188,19 @@ def test_a_request_not_yet_counted_is_left_whole_for_a_later_tick(server, robot_
     law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
     assert (law, rid) == (old, 1) and srv.requests_taken == 0
     assert loop.recv(16) == b"state"  # it returned for the state, having waited on it alone
+
+
+def test_a_hand_over_waits_for_the_next_gap_when_a_state_is_queued(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    robot, loop = robot_socket
+    old, state = _running_move(srv)
+    new = tracker_for(REQUESTS[2].plan)  # type: ignore[attr-defined]
+    srv.replacement = (new, 2)  # taken late in the last gap
+    robot.send(b"state")
+    assert srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state) == (old, 1)
+    assert srv.replacement == (new, 2)  # the queued state's tick runs the old move first
+    loop.recv(16)
+    assert srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state) == (new, 2)
+    assert srv.replacement is None
+    reply, _ = user.recv()
+    assert reply.rid == 1 and "replaced by a new move" in reply.value.reason

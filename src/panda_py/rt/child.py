@@ -427,19 +427,22 @@ class ControlServer:
         returns the law and move that run on. A move that replaces the running one is
         unpacked and takes over here, from this tick's state and reference, as soon as it
         arrives (it was noticed only once the next state had come: up to a period later).
-        A state already queued goes first. A request is whole once the user's process
-        counted it (it counts after its send): a channel readable before that is waited
-        out on the robot's socket alone."""
+        A state already queued goes first: a hand-over it would delay waits for the next
+        gap, on that tick's state (unpacking and handing over each take up to about half a
+        millisecond on cold caches, together more than a gap, and a late command is a
+        lost one). A request is whole once
+        the user's process counted it (it counts after its send): a channel readable
+        before that is waited out on the robot's socket alone."""
         header = self.block.header
         waits = [udp, requests]
         while True:
+            if self.replacement is not None and not select.select([udp], [], [], 0.0)[0]:
+                law, move_rid = self._replace(law, move_rid, state)
             readable = select.select(waits, [], [], STATE_WAIT)[0]
             if not readable or udp in readable:
                 return law, move_rid  # the state, or silence: readOnce waits (and times out)
             if header[HEADER.REQUESTS] > self.requests_taken:
                 self._receive(running=True)
-                if self.replacement is not None:
-                    law, move_rid = self._replace(law, move_rid, state)
             else:  # being written (or the user's side closed: see PARENT_CHECK_TICKS)
                 waits = [udp]
 
