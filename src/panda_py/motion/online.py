@@ -172,18 +172,29 @@ class OnlineGenerator:
             arr = np.asarray(value, dtype=np.float64)
             if arr.shape != (self.n,) or not np.isfinite(arr).all():
                 raise ValueError(f"{name}: expected {self.n} finite values, got {value!r}")
-        v = np.array(velocity, dtype=np.float64)
-        a = np.array(acceleration, dtype=np.float64)
-        v[np.abs(v) < _REST_VELOCITY] = 0.0
-        a[np.abs(a) < _REST_ACCELERATION] = 0.0
-        inp = self._inp
-        inp.current_position = list(map(float, position))
-        inp.current_velocity = v.tolist()
-        inp.current_acceleration = a.tolist()
-        self.position[:] = position
-        self.velocity[:] = v
-        self.acceleration[:] = a
+        self._start_from(
+            np.asarray(position, dtype=np.float64),
+            np.array(velocity, dtype=np.float64),
+            np.array(acceleration, dtype=np.float64),
+        )
         self.set_target(self.position)
+
+    def _start_from(
+        self, position: FloatArray, velocity: FloatArray, acceleration: FloatArray
+    ) -> None:
+        """:meth:`reset` for a caller whose state is this generator's own kind: float64
+        arrays of shape (n,), finite, ``velocity`` and ``acceleration`` its to modify; the
+        target is left for the caller to set (:class:`OnlinePose` restarts in new frames at
+        each target: the checks and the interim target were a fifth of its cost)."""
+        velocity[np.abs(velocity) < _REST_VELOCITY] = 0.0
+        acceleration[np.abs(acceleration) < _REST_ACCELERATION] = 0.0
+        inp = self._inp
+        inp.current_position = position.tolist()
+        inp.current_velocity = velocity.tolist()
+        inp.current_acceleration = acceleration.tolist()
+        self.position[:] = position
+        self.velocity[:] = velocity
+        self.acceleration[:] = acceleration
 
     def set_target(
         self,
@@ -298,7 +309,7 @@ class OnlinePose:
         ac = np.asarray(accel, dtype=np.float64)
         self._restart(
             np.asarray(position, dtype=np.float64), tw[:3], ac[:3],
-            np.zeros(3), R0t @ tw[3:], R0t @ ac[3:], np.eye(3), np.eye(3),
+            np.zeros(3), R0t @ tw[3:], R0t @ ac[3:], np.eye(3), np.eye(3), checked=True,
         )  # fmt: skip
         self._publish()
 
@@ -310,13 +321,17 @@ class OnlinePose:
     def _restart(
         self, p: FloatArray, v: FloatArray, a: FloatArray,
         x: FloatArray, xd: FloatArray, xdd: FloatArray, Ft: FloatArray, Fr: FloatArray,
+        checked: bool = False,
     ) -> None:  # fmt: skip
         """Restart the generator from this state (translation in the base frame, rotation
-        vector about the anchor) in the frames ``Ft``, ``Fr``."""
+        vector about the anchor) in the frames ``Ft``, ``Fr``; ``checked``: a state from
+        the caller (checked, and at rest on it as the target), else the generator's own
+        (the caller sets the target)."""
         self._Ft = np.ascontiguousarray(Ft, dtype=np.float64)
         self._Fr = np.ascontiguousarray(Fr, dtype=np.float64)
         self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
-        self.gen.reset(
+        start = self.gen.reset if checked else self.gen._start_from
+        start(
             np.concatenate([Ft.T @ p, Fr.T @ x]),
             np.concatenate([Ft.T @ v, Fr.T @ xd]),
             np.concatenate([Ft.T @ a, Fr.T @ xdd]),
