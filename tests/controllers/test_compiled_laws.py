@@ -223,3 +223,28 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     assert laws.compiled() is None  # the second run was the NumPy branch
     for a, b in zip(fast, slow, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+def test_the_compiled_joint_cap_equals_the_numpy_one(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from panda_py.controllers.moves import joint_capped
+    from panda_py.motion.online import _frame
+
+    assert laws.compiled() is not None
+    spec = get_robot("fr3")
+    rng = np.random.default_rng(7)
+    capped = 0
+    for _ in range(300):
+        q = rng.uniform(-2.0, 2.0, 7)
+        q[3] = rng.uniform(-2.8, -0.2)
+        J = KIN.zero_jacobian(q)
+        frames = (_frame(rng.normal(size=3), np.zeros(3)), _frame(rng.normal(size=3), np.zeros(3)))
+        limits = OnlineLimits.cartesian(spec, rng.uniform(0.05, 1.0))
+        fast = joint_capped(limits, J, spec, frames)
+        with monkeypatch.context() as m:
+            m.setattr(laws, "compiled", lambda: None)
+            slow = joint_capped(limits, J, spec, frames)
+        capped += fast is not limits
+        assert (fast is limits) == (slow is limits)
+        for name in ("velocity", "acceleration", "jerk"):
+            np.testing.assert_allclose(getattr(fast, name), getattr(slow, name), rtol=1e-9)
+    assert 0 < capped < 300  # both branches seen

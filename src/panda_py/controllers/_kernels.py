@@ -18,11 +18,42 @@ __all__ = [
     "cartesian_impedance_torque",
     "finalize_torques",
     "impedance_torque",
+    "joint_scales",
     "pose_feedforward",
     "pose_filter",
 ]
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: ignore[no-untyped-def,unused-ignore]
+    """``controllers.moves.joint_capped``'s factors with the generator's frames: the
+    largest scales (<= 1) of the Cartesian velocity (``vt``, ``vr``: the norms' limits of
+    the translation and the rotation) and acceleration (``at``, ``ar``) limits under which
+    ``J^+`` asks no joint for more than ``dq_max`` and ``ddq_max``; each frame's first axis
+    gets the whole limit, the two others ``lateral`` of it."""
+    P = np.empty((6, 7))
+    _damped_pinv_T(J, P)  # P[k, i] = J^+[i, k]
+    sv = 1.0
+    sa = 1.0
+    for i in range(7):
+        t = 0.0
+        r = 0.0
+        for c in range(3):
+            st = 0.0
+            sr = 0.0
+            for k in range(3):
+                st += P[k, i] * Ft[k, c]
+                sr += P[3 + k, i] * Fr[k, c]
+            w = 1.0 if c == 0 else lateral
+            t += abs(st) * w
+            r += abs(sr) * w
+        v = max(t * vt + r * vr, 1e-12)
+        a = max(t * at + r * ar, 1e-12)
+        sv = min(sv, dq_max[i] / v)
+        sa = min(sa, ddq_max[i] / a)
+    return sv, sa
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")

@@ -16,6 +16,7 @@ velocity and acceleration.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -74,6 +75,15 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
     rotation; columns) its coordinates are bounded one by one (the whole limit along the
     first axis, LATERAL of it across), so joint i's bound is the sum over the six axes of
     ``|row_i(J^+) . axis| * limit``; without them, the worst direction."""
+    joints = spec.joints
+    kernels = laws.compiled()
+    if frames is not None and kernels is not None:  # compiled (Cholesky, not LU: equal to 1e-9)
+        sv, sa = kernels.joint_scales(
+            np.ascontiguousarray(J, dtype=np.float64), frames[0], frames[1], LATERAL,
+            limits.velocity[0], limits.velocity[3], limits.acceleration[0],
+            limits.acceleration[3], _shares(joints.dq_max), _shares(joints.ddq_max),
+        )  # fmt: skip
+        return limits if sv == 1.0 and sa == 1.0 else limits.scaled(sv, sa)
     pinv = laws.damped_pinv(J)
     if frames is None:
         excess = math.sqrt(1.0 + 2.0 * LATERAL**2)  # the aligned frames' over a norm
@@ -83,7 +93,6 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
         spread = np.array([1.0, LATERAL, LATERAL])
         t = np.abs(pinv[:, :3] @ frames[0]) @ spread
         r = np.abs(pinv[:, 3:] @ frames[1]) @ spread
-    joints = spec.joints
     v = t * limits.velocity[0] + r * limits.velocity[3]
     a = t * limits.acceleration[0] + r * limits.acceleration[3]
     dq_max = JOINT_SHARE * np.asarray(joints.dq_max)
@@ -91,6 +100,12 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
     sv = min(1.0, float(np.min(dq_max / np.maximum(v, 1e-12))))
     sa = min(1.0, float(np.min(ddq_max / np.maximum(a, 1e-12))))
     return limits if sv == 1.0 and sa == 1.0 else limits.scaled(sv, sa)
+
+
+@functools.lru_cache(maxsize=16)
+def _shares(limits: tuple[float, ...]) -> FloatArray:
+    """JOINT_SHARE of each joint's ``limits``, as the compiled call takes them."""
+    return JOINT_SHARE * np.asarray(limits, dtype=np.float64)
 
 
 class Tracker(ControlLaw):
