@@ -190,7 +190,7 @@ def test_a_request_not_yet_counted_is_left_whole_for_a_later_tick(server, robot_
     assert loop.recv(16) == b"state"  # it returned for the state, having waited on it alone
 
 
-def test_a_hand_over_waits_for_the_next_gap_when_a_state_is_queued(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+def test_a_hand_over_waits_one_gap_when_a_state_is_queued(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
     srv, user = server
     robot, loop = robot_socket
     old, state = _running_move(srv)
@@ -199,8 +199,8 @@ def test_a_hand_over_waits_for_the_next_gap_when_a_state_is_queued(server, robot
     robot.send(b"state")
     assert srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state) == (old, 1)
     assert srv.replacement == (new, 2)  # the queued state's tick runs the old move first
-    loop.recv(16)
+    robot.send(b"state")  # behind again: it is put off once only
     assert srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state) == (new, 2)
-    assert srv.replacement is None
+    assert srv.replacement is None and not srv.deferred
     reply, _ = user.recv()
     assert reply.rid == 1 and "replaced by a new move" in reply.value.reason

@@ -125,6 +125,7 @@ class ControlServer:
         # while the loop runs: its law and the id of the move request it answers
         self.current: tuple[ControlLaw, int | None] | None = None
         self.replacement: tuple[Tracker, int] | None = None  # a move replacing the current
+        self.deferred = False  # its hand-over was put off one tick (a state was queued)
         self.stopping = False
         self.stop_waiters: list[int] = []
         self._current_rid = 0
@@ -428,16 +429,20 @@ class ControlServer:
         unpacked and takes over here, from this tick's state and reference, as soon as it
         arrives (it was noticed only once the next state had come: up to a period later).
         A state already queued goes first: a hand-over it would delay waits for the next
-        gap, on that tick's state (unpacking and handing over each take up to about half a
-        millisecond on cold caches, together more than a gap, and a late command is a
-        lost one). A request is whole once
+        gap, once, on that tick's state (unpacking and handing over each take up to about
+        half a millisecond on cold caches, together more than a gap, and a late command
+        is a lost one). A request is whole once
         the user's process counted it (it counts after its send): a channel readable
         before that is waited out on the robot's socket alone."""
         header = self.block.header
         waits = [udp, requests]
         while True:
-            if self.replacement is not None and not select.select([udp], [], [], 0.0)[0]:
-                law, move_rid = self._replace(law, move_rid, state)
+            if self.replacement is not None:
+                if self.deferred or not select.select([udp], [], [], 0.0)[0]:
+                    self.deferred = False
+                    law, move_rid = self._replace(law, move_rid, state)
+                else:  # once: a loop that stays behind must not put it off for ever
+                    self.deferred = True
             readable = select.select(waits, [], [], STATE_WAIT)[0]
             if not readable or udp in readable:
                 return law, move_rid  # the state, or silence: readOnce waits (and times out)
@@ -450,7 +455,7 @@ class ControlServer:
         assert self.robot is not None and self.model is not None and self.walls is not None
         robot, model, block, chan = self.robot, self.model, self.block, self.chan
         header = block.header
-        self.stopping = False
+        self.stopping = self.deferred = False
         self.walls.reset()
         error: BaseException | None = None
         state: RobotState | None = None
