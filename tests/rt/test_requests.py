@@ -10,6 +10,7 @@ import os
 import pickle
 import socket
 import threading
+import time
 from types import SimpleNamespace
 from typing import Any
 
@@ -204,3 +205,28 @@ def test_a_hand_over_waits_one_gap_when_a_state_is_queued(server, robot_socket) 
     assert srv.replacement is None and not srv.deferred
     reply, _ = user.recv()
     assert reply.rid == 1 and "replaced by a new move" in reply.value.reason
+
+
+def test_a_request_counted_after_the_channel_woke_the_loop_is_taken_before_the_state(
+    server, robot_socket
+) -> None:  # type: ignore[no-untyped-def]
+    srv, user = server
+    robot, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))  # readable now, counted a moment later
+
+    def count() -> None:
+        srv.block.header[HEADER.REQUESTS] += 1
+
+    sent: list[float] = []
+
+    def state_() -> None:
+        sent.append(time.monotonic())
+        robot.send(b"state")
+
+    threading.Timer(0.005, count).start()
+    threading.Timer(0.05, state_).start()
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert rid == 2 and law is not old and srv.requests_taken == 1
+    reply, _ = user.recv()
+    assert reply.rid == 1 and reply.value.end_time < sent[0]  # handed over before the state

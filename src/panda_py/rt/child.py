@@ -63,6 +63,7 @@ __all__ = ["ControlServer", "limits_spec_for_version", "main"]
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
 STATE_WAIT = 0.05  # [s] longest wait between ticks before readOnce takes over the wait
+COUNT_POLL = 100e-6  # [s] how often a request being written is looked for between ticks
 # libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz),
 # applied by the loop's compiled finalize (laws.JointWalls.finalize, the same formula
 # after the same checks) rather than by libfranka's Python command path, so libfranka is
@@ -431,11 +432,11 @@ class ControlServer:
         A state already queued goes first: a hand-over it would delay waits for the next
         gap, once, on that tick's state (unpacking and handing over each take up to about
         half a millisecond on cold caches, together more than a gap, and a late command
-        is a lost one). A request is whole once
-        the user's process counted it (it counts after its send): a channel readable
-        before that is waited out on the robot's socket alone."""
+        is a lost one). A request is whole once the user's process has counted it (it
+        counts after its send, so the channel is readable a moment before): meanwhile the
+        count is looked at every COUNT_POLL while waiting on the robot's socket alone."""
         header = self.block.header
-        waits = [udp, requests]
+        waits, timeout = [udp, requests], STATE_WAIT
         while True:
             if self.replacement is not None:
                 if self.deferred or not select.select([udp], [], [], 0.0)[0]:
@@ -443,13 +444,16 @@ class ControlServer:
                     law, move_rid = self._replace(law, move_rid, state)
                 else:  # once: a loop that stays behind must not put it off for ever
                     self.deferred = True
-            readable = select.select(waits, [], [], STATE_WAIT)[0]
-            if not readable or udp in readable:
-                return law, move_rid  # the state, or silence: readOnce waits (and times out)
+            readable = select.select(waits, [], [], timeout)[0]
+            if udp in readable:
+                return law, move_rid  # the state
             if header[HEADER.REQUESTS] > self.requests_taken:
                 self._receive(running=True)
+                waits, timeout = [udp, requests], STATE_WAIT
+            elif not readable and timeout == STATE_WAIT:
+                return law, move_rid  # silence: readOnce waits (and times out)
             else:  # being written (or the user's side closed: see PARENT_CHECK_TICKS)
-                waits = [udp]
+                waits, timeout = [udp], COUNT_POLL
 
     def _run(self, law: ControlLaw, move_rid: int | None) -> None:
         assert self.robot is not None and self.model is not None and self.walls is not None
