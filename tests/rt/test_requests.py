@@ -230,3 +230,19 @@ def test_a_request_counted_after_the_channel_woke_the_loop_is_taken_before_the_s
     assert rid == 2 and law is not old and srv.requests_taken == 1
     reply, _ = user.recv()
     assert reply.rid == 1 and reply.value.end_time < sent[0]  # handed over before the state
+
+
+def test_a_request_never_counted_does_not_keep_the_loop_from_a_silent_robot(
+    server, robot_socket, monkeypatch
+) -> None:  # type: ignore[no-untyped-def]
+    from panda_py.rt import child
+
+    monkeypatch.setattr(child, "STATE_WAIT", 0.02)
+    srv, user = server
+    _, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))  # never counted (its sender died half way, say)
+    t0 = time.monotonic()
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert (law, rid) == (old, 1) and srv.requests_taken == 0
+    assert time.monotonic() - t0 < 0.5  # back to readOnce, which times out on silence

@@ -436,24 +436,30 @@ class ControlServer:
         counts after its send, so the channel is readable a moment before): meanwhile the
         count is looked at every COUNT_POLL while waiting on the robot's socket alone."""
         header = self.block.header
-        waits, timeout = [udp, requests], STATE_WAIT
+        both, alone = [udp, requests], [udp]
+        deadline = time.monotonic() + STATE_WAIT
+        polling = False  # the channel is readable, its request not counted yet
         while True:
             if self.replacement is not None:
-                if self.deferred or not select.select([udp], [], [], 0.0)[0]:
+                if self.deferred or not select.select(alone, [], [], 0.0)[0]:
                     self.deferred = False
                     law, move_rid = self._replace(law, move_rid, state)
                 else:  # once: a loop that stays behind must not put it off for ever
                     self.deferred = True
-            readable = select.select(waits, [], [], timeout)[0]
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                return law, move_rid  # silence: readOnce waits (and times out)
+            if polling:
+                readable = select.select(alone, [], [], min(left, COUNT_POLL))[0]
+            else:
+                readable = select.select(both, [], [], left)[0]
             if udp in readable:
                 return law, move_rid  # the state
             if header[HEADER.REQUESTS] > self.requests_taken:
                 self._receive(running=True)
-                waits, timeout = [udp, requests], STATE_WAIT
-            elif not readable and timeout == STATE_WAIT:
-                return law, move_rid  # silence: readOnce waits (and times out)
-            else:  # being written (or the user's side closed: see PARENT_CHECK_TICKS)
-                waits, timeout = [udp], COUNT_POLL
+                polling = False
+            elif readable:  # being written (or the user's side closed: PARENT_CHECK_TICKS)
+                polling = True
 
     def _run(self, law: ControlLaw, move_rid: int | None) -> None:
         assert self.robot is not None and self.model is not None and self.walls is not None
