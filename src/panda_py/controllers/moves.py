@@ -95,16 +95,14 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
         r = np.abs(pinv[:, 3:] @ frames[1]) @ spread
     v = t * limits.velocity[0] + r * limits.velocity[3]
     a = t * limits.acceleration[0] + r * limits.acceleration[3]
-    dq_max = JOINT_SHARE * np.asarray(joints.dq_max)
-    ddq_max = JOINT_SHARE * np.asarray(joints.ddq_max)
-    sv = min(1.0, float(np.min(dq_max / np.maximum(v, 1e-12))))
-    sa = min(1.0, float(np.min(ddq_max / np.maximum(a, 1e-12))))
+    sv = min(1.0, float(np.min(_shares(joints.dq_max) / np.maximum(v, 1e-12))))
+    sa = min(1.0, float(np.min(_shares(joints.ddq_max) / np.maximum(a, 1e-12))))
     return limits if sv == 1.0 and sa == 1.0 else limits.scaled(sv, sa)
 
 
 @functools.lru_cache(maxsize=16)
 def _shares(limits: tuple[float, ...]) -> FloatArray:
-    """JOINT_SHARE of each joint's ``limits``, as the compiled call takes them."""
+    """JOINT_SHARE of each joint's ``limits`` (read-only by use: cached and shared)."""
     return JOINT_SHARE * np.asarray(limits, dtype=np.float64)
 
 
