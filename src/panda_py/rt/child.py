@@ -1,8 +1,8 @@
 """The control process: one per ``Panda``; owns the FCI connection and runs the 1 kHz loop.
 
-Started by :mod:`panda_py.rt.process` as ``python -m panda_py.rt.child CHANNEL SHM PARENT``
-(never by importing the user's script). It connects, warms every code path the loop runs,
-answers "ready", then serves:
+Started by :mod:`panda_py.rt.process` (forked warm, never importing the user's script:
+:func:`main`). It connects, warms every code path the loop runs, answers "ready", then
+serves:
 
 * idle: it reads every state the robot sends (1 kHz), publishes it to shared memory and
   appends it to the log, and answers requests from the channel between states;
@@ -57,6 +57,7 @@ from panda_py.robots.params import RobotSpec, get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
+from panda_py.warmstart import InheritedFd
 
 __all__ = ["ControlServer", "limits_spec_for_version", "main"]
 
@@ -581,15 +582,20 @@ class ControlServer:
         self.reply(rid, True, result)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = sys.argv[1:] if argv is None else argv
-    chan_fd, shm_fd, parent = (int(a) for a in args[:3])
-    if len(args) > 3:
-        sys.path.extend(p for p in args[3].split(os.pathsep) if p and p not in sys.path)
+def main(chan_fd: InheritedFd, shm_fd: InheritedFd) -> None:
+    """The control process's entry (:mod:`panda_py.rt.process` starts it): its end of the
+    channel and the shared-memory file; exits 1 if it could not connect."""
+    code = _serve(chan_fd.fd, shm_fd.fd)
+    if code:
+        sys.exit(code)
+
+
+def _serve(chan_fd: int, shm_fd: int) -> int:
     chan = Channel.from_fd(chan_fd)
     block = SharedBlock(shm_fd)
     os.close(shm_fd)
-    server = ControlServer(chan, block, parent)
+    # re-parented once its parent (the warm server, or the user's process) is gone
+    server = ControlServer(chan, block, os.getppid())
     try:
         msg, _ = chan.recv()
     except (ChannelClosed, ValueError):
@@ -616,7 +622,3 @@ def main(argv: list[str] | None = None) -> int:
             server.robot.close()
         chan.close()
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,15 +1,17 @@
 """The user's side of the control process: start it, talk to it, notice when it dies.
 
-The control process is started as ``python -m panda_py.rt.child`` (not with
-``multiprocessing``, which would import the user's script again in the child). It gets
-its end of a Unix socket pair and the shared-memory file as inherited descriptors and
-nothing else. A reader thread in this process takes its messages: replies go to the
-caller waiting for them, events (errors of the loop, log lines) to the error queue and
-the logger. Only this process's threads take this process's locks.
+The control process starts warm (:mod:`panda_py.warmstart`): forked from a server that
+has imported the loop's modules and loaded its compiled kernels (:mod:`panda_py.rt.warm`),
+never importing the user's script. It gets its end of a Unix socket pair and the
+shared-memory file as inherited descriptors and nothing else. A reader thread in this
+process takes its messages: replies go to the caller waiting for them, events (errors of
+the loop, log lines) to the error queue and the logger. Only this process's threads take
+this process's locks.
 
 No orphans: the control process exits when its channel closes (this process died) or it
-is re-parented; :meth:`ControlProcess.close` (also at interpreter exit) asks it to finish,
-then terminates it, then kills it.
+is re-parented (its parent, the warm server, ends with this process);
+:meth:`ControlProcess.close` (also at interpreter exit, before ``multiprocessing`` ends
+its children) asks it to finish, then terminates it, then kills it.
 """
 
 from __future__ import annotations
@@ -19,16 +21,16 @@ import collections
 import concurrent.futures
 import itertools
 import logging
+import multiprocessing.util  # noqa: F401  (its exit handler registered first: ours runs first)
 import os
 import signal
 import socket
-import subprocess
-import sys
 import threading
 import time
 import weakref
 from typing import Any
 
+from panda_py import warmstart
 from panda_py.libfranka.errors import FrankaException
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
@@ -42,7 +44,7 @@ READY_TIMEOUT = 300.0  # [s] after connecting: first-run JIT compilation can tak
 
 class ControlProcessError(FrankaException):
     """The control process is gone (it crashed or was killed); ``exitcode`` as
-    ``subprocess`` reports it (negative: the signal that ended it)."""
+    ``multiprocessing`` reports it (negative: the signal that ended it)."""
 
     def __init__(self, message: str, *, exitcode: int | None = None) -> None:
         super().__init__(message)
@@ -60,6 +62,8 @@ class Pending(concurrent.futures.Future[Any]):
 
 
 _LIVE: weakref.WeakSet[ControlProcess] = weakref.WeakSet()
+
+warmstart.register("panda_py.rt.warm")
 
 
 @atexit.register
@@ -83,29 +87,17 @@ class ControlProcess:
         self.block, shm_fd = SharedBlock.create()
         mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         self.chan = Channel(mine)
-        env = dict(os.environ)
-        src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        # the same panda_py as this process, even from a source tree
-        env["PYTHONPATH"] = os.pathsep.join(p for p in (src, env.get("PYTHONPATH")) if p)
-        # and, after its own path, every place this process imports from (a controller
-        # class is sent by reference to its module); appended, so a stray file in a
-        # script's directory cannot shadow the standard library there
-        extra = os.pathsep.join(p for p in sys.path if p and os.path.isdir(p))
+        # (it imports from where this process does: multiprocessing hands it sys.path; a
+        # controller class is sent by reference to its module)
+        self.proc = warmstart.context().Process(
+            target=warmstart.run_with_environ,
+            args=(dict(os.environ), "panda_py.rt.child:main",
+                  warmstart.InheritedFd(theirs.fileno()), warmstart.InheritedFd(shm_fd)),
+            name="panda_py-control",
+            daemon=True,
+        )  # fmt: skip
         try:
-            self.proc = subprocess.Popen(
-                [
-                    sys.executable,
-                    "-m",
-                    "panda_py.rt.child",
-                    str(theirs.fileno()),
-                    str(shm_fd),
-                    str(os.getpid()),
-                    extra,
-                ],
-                pass_fds=(theirs.fileno(), shm_fd),
-                env=env,
-                stdin=subprocess.DEVNULL,
-            )
+            warmstart.start(self.proc)
         finally:
             theirs.close()
             os.close(shm_fd)
@@ -168,10 +160,8 @@ class ControlProcess:
 
     def gone(self) -> ControlProcessError:
         """The error that says this process is gone (with how it ended)."""
-        try:
-            code = self.proc.wait(timeout=1.0)
-        except subprocess.TimeoutExpired:
-            code = None
+        self.proc.join(1.0)
+        code = self.proc.exitcode
         how = (
             f"killed by signal {signal.Signals(-code).name}"
             if code is not None and code < 0
@@ -253,14 +243,13 @@ class ControlProcess:
             except Exception:
                 pass
         self.closed = True
-        try:
-            self.proc.wait(timeout=CLOSE_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=1.0)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        proc = self.proc
+        proc.join(CLOSE_TIMEOUT)
+        if proc.exitcode is None:
+            proc.terminate()
+            proc.join(1.0)
+            if proc.exitcode is None:
+                proc.kill()
+                proc.join()
         self.chan.close()
         _LIVE.discard(self)

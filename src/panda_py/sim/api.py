@@ -13,7 +13,7 @@ are served between two ticks.
 from __future__ import annotations
 
 import logging
-import multiprocessing
+import os
 import random
 import socket
 import threading
@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from panda_py import warmstart
 from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.camera import Camera, check_camera_size
@@ -171,10 +172,12 @@ class Simulator:
             link = DeskLink.create(locked=self.desk_config.locked)
             self.config.desk_link = link.array
         self._start_drawing()
-        ctx = multiprocessing.get_context("spawn")
+        ctx = warmstart.context()
         parent, child = ctx.Pipe()
         proc = ctx.Process(
-            target=_child_main, args=(self.config, child, self.log_level), daemon=True
+            target=warmstart.run_with_environ,
+            args=(dict(os.environ), _child_main, self.config, child, self.log_level),
+            daemon=True,
         )
         start_child(proc)
         child.close()
