@@ -9,7 +9,14 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from panda_py import warmstart
+
 __version__ = "0.1.0"
+
+# What the server control processes are forked from loads (panda_py.warmstart): named
+# here, at the package's import, so that it is named before anything can start that
+# server (a simulator started first would otherwise start it without).
+warmstart.register("panda_py.rt.warm")
 
 # public name -> submodule that defines it (imported lazily, PEP 562)
 _LAZY: dict[str, str] = {

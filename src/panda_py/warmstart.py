@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import contextlib
 import importlib
-import multiprocessing
 import os
 import sys
 import threading
@@ -63,6 +62,8 @@ def context() -> Any:
     (forkserver), or spawn where there is no fork or this process's import-time settings
     are no longer those the server started with."""
     global _server_env
+    import multiprocessing  # (here: importing this module stays cheap for ``panda_py``'s)
+
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     env = _import_time_env()

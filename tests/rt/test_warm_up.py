@@ -64,7 +64,7 @@ def _run(server: ControlServer, law: Any, ticks: int = 5) -> None:
             if start is not None and not hasattr(law, "plan"):
                 start(state, model)
         law.tick(1e-3)
-        server._finalize(law.step(state, model), state)
+        server.finalize(law.step(state, model), state)  # type: ignore[misc]
         law.published()
 
 

@@ -59,7 +59,7 @@ from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
 from panda_py.warmstart import InheritedFd
 
-__all__ = ["ControlServer", "limits_spec_for_version", "main"]
+__all__ = ["ControlServer", "Finalize", "limits_spec_for_version", "main", "warm_up"]
 
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
@@ -107,6 +107,76 @@ class _Deferred:
 DEFERRED = _Deferred()
 
 
+class Finalize:
+    """What follows every law's step each tick, compiled in one call: the joint walls of
+    ``limits``, the torque-rate saturation, the torque limits and libfranka's low-pass
+    filter (``laws.JointWalls.finalize``); refuses non-finite torques. Returns the command's
+    seven torques."""
+
+    def __init__(self, limits: RobotSpec) -> None:
+        self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
+        self.tau_max = np.array(limits.joints.tau_max)
+        self.out = np.zeros(7)  # the command of this tick, finalized
+
+    def __call__(self, tau: Any, state: RobotState) -> list[float]:
+        # contiguous float64: the compiled call has one signature, compiled before the loop
+        values = np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
+        if values.shape != (7,):
+            raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
+        out = self.out
+        if not self.walls.finalize(
+            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
+        ):
+            raise ControlException(
+                f"the controller commanded non-finite torques: {values.tolist()}"
+            )
+        return out.tolist()
+
+
+def warm_up(state: RobotState, model: ControlModel, limits: RobotSpec, finalize: Finalize) -> None:
+    """Run every law once on ``state`` (results discarded) as the loop runs them, so that
+    nothing compiles or loads mid-loop: after connecting, and in the server control
+    processes are forked from (:mod:`panda_py.rt.warm`), so they find it all loaded."""
+    kinematics.warmup()
+    from panda_py import controllers as c
+
+    for cls in (
+        c.CartesianImpedance,
+        c.JointPosition,
+        c.IntegratedVelocity,
+        c.AppliedTorque,
+        c.AppliedForce,
+        c.Force,
+        c.CartesianTarget,
+        c.JointTarget,
+    ):
+        ctrl = cls()
+        ctrl.dt = PERIOD
+        ctrl.start(state, model)
+        for _ in range(2):  # (the streamed targets' feed-forward starts on the second)
+            ctrl.tick(PERIOD)
+            finalize(ctrl.step(state, model), state)
+    finalize.walls.reset()
+    model.gravity_of(state)
+    q = state.q
+    z = np.zeros((2, 7))
+    joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
+                      OnlineLimits.joints(limits, 1.0))  # fmt: skip
+    p = np.array([state.O_T_EE[12:15]] * 2)
+    quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
+    six = np.zeros((2, 6))
+    pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1,
+                    OnlineLimits.cartesian(limits, 1.0))  # fmt: skip
+    for plan in (joint, pose):  # and their lead-ins and stops
+        law = tracker_for(plan)
+        law.step(state, model)
+        other = tracker_for(pose if plan is joint else joint)
+        other.handover(law, state, model)
+        other.step(state, model)
+        other.cancel("warm-up")
+        other.step(state, model)
+
+
 class ControlServer:
     """The control process's state and its two loops."""
 
@@ -116,10 +186,8 @@ class ControlServer:
         self.parent = parent
         self.robot: Robot | None = None
         self.model: ControlModel | None = None
-        self.walls: laws.JointWalls | None = None
-        self.tau_max = np.zeros(7)
+        self.finalize: Finalize | None = None  # (set at connect: the limits are the robot's)
         self.limits: RobotSpec | None = None  # whose joint limits apply (set at connect)
-        self._tau = np.zeros(7)  # the command of this tick, finalized
         self.log: LogRing | None = None
         self.logging = False
         self.closing = False
@@ -175,8 +243,7 @@ class ControlServer:
         limits = self.limits = get_robot(limits_spec_for_version(version))
         self.model = ControlModel(robot.robot_spec)
         laws.warmup()  # the compiled laws: compiled or loaded now, not in a tick
-        self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
-        self.tau_max = np.array(limits.joints.tau_max)
+        self.finalize = Finalize(limits)
         if set_current_thread_to_highest_priority() is None and config == RealtimeConfig.kEnforce:
             raise RealtimeException(
                 "libfranka: realtime scheduling (SCHED_FIFO) is required "
@@ -185,52 +252,8 @@ class ControlServer:
         data = robot.receive_raw_state()
         self.block.publish_state(data)
         # the states the loop's laws get: read-only arrays, compiled for as such
-        self._warm_up(robot.decode_state(data, TickState))
+        warm_up(robot.decode_state(data, TickState), self.model, limits, self.finalize)
         return rq.Connected(version, robot.robot_spec.name, limits.name)
-
-    def _warm_up(self, state: RobotState) -> None:
-        """Run every law once (results discarded) so nothing compiles or loads mid-loop."""
-        assert self.model is not None and self.walls is not None
-        kinematics.warmup()
-        from panda_py import controllers as c
-
-        for cls in (
-            c.CartesianImpedance,
-            c.JointPosition,
-            c.IntegratedVelocity,
-            c.AppliedTorque,
-            c.AppliedForce,
-            c.Force,
-            c.CartesianTarget,
-            c.JointTarget,
-        ):
-            ctrl = cls()
-            ctrl.dt = PERIOD
-            ctrl.start(state, self.model)
-            for _ in range(2):  # (the streamed targets' feed-forward starts on the second)
-                ctrl.tick(PERIOD)
-                self._finalize(ctrl.step(state, self.model), state)
-        self.walls.reset()
-        self.model.gravity_of(state)
-        q = state.q
-        z = np.zeros((2, 7))
-        spec = self.limits  # the joint limits that apply (connect's)
-        assert spec is not None
-        joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
-                          OnlineLimits.joints(spec, 1.0))  # fmt: skip
-        p = np.array([state.O_T_EE[12:15]] * 2)
-        quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
-        six = np.zeros((2, 6))
-        pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1,
-                        OnlineLimits.cartesian(spec, 1.0))  # fmt: skip
-        for plan in (joint, pose):  # and their lead-ins and stops
-            law = tracker_for(plan)
-            law.step(state, self.model)
-            other = tracker_for(pose if plan is joint else joint)
-            other.handover(law, state, self.model)
-            other.step(state, self.model)
-            other.cancel("warm-up")
-            other.step(state, self.model)
 
     # --- the idle loop -------------------------------------------------------------------
 
@@ -407,22 +430,6 @@ class ControlServer:
 
     # --- the control loop ----------------------------------------------------------------
 
-    def _finalize(self, tau: Any, state: RobotState) -> list[float]:
-        """Joint walls, torque-rate saturation and torque limits; refuses non-finite."""
-        assert self.walls is not None
-        # contiguous float64: the compiled call has one signature, compiled before the loop
-        values = np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
-        if values.shape != (7,):
-            raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
-        out = self._tau
-        if not self.walls.finalize(
-            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
-        ):
-            raise ControlException(
-                f"the controller commanded non-finite torques: {values.tolist()}"
-            )
-        return out.tolist()
-
     def _await_state(
         self, udp: int, requests: int, law: ControlLaw, move_rid: int | None, state: RobotState
     ) -> tuple[ControlLaw, int | None]:
@@ -463,11 +470,12 @@ class ControlServer:
                 polling = True
 
     def _run(self, law: ControlLaw, move_rid: int | None) -> None:
-        assert self.robot is not None and self.model is not None and self.walls is not None
+        assert self.robot is not None and self.model is not None and self.finalize is not None
         robot, model, block, chan = self.robot, self.model, self.block, self.chan
+        finalize = self.finalize
         header = block.header
         self.stopping = self.deferred = False
-        self.walls.reset()
+        finalize.walls.reset()
         error: BaseException | None = None
         state: RobotState | None = None
         header[HEADER.RUNNING] = 1
@@ -486,7 +494,7 @@ class ControlServer:
                     # arm is not where the plan starts, so lead in from where it rests
                     law.handover(None, state, model)
                 law.tick(dt.to_sec())
-                tau = self._finalize(law.step(state, model), state)
+                tau = finalize(law.step(state, model), state)
                 finished = self.stopping or law.finished(state)
                 if finished and not self.stopping and isinstance(law, Tracker):
                     successor = law.successor

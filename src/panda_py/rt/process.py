@@ -63,8 +63,6 @@ class Pending(concurrent.futures.Future[Any]):
 
 _LIVE: weakref.WeakSet[ControlProcess] = weakref.WeakSet()
 
-warmstart.register("panda_py.rt.warm")
-
 
 @atexit.register
 def _close_all() -> None:

@@ -1,19 +1,39 @@
 """Imported by the server the control processes are forked from
-(:mod:`panda_py.warmstart`): the loop's modules, and the compiled kinematics, laws and
-model loaded (or compiled, once after installing), so that a ``Panda`` connects without
-doing any of it again. Nothing here may fail the server: what does not load here loads in
-the child, as in a spawned one."""
+(:mod:`panda_py.warmstart`): the loop's modules, the compiled kinematics, laws and model
+loaded (or compiled, once after installing), and every law run once as the loop runs them
+after connecting (:func:`panda_py.rt.child.warm_up`) on a state a robot at rest in its
+start pose would send, in the first and the newest protocol's layout, so that the kernels'
+signatures for the loop's read-only states are loaded too. A ``Panda`` then connects
+without doing any of it again. Nothing here may fail the server: what does not load here
+loads in the child, as in a spawned one."""
 
 from __future__ import annotations
 
+import gc
+
 try:
-    from panda_py import kinematics
+    import numpy as np
+
+    from panda_py import fci, kinematics
     from panda_py.controllers import laws
     from panda_py.controllers.model import ControlModel
-    from panda_py.rt import child  # noqa: F401  (the loop's modules)
+    from panda_py.libfranka.state import TickState
+    from panda_py.robots.params import START_POSE, get_robot
+    from panda_py.rt.child import Finalize, warm_up
 
     kinematics.warmup()
     laws.warmup()
-    ControlModel("fer")  # (its dynamics' kernels)
+    spec = get_robot("fer")
+    model = ControlModel(spec)
+    for version in (fci.SUPPORTED_VERSIONS[0], fci.SUPPORTED_VERSIONS[-1]):
+        dialect = fci.dialect(version)
+        record = np.zeros((), dialect.state_dtype)
+        record["q"] = record["q_d"] = START_POSE
+        record["O_T_EE"] = kinematics.get_kinematics(spec).fk(START_POSE).reshape(16, order="F")
+        record["F_T_EE"] = record["EE_T_K"] = np.eye(4).reshape(16)
+        warm_up(TickState(dialect, record.tobytes()), model, spec, Finalize(spec))
 except Exception:  # (the child does it again, and reports what fails)
     pass
+# the collector of a forked child leaves what is here alone: its passes would touch every
+# object, and so copy every page shared with this server
+gc.freeze()
