@@ -6,6 +6,7 @@ on the same simulator, in the same run. Run by hand:
     python benchmarks/bench_panda.py lost    [--seconds 60]     # lost commands under load
     python benchmarks/bench_panda.py moves                      # move accuracy
     python benchmarks/bench_panda.py cpu     [--seconds 20]     # loop CPU, laws' cost/tick
+    python benchmarks/bench_panda.py start   [--n 20]           # Simulator start, Panda connect
     python benchmarks/bench_panda.py all
 
 ``lost``: a controller runs on a simulator on the wall clock (SCHED_FIFO when permitted),
@@ -44,12 +45,12 @@ def _stats(values: Any) -> tuple[float, float, float]:
     return float(np.median(a)), float(np.percentile(a, 99)), float(a.max())
 
 
-def _row(label: str, ours: Any, theirs: Any | None, unit: str = "us") -> None:
+def _row(label: str, ours: Any, theirs: Any | None, unit: str = "us", peer: str = "peer") -> None:
     m, p, w = _stats(ours)
     line = f"  {label:<22} ours  median {m:9.2f} p99 {p:9.2f} worst {w:10.2f} {unit}"
     if theirs is not None:
         tm, tp, tw = _stats(theirs)
-        line += (f"\n  {'':<22} peer  median {tm:9.2f} p99 {tp:9.2f} worst {tw:10.2f} {unit}"
+        line += (f"\n  {'':<22} {peer:<5} median {tm:9.2f} p99 {tp:9.2f} worst {tw:10.2f} {unit}"
                  f"   ratio (median) {m / tm:5.2f}x, (p99) {p / tp:5.2f}x")  # fmt: skip
     print(line)
 
@@ -335,9 +336,56 @@ def cpu(seconds: float, n: int) -> None:
         print(f"  {label:<24} median {med:6.1f}  p99 {p99:6.1f}  worst {worst:7.1f}")
 
 
+def _starts(n: int) -> tuple[list[float], list[float]]:
+    """Wall times [s] of n Simulator starts and n Panda connects (each Panda on its own
+    simulator, both closed before the next)."""
+    sims, pandas = [], []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        sim = Simulator(free_loopback_host(), robot="fer", versions=(5,)).start()
+        t1 = time.perf_counter()
+        try:
+            with panda_py.Panda(sim.host):
+                t2 = time.perf_counter()
+        finally:
+            sim.stop()
+        sims.append(t1 - t0)
+        pandas.append(t2 - t1)
+    return sims, pandas
+
+
+def start(n: int) -> None:
+    """How long a Simulator takes to start and a Panda to connect: ours forked from the
+    warm server (panda_py.warmstart), the first of a process starting that server too, and
+    ours spawned as a new interpreter each (as before the warm server), against
+    panda-python's Panda on the same simulator."""
+    import multiprocessing
+
+    from panda_py import warmstart
+
+    print(f"start-up [ms], {n} each (realtime simulator, FER, v5); the first of a process "
+          "apart")  # fmt: skip
+    sims, pandas = _starts(n + 1)
+    warm = warmstart.context
+    warmstart.context = lambda: multiprocessing.get_context("spawn")  # type: ignore[assignment]
+    try:
+        spawned_sims, spawned_pandas = _starts(n)
+    finally:
+        warmstart.context = warm  # type: ignore[assignment]
+    with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+        theirs = _peer("connect", sim.host, str(n + 1))["connect"]
+    ms = lambda v: np.asarray(v) * 1e3  # noqa: E731
+    print(f"  first of the process: Simulator {1e3 * sims[0]:.0f}, Panda {1e3 * pandas[0]:.0f}; "
+          f"panda-python's first Panda {1e3 * theirs[0]:.0f}")  # fmt: skip
+    print("  (spawn: ours started as a new interpreter each, as before the warm server)")
+    _row("Simulator start", ms(sims[1:]), ms(spawned_sims), "ms", "spawn")
+    _row("Panda connect", ms(pandas[1:]), ms(spawned_pandas), "ms", "spawn")
+    _row("Panda connect", ms(pandas[1:]), ms(theirs[1:]), "ms", "peer")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
-    p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "cpu", "all"))
+    p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "cpu", "start", "all"))
     p.add_argument("--n", type=int, default=20000)
     p.add_argument("--seconds", type=float, default=None)
     a = p.parse_args()
@@ -351,6 +399,8 @@ def main() -> None:
         lost(a.seconds or 60.0)
     if a.mode in ("cpu", "all"):
         cpu(a.seconds or 20.0, min(a.n, 5000))
+    if a.mode in ("start", "all"):
+        start(min(a.n, 20))
 
 
 if __name__ == "__main__":

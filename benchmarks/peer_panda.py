@@ -5,6 +5,7 @@
     python peer_panda.py lost HOST SECONDS
     python peer_panda.py moves HOST
     python peer_panda.py cpu HOST SECONDS
+    python peer_panda.py connect HOST N
 """
 
 from __future__ import annotations
@@ -118,6 +119,18 @@ def cpu(host: str, seconds: float) -> dict:
     return {"cpu": share}
 
 
+def connect(host: str, n: int) -> dict:
+    """Wall time [s] of ``Panda(host)`` (connected and ready), n times, each closed by
+    dropping it before the next."""
+    out = []
+    for _ in range(n):
+        t0 = time.perf_counter()
+        panda = panda_py.Panda(host)
+        out.append(time.perf_counter() - t0)
+        del panda
+    return {"connect": out}
+
+
 if __name__ == "__main__":
     mode, host = sys.argv[1], sys.argv[2]
     if mode == "cpu":
@@ -127,6 +140,8 @@ if __name__ == "__main__":
         res = calls(host, int(sys.argv[3]))
     elif mode == "lost":
         res = lost(host, float(sys.argv[3]))
+    elif mode == "connect":
+        res = connect(host, int(sys.argv[3]))
     else:
         res = moves(host)
     print("RESULT " + json.dumps(res), flush=True)
