@@ -169,8 +169,9 @@ def test_finalize_refuses_a_non_finite_torque_even_one_it_could_saturate(
 def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     seed: int, monkeypatch
 ) -> None:
-    """PoseMove.step with the compiled feed-forward (M J^+ (a - dJ dq) + friction along
-    J^+ v) gives the NumPy branch's torques, tick after tick (dJ from the previous tick)."""
+    """PoseMove.step compiled (impedance and feed-forward in one call: (M + rotors) J^+ (a
+    - dJ dq) + friction along J^+ v) gives the NumPy branch's torques, tick after tick (dJ
+    from the previous tick)."""
     from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import PoseMove
     from panda_py.controllers.plans import PosePlan
@@ -194,13 +195,16 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
         states.append(s)
 
     class Model:  # the model terms the move reads, on namespaces for states
-        coulomb = model.coulomb
+        coulomb, armature = model.coulomb, model.armature
 
         def ee_jacobian(self, s):  # type: ignore[no-untyped-def]
             return KIN.zero_jacobian(s.q)
 
-        def driven_mass_of(self, s):  # type: ignore[no-untyped-def]
-            return np.eye(7) * 0.5 + 0.01
+        def mass_of(self, s):  # type: ignore[no-untyped-def]  (the links')
+            return np.eye(7) * 0.5 + 0.01 + 0.02 * s.q[:, None] * s.q[None, :]
+
+        def driven_mass_of(self, s):  # type: ignore[no-untyped-def]  (and the rotors')
+            return self.mass_of(s) + np.diag(self.armature)
 
         def friction_for(self, v):  # type: ignore[no-untyped-def]
             return model.friction_for(v)

@@ -19,8 +19,8 @@ __all__ = [
     "finalize_torques",
     "impedance_torque",
     "joint_scales",
-    "pose_feedforward",
     "pose_filter",
+    "pose_tracking_torque",
 ]
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
@@ -263,11 +263,18 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def pose_feedforward(J, J_prev, dq, dt, a_d, v_d, J_pinv, M, coulomb, friction_speed, tau):  # type: ignore[no-untyped-def,unused-ignore]
-    """A Cartesian move's feed-forward, added to ``tau`` (the reference: PoseMove.step's
-    NumPy branch): ``M J^+ (a_d - dJ dq)``, with ``dJ = (J - J_prev) / dt`` (left out when
-    ``dt`` is 0), plus the drives' dry friction along the planned joint velocity,
-    ``coulomb tanh(J^+ v_d / friction_speed)``."""
+def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
+    O_T_EE, J, J_prev, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
+    coulomb, friction_speed, tau, err, J_pinv,
+):  # fmt: skip
+    """A Cartesian reference's tracking torque in one call (the reference:
+    ``tracking.PoseImpedance.torque``'s NumPy branch): :func:`impedance_torque` toward the
+    reference pose ``p_d``, ``quat_d`` moving at ``v_d``, plus its feed-forward: ``(M +
+    diag(armature)) J^+ (a_d - dJ dq)``, the links' mass matrix ``M`` and the drives'
+    reflected rotor inertia, with ``dJ = (J - J_prev) / dt`` (left out when ``dt`` is 0),
+    and the drives' dry friction along the planned joint velocity, ``coulomb tanh(J^+ v_d /
+    friction_speed)``. Into ``tau`` (7,), ``err`` (6,) and ``J_pinv`` (7, 6)."""
+    impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv)
     a = np.empty(6)
     for r in range(6):
         s = a_d[r]
@@ -288,7 +295,7 @@ def pose_feedforward(J, J_prev, dq, dt, a_d, v_d, J_pinv, M, coulomb, friction_s
         ddq[i] = s1
         dq_d[i] = s2
     for i in range(7):
-        f = 0.0
+        f = armature[i] * ddq[i]
         for c in range(7):
             f += M[i, c] * ddq[c]
         tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)

@@ -44,7 +44,8 @@ class ControlModel(Model):
         self._arm_key: bytes | None = None
         self._arm_state: Any = None
         self._arm_cached: dynamics.LoadedArm | None = None
-        self._rotors = np.diag(self.spec.drives.armature)
+        self._armature = np.array(self.spec.drives.armature)
+        self._rotors = np.diag(self._armature)
         self._coulomb = np.array(self.spec.drives.coulomb)
         # compile (or load) the model's kernels now, not in the loop's first tick
         dynamics.LoadedArm(self.spec).coriolis(np.zeros(7), np.zeros(7))
@@ -115,6 +116,12 @@ class ControlModel(Model):
         M.flags.writeable = False
         self._driven = (state, M)
         return M
+
+    @property
+    def armature(self) -> FloatArray:
+        """The drives' reflected rotor inertia (7,) [kg m^2], the diagonal
+        :meth:`driven_mass_of` adds to the links' mass matrix."""
+        return self._armature
 
     @property
     def coulomb(self) -> FloatArray:

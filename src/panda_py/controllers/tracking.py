@@ -68,16 +68,13 @@ class PoseImpedance:
         J = model.ee_jacobian(state)
         kn = self.kn
         kernels = laws.compiled()
-        if kernels is not None:  # the same terms, compiled
-            tau, err, J_pinv = np.empty(7), self.err, self.J_pinv
-            kernels.impedance_torque(
-                state.O_T_EE, J, q, dq, p_d, quat_d, v_d, self.K, self.D,
-                self.qn, kn, tau, err, J_pinv,
+        if kernels is not None:  # the same terms, compiled in one call
+            tau = np.empty(7)
+            kernels.pose_tracking_torque(
+                state.O_T_EE, J, J if self.J_prev is None else self.J_prev, q, dq, dt, p_d,
+                quat_d, v_d, a_d, self.K, self.D, self.qn, kn, model.mass_of(state),
+                model.armature, model.coulomb, FRICTION_SPEED, tau, self.err, self.J_pinv,
             )  # fmt: skip
-            J_prev = J if self.J_prev is None else self.J_prev
-            kernels.pose_feedforward(J, J_prev, dq, dt, a_d, v_d, J_pinv,
-                                     model.driven_mass_of(state), model.coulomb,
-                                     FRICTION_SPEED, tau)  # fmt: skip
         else:
             err = self.err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
             tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - v_d))
