@@ -174,7 +174,17 @@ def main() -> None:
             except Exception:
                 pass
             robot.recover_from_errors()
-        robot.move(JointMotion(q_start.tolist(), relative_dynamics_factor=0.2))
+        # back to the start for the next case; a joint motion begun while the arm still
+        # settles from the Cartesian one (its first command q_d, the measured q a
+        # millimetre-radian off) is refused, as a robot refuses it: wait, recover, retry
+        for _ in range(3):
+            time.sleep(0.5)
+            try:
+                robot.move(JointMotion(q_start.tolist(), relative_dynamics_factor=0.2))
+                break
+            except Exception as exc:  # (reported; the results are kept)
+                out.setdefault("return_errors", []).append(f"{type(exc).__name__}: {exc}")
+                robot.recover_from_errors()
     json.dump(out, sys.stdout)
     sys.stdout.write("\n")
 
