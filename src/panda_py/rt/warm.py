@@ -21,8 +21,7 @@ try:
     from panda_py.robots.params import START_POSE, get_robot
     from panda_py.rt.child import Finalize, warm_up
 
-    kinematics.warmup()
-    laws.warmup()
+    laws.warmup()  # (connect's: the laws on writable arrays; warm_up loads the kinematics)
     spec = get_robot("fer")
     model = ControlModel(spec)
     for version in (fci.SUPPORTED_VERSIONS[0], fci.SUPPORTED_VERSIONS[-1]):
