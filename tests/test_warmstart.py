@@ -74,3 +74,15 @@ def test_a_changed_import_time_setting_spawns_the_child(
 def test_a_target_named_by_module_runs_in_the_child() -> None:
     ctx = warmstart.context()
     assert _run_child(ctx, "HOME", target=f"{_report.__module__}:_report") == os.environ["HOME"]
+
+
+@pytest.mark.parametrize("bad", ["", "panda_py..x", "panda-py.x", 3])
+def test_register_refuses_what_is_not_a_module_name(bad: Any) -> None:
+    with pytest.raises(ValueError, match="module: expected a dotted module name, got"):
+        warmstart.register(bad)
+
+
+@pytest.mark.parametrize("bad", ["os", "os:", ":getcwd"])
+def test_a_target_name_without_its_module_and_function_is_refused(bad: str) -> None:
+    with pytest.raises(ValueError, match="target: expected 'module:function', got"):
+        warmstart.run_with_environ(dict(os.environ), bad)

@@ -46,6 +46,8 @@ _server_env: dict[str, str] | None = None  # the import-time settings it started
 def register(module: str) -> None:
     """Have the warm server import ``module`` (a module whose import warms what its
     children need; it must not raise). Effective for a server not started yet."""
+    if not isinstance(module, str) or not all(p.isidentifier() for p in module.split(".")):
+        raise ValueError(f"module: expected a dotted module name, got {module!r}")
     with _LOCK:
         if module not in _modules:
             _modules.append(module)
@@ -92,6 +94,8 @@ def run_with_environ(env: dict[str, str], target: Callable[..., Any] | str, *arg
         os.environ.update(env)
     if isinstance(target, str):
         module, _, name = target.partition(":")
+        if not module or not name:
+            raise ValueError(f"target: expected 'module:function', got {target!r}")
         run: Callable[..., Any] = getattr(importlib.import_module(module), name)
     else:
         run = target
