@@ -170,8 +170,9 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     seed: int, monkeypatch
 ) -> None:
     """PoseMove.step compiled (impedance and feed-forward in one call: (M + rotors) J^+ (a
-    - dJ dq) + friction along J^+ v) gives the NumPy branch's torques, tick after tick (dJ
-    from the previous tick)."""
+    - dJ dq) + friction along J^+ (v - r e); the damping from the arm's inertia) gives the
+    NumPy branch's torques, tick after tick (dJ from the previous tick; the damping
+    updated on the first tick and the 21st)."""
     from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import PoseMove
     from panda_py.controllers.plans import PosePlan
@@ -227,6 +228,61 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     assert laws.compiled() is None  # the second run was the NumPy branch
     for a, b in zip(fast, slow, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_damping_from_the_arms_inertia_has_the_ratio_asked_for(seed: int) -> None:
+    """tracking.mass_damping (and its kernel, equal): with S = Lambda^(1/2), the end
+    effector's inertia's root, (S^-1 D S^-1 / 2 zeta)^2 = S^-1 K S^-1 (for one axis D =
+    2 zeta sqrt(K Lambda)); D is symmetric positive semi-definite; and on a diagonal
+    inertia and stiffness it is the per-axis formula."""
+    from panda_py.controllers import _kernels
+    from panda_py.controllers.tracking import MIN_INVERSE_INERTIA, mass_damping
+
+    rng = np.random.default_rng(seed)
+    q = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.6, 0.8]) + rng.normal(scale=0.2, size=7)
+    J = KIN.zero_jacobian(q)
+    B = rng.normal(size=(7, 7))
+    M = 0.05 * B @ B.T + 0.1 * np.eye(7)  # an arm's sizes [kg m^2]
+    assert np.linalg.eigvalsh(J @ np.linalg.solve(M, J.T)).min() > MIN_INVERSE_INERTIA
+    C = rng.normal(size=(6, 6))
+    K = C @ C.T * 100.0
+    zeta = 0.8
+    D = mass_damping(K, zeta, M, J)
+    out = np.empty((6, 6))
+    _kernels.mass_damping(K, zeta, M, np.zeros(7), J, MIN_INVERSE_INERTIA, out)
+    np.testing.assert_allclose(out, D, rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(D, D.T, atol=1e-9)
+    assert np.linalg.eigvalsh(D).min() > -1e-9
+    Lam = np.linalg.inv(J @ np.linalg.solve(M, J.T))
+    w, V = np.linalg.eigh(Lam)
+    S_inv = (V / np.sqrt(w)) @ V.T
+    R = S_inv @ D @ S_inv / (2.0 * zeta)
+    np.testing.assert_allclose(R @ R, S_inv @ K @ S_inv, rtol=1e-6, atol=1e-6 * np.abs(K).max())
+    # one axis at a time: J picks six joints whose inertias are the diagonal's
+    J6 = np.hstack([np.eye(6), np.zeros((6, 1))])
+    m = rng.uniform(0.5, 5.0, 7)
+    k = rng.uniform(10.0, 1000.0, 6)
+    D6 = mass_damping(np.diag(k), zeta, np.diag(m), J6)
+    np.testing.assert_allclose(D6, np.diag(2.0 * zeta * np.sqrt(k * m[:6])), atol=1e-9)
+
+
+def test_the_damping_stays_bounded_at_a_singular_configuration() -> None:
+    """The arm stretched straight up (q = 0) has lost directions of motion, along which its
+    inertia is unbounded: the damping is bounded by the kept inverse inertia instead."""
+    from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.tracking import MIN_INVERSE_INERTIA, mass_damping
+
+    model = ControlModel("fer")
+    q = np.zeros(7)
+    J = KIN.zero_jacobian(q)
+    assert np.linalg.svd(J, compute_uv=False).min() < 1e-9  # singular indeed
+    M = np.asarray(model.mass(q, np.zeros(9), 0.0, np.zeros(3))).reshape(7, 7, order="F")
+    M += np.diag(model.armature)
+    K = np.diag([800.0] * 3 + [40.0] * 3)
+    D = mass_damping(K, 1.0, M, J)
+    assert np.isfinite(D).all()
+    assert np.linalg.eigvalsh(D).max() <= 2.0 * np.sqrt(800.0 / MIN_INVERSE_INERTIA) + 1e-6
 
 
 def test_the_compiled_joint_cap_equals_the_numpy_one(monkeypatch) -> None:  # type: ignore[no-untyped-def]

@@ -19,6 +19,7 @@ __all__ = [
     "finalize_torques",
     "impedance_torque",
     "joint_scales",
+    "mass_damping",
     "pose_filter",
     "pose_tracking_torque",
 ]
@@ -265,14 +266,15 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     O_T_EE, J, J_prev, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
-    coulomb, friction_speed, tau, err, J_pinv,
+    coulomb, friction_speed, error_rate, tau, err, J_pinv,
 ):  # fmt: skip
     """A Cartesian reference's tracking torque in one call (the reference:
     ``tracking.PoseImpedance.torque``'s NumPy branch): :func:`impedance_torque` toward the
     reference pose ``p_d``, ``quat_d`` moving at ``v_d``, plus its feed-forward: ``(M +
     diag(armature)) J^+ (a_d - dJ dq)``, the links' mass matrix ``M`` and the drives'
     reflected rotor inertia, with ``dJ = (J - J_prev) / dt`` (left out when ``dt`` is 0),
-    and the drives' dry friction along the planned joint velocity, ``coulomb tanh(J^+ v_d /
+    and the drives' dry friction along the joint velocity that follows the reference and
+    closes the error at ``error_rate`` [1/s], ``coulomb tanh(J^+ (v_d - error_rate err) /
     friction_speed)``. Into ``tau`` (7,), ``err`` (6,) and ``J_pinv`` (7, 6)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv)
     a = np.empty(6)
@@ -291,7 +293,7 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
         s2 = 0.0
         for k in range(6):
             s1 += J_pinv[i, k] * a[k]
-            s2 += J_pinv[i, k] * v_d[k]
+            s2 += J_pinv[i, k] * (v_d[k] - error_rate * err[k])
         ddq[i] = s1
         dq_d[i] = s2
     for i in range(7):
@@ -339,3 +341,43 @@ def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # t
         o2, o3 = a0 * z0 + a1 * z1, a0 * w0 + a1 * w1
     n = math.sqrt(o0 * o0 + o1 * o1 + o2 * o2 + o3 * o3)
     quat[0], quat[1], quat[2], quat[3] = o0 / n, o1 / n, o2 / n, o3 / n
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untyped-def,unused-ignore]
+    """Into ``D`` (6, 6): the Cartesian damping that gives the stiffness ``K`` the damping
+    ratio ``zeta`` on the end effector's inertia ``Lambda = (J (M + diag(armature))^-1
+    J^T)^-1``: ``D = 2 zeta S (S^-1 K S^-1)^(1/2) S`` with ``S = Lambda^(1/2)`` (for one
+    axis ``2 zeta sqrt(K Lambda)``; positive semi-definite by construction). The
+    eigenvalues of ``Lambda^-1`` are kept >= ``min_eig``, so a singular configuration's
+    unbounded inertia stays bounded (the reference: ``tracking.mass_damping``)."""
+    Md = M.copy()
+    for i in range(7):
+        Md[i, i] += armature[i]
+    X = np.linalg.solve(Md, np.ascontiguousarray(J.T))  # (7, 6): M^-1 J^T
+    A = J @ X
+    A = 0.5 * (A + A.T)
+    w, V = np.linalg.eigh(A)
+    S = np.zeros((6, 6))
+    S_inv = np.zeros((6, 6))
+    for k in range(6):
+        e = max(w[k], min_eig)
+        r = math.sqrt(e)
+        for i in range(6):
+            for j in range(6):
+                vv = V[i, k] * V[j, k]
+                S[i, j] += vv / r
+                S_inv[i, j] += vv * r
+    Kt = S_inv @ K @ S_inv
+    Kt = 0.5 * (Kt + Kt.T)
+    u, U = np.linalg.eigh(Kt)
+    R = np.zeros((6, 6))
+    for k in range(6):
+        r = math.sqrt(max(u[k], 0.0))
+        for i in range(6):
+            for j in range(6):
+                R[i, j] += U[i, k] * U[j, k] * r
+    out = S @ R @ S
+    for i in range(6):
+        for j in range(6):
+            D[i, j] = zeta * (out[i, j] + out[j, i])

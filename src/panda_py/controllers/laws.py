@@ -75,7 +75,7 @@ def warmup() -> None:
         z7, K = np.zeros(7), np.eye(6)
         T = np.eye(4).reshape(16)
         z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        with progress.work("panda_py: compiling the control laws, once after installing", 5) as w:
+        with progress.work("panda_py: compiling the control laws, once after installing", 6) as w:
             k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
             w.advance()
             k.pose_filter(0.5, K, K, K, K, z3, z3, z7, z7, quat.copy(), quat)
@@ -85,8 +85,11 @@ def warmup() -> None:
             w.advance()
             # the Cartesian moves' and CartesianTarget's tracking (tracking.PoseImpedance)
             k.pose_tracking_torque(T, J, J, z7, z7, 1e-3, z3, quat, np.zeros(6), np.zeros(6),
-                                   K, K, z7, 1.0, np.eye(7), z7, z7, 0.01, np.empty(7),
+                                   K, K, z7, 1.0, np.eye(7), z7, z7, 0.01, 10.0, np.empty(7),
                                    np.empty(6), np.empty((7, 6)))  # fmt: skip
+            w.advance()
+            # their damping from the arm's inertia (tracking.mass_damping)
+            k.mass_damping(K, 1.0, np.eye(7), z7, J, 1e-2, np.empty((6, 6)))
             w.advance()
             # the Cartesian moves' and CartesianTarget's limits at a new target
             k.joint_scales(J, np.eye(3), np.eye(3), 0.5, 1.0, 1.0, 1.0, 1.0, z7 + 1.0, z7 + 1.0)

@@ -24,25 +24,61 @@ __all__ = ["PoseImpedance", "joint_impedance_torque"]
 FloatArray = NDArray[np.float64]
 
 
+# [1/s] the friction feed-forward follows the reference's joint velocity plus the one that
+# closes the tracking error at this rate: a millimetre behind, the drives' dry friction
+# would otherwise hold the arm against the impedance's few newtons (a lag the reference's
+# end leaves to the settle phase, which costs a Cartesian move a few hundred ms)
+FRICTION_ERROR_RATE = 10.0
+# ticks between updates of the damping from the arm's inertia (it changes slowly with the
+# configuration: updated every 20 ms, it tracks as well as every tick, at a twentieth)
+DAMPING_TICKS = 20
+# the smallest eigenvalue kept of the end effector's inverse inertia J M^-1 J^T [1/kg along
+# a translation, 1/(kg m^2) about a rotation]: near a singularity the inertia along the
+# lost direction grows without bound
+MIN_INVERSE_INERTIA = 1e-2
+
+
 def joint_impedance_torque(
     K: FloatArray, D: FloatArray, q_d: FloatArray, dq_d: FloatArray, ddq_d: FloatArray,
     state: Any, model: Any,
 ) -> FloatArray:  # fmt: skip
-    """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d)`` [Nm]: joint impedance
-    (stiffness ``K`` [Nm/rad], damping ``D`` [Nm s/rad]) around the reference ``q_d``,
-    ``dq_d`` with the inertial (links and rotors) and dry-friction feed-forward of its
-    motion."""
+    """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d + FRICTION_ERROR_RATE (q_d -
+    q))`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm s/rad]) around
+    the reference ``q_d``, ``dq_d`` with the inertial (links and rotors) feed-forward of its
+    motion and the dry friction cancelled along it and the way back to it."""
     tau = K * (q_d - state.q) + D * (dq_d - state.dq)
-    tau += model.driven_mass_of(state) @ ddq_d + model.friction_for(dq_d)
+    tau += model.driven_mass_of(state) @ ddq_d
+    tau += model.friction_for(dq_d + FRICTION_ERROR_RATE * (q_d - state.q))
     return tau
+
+
+def mass_damping(K: FloatArray, zeta: float, M: FloatArray, J: FloatArray) -> FloatArray:
+    """The Cartesian damping (6, 6) that gives the stiffness ``K`` the damping ratio
+    ``zeta`` on the end effector's inertia ``Lambda = (J M^-1 J^T)^-1`` (``M`` the driven
+    mass matrix): ``D = 2 zeta S (S^-1 K S^-1)^(1/2) S``, ``S = Lambda^(1/2)``; for one
+    axis ``2 zeta sqrt(K Lambda)`` (the reference of ``_kernels.mass_damping``)."""
+    A = J @ np.linalg.solve(M, J.T)
+    w, V = np.linalg.eigh(0.5 * (A + A.T))
+    r = np.sqrt(np.maximum(w, MIN_INVERSE_INERTIA))
+    S, S_inv = (V / r) @ V.T, (V * r) @ V.T
+    Kt = S_inv @ K @ S_inv
+    u, U = np.linalg.eigh(0.5 * (Kt + Kt.T))
+    out = S @ ((U * np.sqrt(np.maximum(u, 0.0))) @ U.T) @ S
+    return zeta * (out + out.T)
 
 
 class PoseImpedance:
     """Cartesian impedance around a moving pose reference, with a joint impedance toward
     ``q_nullspace`` in the task's nullspace and the inertial feed-forward of the reference's
     acceleration: ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
-    + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` plus the drives' dry friction along ``J^+ v_d``,
-    ``D = 2 damping_ratio sqrt(K)``.
+    + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` plus the drives' dry friction along
+    ``J^+ (v_d - FRICTION_ERROR_RATE e)``.
+
+    The damping gives the stiffness the damping ratio ``damping_ratio`` on the arm's own
+    end-effector inertia (:func:`mass_damping`, updated every DAMPING_TICKS): panda-py's
+    ``2 damping_ratio sqrt(K)`` assumes a unit mass, which left the translation
+    under-damped (the arm's 3-5 kg: ratio ~0.5, it overshot) and the rotation overdamped
+    (the wrist's ~0.03 kg m^2: ratio ~6, it crept to its orientation for half a second).
 
     After :meth:`torque`, ``err`` (6,) is the pose error [m, rad], ``J_prev`` the
     Jacobian of that tick (its rate is taken from the change of the Jacobian) and
@@ -51,13 +87,16 @@ class PoseImpedance:
     def __init__(self, impedance: FloatArray, damping_ratio: float, q_nullspace: FloatArray,
                  nullspace_stiffness: float) -> None:  # fmt: skip
         self.K = np.array(impedance, dtype=np.float64)
+        self.zeta = float(damping_ratio)
         w, v = np.linalg.eigh(self.K)
-        self.D = 2.0 * damping_ratio * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
+        # until the first tick knows the arm's inertia: panda-py's (a unit mass)
+        self.D = 2.0 * self.zeta * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
         self.qn = np.array(q_nullspace, dtype=np.float64)  # its own: one kernel signature
         self.kn = float(nullspace_stiffness)
         self.err = np.empty(6)
         self.J_prev: FloatArray | None = None
         self.J_pinv = np.empty((7, 6))
+        self._damping_due = 0  # ticks until the damping is updated
 
     def torque(self, state: Any, model: Any, dt: float, p_d: FloatArray, quat_d: FloatArray,
                v_d: FloatArray, a_d: FloatArray) -> FloatArray:  # fmt: skip
@@ -68,14 +107,23 @@ class PoseImpedance:
         J = model.ee_jacobian(state)
         kn = self.kn
         kernels = laws.compiled()
+        self._damping_due -= 1
         if kernels is not None:  # the same terms, compiled in one call
+            M = model.mass_of(state)
+            if self._damping_due < 0:
+                kernels.mass_damping(self.K, self.zeta, M, model.armature, J,
+                                     MIN_INVERSE_INERTIA, self.D)  # fmt: skip
+                self._damping_due = DAMPING_TICKS - 1
             tau = np.empty(7)
             kernels.pose_tracking_torque(
                 state.O_T_EE, J, J if self.J_prev is None else self.J_prev, q, dq, dt, p_d,
-                quat_d, v_d, a_d, self.K, self.D, self.qn, kn, model.mass_of(state),
-                model.armature, model.coulomb, FRICTION_SPEED, tau, self.err, self.J_pinv,
+                quat_d, v_d, a_d, self.K, self.D, self.qn, kn, M, model.armature, model.coulomb,
+                FRICTION_SPEED, FRICTION_ERROR_RATE, tau, self.err, self.J_pinv,
             )  # fmt: skip
         else:
+            if self._damping_due < 0:
+                self.D = mass_damping(self.K, self.zeta, model.driven_mass_of(state), J)
+                self._damping_due = DAMPING_TICKS - 1
             err = self.err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
             tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - v_d))
             tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
@@ -83,6 +131,7 @@ class PoseImpedance:
             a = a_d
             if self.J_prev is not None and dt > 0.0:
                 a = a - ((J - self.J_prev) @ dq) / dt
-            tau += model.driven_mass_of(state) @ (J_pinv @ a) + model.friction_for(J_pinv @ v_d)
+            tau += model.driven_mass_of(state) @ (J_pinv @ a)
+            tau += model.friction_for(J_pinv @ (v_d - FRICTION_ERROR_RATE * err))
         self.J_prev = J
         return tau

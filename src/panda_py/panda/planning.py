@@ -22,6 +22,7 @@ from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import parse_poses, stack_rows
 from panda_py.motion.online import OnlineLimits
+from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter, smooth_quaternions
 from panda_py.robots.params import RobotSpec
 
 __all__ = [
@@ -66,6 +67,7 @@ POSE_MOVE_DEFAULTS: dict[str, Any] = {
 # ``stiffness`` and ``damping``; the paper's code block 5 passes them. Given, they select
 # that mode (the path is the same straight line, solved by IK at every 1 ms sample).
 POSE_MOVE_JOINT_OPTIONS = ("stiffness", "damping")
+SMOOTHING = round(SMOOTHING_TIME / PERIOD)  # [samples] a move's moving average
 
 
 @dataclass(frozen=True)
@@ -492,11 +494,13 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     s = traj.sample(_times(traj.get_duration()))
     # the angular acceleration, by central differences of the sampled angular velocity
     alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
+    # its acceleration steps ramped (smoothing.py): the arm can follow them
+    position = box_filter(s.positions, SMOOTHING)
     return PosePlan(
-        position=s.positions,
-        orientation=s.orientations,
-        twist=np.hstack([s.velocities, s.angular_velocities]),
-        accel=np.hstack([s.accelerations, alpha]),
+        position=position,
+        orientation=smooth_quaternions(s.orientations, SMOOTHING),
+        twist=box_filter(np.hstack([s.velocities, s.angular_velocities]), SMOOTHING),
+        accel=box_filter(np.hstack([s.accelerations, alpha]), SMOOTHING),
         q_nullspace=q_nullspace,
         impedance=opts.impedance,
         damping_ratio=opts.damping_ratio,
@@ -504,6 +508,6 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         dq_threshold=opts.dq_threshold,
         success_threshold=opts.success_threshold,
         orientation_threshold=opts.orientation_threshold,
-        join=_join(s.positions, positions),
+        join=_join(position, positions),
         **pose_online(spec, opts.speed_factor)._asdict(),
     )

@@ -1,0 +1,74 @@
+"""The moving average a move's samples get (panda_py.motion.smoothing): it keeps the
+ends, the limits and the derivatives' relations, bounds the jerk, and a sampled Cartesian
+plan comes out of it with its acceleration steps ramped."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from panda_py.motion import smoothing
+from panda_py.motion.rotation import exp, multiply
+
+
+def test_the_moving_average_keeps_the_ends_and_the_bounds() -> None:
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.uniform(-1.0, 1.0, (200, 3)), axis=0)
+    y = smoothing.box_filter(x, 30)
+    assert y.shape == (229, 3)
+    np.testing.assert_allclose(y[0], x[0])
+    np.testing.assert_allclose(y[-1], x[-1])
+    a = rng.uniform(-2.0, 2.0, (300, 2))  # a bounded signal (each coordinate, the norm)
+    b = smoothing.box_filter(a, 25)
+    assert np.abs(b).max() <= np.abs(a).max() + 1e-12
+    norms = np.linalg.norm(a, axis=1)
+    assert np.linalg.norm(b, axis=1).max() <= norms.max() + 1e-12
+    np.testing.assert_array_equal(smoothing.box_filter(x, 1), x)
+
+
+def test_a_step_becomes_a_ramp_and_the_derivatives_stay_consistent() -> None:
+    dt, m = 1e-3, 30
+    a = np.concatenate([np.zeros(50), np.full(300, 1.8), np.full(300, -1.8), np.zeros(50)])
+    v = np.concatenate([[0.0], np.cumsum(a[:-1]) * dt])
+    p = np.concatenate([[0.0], np.cumsum(v[:-1]) * dt])
+    af, vf, pf = (smoothing.box_filter(s, m) for s in (a, v, p))
+    jerk = np.abs(np.diff(af)) / dt
+    assert jerk.max() <= 2 * 1.8 / (m * dt) + 1e-9  # a reversal ramps over the width
+    assert np.abs(np.diff(a)).max() / dt == pytest.approx(3600.0)  # it was a step
+    # the box filter commutes with differences: still each other's rates
+    np.testing.assert_allclose(np.diff(vf) / dt, af[:-1], atol=1e-9)
+    np.testing.assert_allclose(np.diff(pf) / dt, vf[:-1], atol=1e-9)
+
+
+def test_quaternions_are_averaged_across_a_sign_flip() -> None:
+    q0 = np.array([0.0, 0.0, 0.0, 1.0])
+    quats = np.array([multiply(q0, exp(np.array([0.0, 0.0, 1e-3 * k]))) for k in range(100)])
+    quats[40:] *= -1.0  # the same rotations, the other sign
+    out = smoothing.smooth_quaternions(quats, 10)
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0)
+    dots = np.abs(np.einsum("ij,ij->i", out[1:], out[:-1]))
+    assert dots.min() > np.cos(1e-3)  # no jump where the sign flipped
+    assert abs(out[-1] @ quats[-1]) == pytest.approx(1.0)
+
+
+def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
+    from panda_py import fk
+    from panda_py.controllers import laws
+    from panda_py.panda import planning
+    from panda_py.robots.params import get_robot
+
+    q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+    T = fk(q0)
+    p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
+    offsets = np.array([[0.12, 0, 0], [0.12, 0.12, 0], [0, 0.12, 0.05]])
+    points = p0 + offsets
+    positions, quats, opts = planning.parse_pose_targets(
+        (points, np.tile(quat, (3, 1))), {"speed_factor": 0.2, "max_deviation": 0.02}
+    )
+    plan = planning.pose_move(p0, quat, positions, quats, opts, q0, get_robot("fr3"))
+    assert plan is not None
+    jerk = np.linalg.norm(np.diff(plan.accel[:, :3], axis=0), axis=1) / 1e-3
+    # the time-optimal profile's steps (3600 m/s^3 a tick) ramped over the width
+    assert jerk.max() <= 2 * 1.8 / smoothing.SMOOTHING_TIME + 1e-6
+    np.testing.assert_allclose(plan.position[-1], points[-1], atol=1e-9)
+    np.testing.assert_allclose(plan.twist[[0, -1]], 0.0, atol=1e-12)
