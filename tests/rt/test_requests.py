@@ -24,7 +24,7 @@ from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import get_robot
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel
-from panda_py.rt.child import ControlServer
+from panda_py.rt.child import STATE_WAIT, ControlServer
 from panda_py.rt.shm import HEADER, SharedBlock
 
 pytestmark = pytest.mark.timeout(30)
@@ -225,7 +225,9 @@ def test_a_request_counted_after_the_channel_woke_the_loop_is_taken_before_the_s
         robot.send(b"state")
 
     threading.Timer(0.005, count).start()
-    threading.Timer(0.05, state_).start()
+    # well within the loop's wait for a state (STATE_WAIT, 50 ms): at 50 ms, as it was, the
+    # wait could end before the state came, on a loaded machine
+    threading.Timer(0.6 * STATE_WAIT, state_).start()
     law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
     assert rid == 2 and law is not old and srv.requests_taken == 1
     reply, _ = user.recv()
