@@ -19,7 +19,9 @@ both start from the start pose at rest and read the start pose from the robot's 
   later, replaced by a move to goal B (``GOAL_B``): ours ``move_to_pose(B,
   asynchronous=True)`` while the first runs, franky ``robot.move(CartesianMotion(B),
   asynchronous=True)`` while its first runs. Measured: from the replacing call until the arm
-  is at rest at B; also the distance to B at the call and the largest after it.
+  is at rest at B; also the distance to B at the call and the largest after it, and, for
+  ours, the fastest any trajectory within our limits could reach B at rest from the arm's
+  position and velocity at the call (``fastest_to_rest``: what our limits allow at all).
 
 "At rest" is the same for both (``sim_client_franky_moves.watch_rest``, polled every 0.5 ms
 from the state each library gives the user, ``panda.get_state()`` and ``robot.state``):
@@ -68,6 +70,7 @@ from peer_envs import PeerUnavailable, peer_environ, peer_python  # noqa: E402
 from sim_client_franky_moves import watch_rest  # noqa: E402
 
 from panda_py import MotionHandle, Panda  # noqa: E402
+from panda_py.libfranka import Frame  # noqa: E402
 from panda_py.robots.params import get_robot  # noqa: E402
 from panda_py.sim import Simulator, free_loopback_host  # noqa: E402
 
@@ -75,6 +78,58 @@ WAYPOINTS = [[0.12, 0.0, 0.0], [0.12, 0.12, 0.0], [0.0, 0.12, 0.05]]  # [m] from
 GOAL_A = [0.15, 0.0, 0.0]  # [m] from the start
 GOAL_B = [0.0, 0.15, 0.0]  # [m] from the start
 CASES = ("path", "preempt")
+
+
+def fastest_to_rest(p: np.ndarray, v: np.ndarray, v_max: float, a_max: float) -> float:
+    """The shortest time [s] from position ``p`` [m] relative to the goal and velocity
+    ``v`` [m/s] (3,) to rest at the goal with speed <= ``v_max`` and acceleration <=
+    ``a_max`` (norms), to within a few milliseconds: what no trajectory under our limits
+    can beat. Jerk and the joints' limits are left out and each norm ball is replaced by
+    the 32-sided polygon round it (both allow more than our limits); the accelerations are
+    piecewise constant over 100 steps (allowing a little less: a few ms on a second). A
+    linear program in the plane of ``p`` and ``v``, bisected to 1 ms; needs SciPy (a
+    dependency of the examples extra)."""
+
+    from scipy.optimize import linprog
+
+    e1 = v / np.linalg.norm(v) if np.linalg.norm(v) > 1e-9 else p / np.linalg.norm(p)
+    rest = p - (p @ e1) * e1
+    e2 = rest / np.linalg.norm(rest) if np.linalg.norm(rest) > 1e-9 else np.zeros(3)
+    p0, v0 = np.array([p @ e1, p @ e2]), np.array([v @ e1, v @ e2])
+    n, sides = 100, 32
+    angles = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    normals = np.c_[np.cos(angles), np.sin(angles)]
+
+    def feasible(t: float) -> bool:
+        dt = t / n
+        rows, bounds = [], []
+        for k in range(n):
+            for m in normals:
+                acc = np.zeros(2 * n)
+                acc[2 * k : 2 * k + 2] = m
+                rows.append(acc)
+                bounds.append(a_max)
+                vel = np.zeros(2 * n)
+                vel[: 2 * k + 2] = np.tile(m * dt, k + 1)
+                rows.append(vel)
+                bounds.append(v_max - m @ v0)
+        eq, target = [], []
+        for c in range(2):
+            final_v = np.zeros(2 * n)
+            final_v[c::2] = dt
+            final_p = np.zeros(2 * n)
+            final_p[c::2] = dt * dt * (n - np.arange(n) - 0.5)
+            eq += [final_v, final_p]
+            target += [-v0[c], -p0[c] - v0[c] * t]
+        res = linprog(np.zeros(2 * n), A_ub=np.array(rows), b_ub=bounds, A_eq=np.array(eq),
+                      b_eq=target, bounds=(None, None), method="highs")  # fmt: skip
+        return bool(res.status == 0)
+
+    lo, hi = 0.0, 5.0
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if feasible(mid) else (mid, hi)
+    return hi
 
 
 def running(handle: MotionHandle) -> bool:
@@ -117,9 +172,20 @@ def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
             t0 = time.monotonic()
             handle = panda.move_to_pose(p0 + np.array(spec["goal_b"]), quat,
                                         speed_factor=factor, asynchronous=True)  # fmt: skip
+            state = panda.get_state()  # the arm as the call found it
             goal = p0 + np.array(spec["goal_b"])
             r = watch_rest(read, goal, t0, None, lambda: running(handle), rest)
             handle.wait()
+            J = panda.get_model().zero_jacobian(Frame.kEndEffector, state)
+            twist = np.asarray(J).reshape(6, 7, order="F") @ state.dq
+            limits = get_robot("fr3").cartesian
+            try:
+                r["bound"] = fastest_to_rest(
+                    state.O_T_EE[12:15] - goal, twist[:3], factor * limits.translation_velocity,
+                    factor * limits.translation_acceleration,
+                )  # fmt: skip
+            except ImportError:  # no SciPy: no bound
+                pass
             return r
 
         for name, case in (("path", path), ("preempt", preempt)):
@@ -207,6 +273,10 @@ def report(rows: dict[str, list[dict[str, Any]]], spec: dict[str, Any]) -> None:
                     first = np.median([r["first_m"] for r in ok]) * 1e3
                     far = np.median([r["farthest_m"] for r in ok]) * 1e3
                     line += f"; from B at the call {first:.0f} mm, farthest {far:.0f} mm"
+                bounds = [r["bound"] for r in ok if "bound" in r]
+                if case == "preempt" and bounds:
+                    line += (f"; fastest possible under our limits from the state at the "
+                             f"call [ms]: {ms_list(bounds)}")  # fmt: skip
                 if case == "path" and lib == "ours":
                     line += f"; planned trajectory {ms_list([r['planned'] for r in ok])}"
                 print(line)
