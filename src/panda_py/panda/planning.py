@@ -156,6 +156,21 @@ def parse_joint_targets(
     if arr.shape in ((7,), (7, 1)):
         arr = arr.reshape(1, 7)
     waypoints = stack_rows("waypoints", arr, 7, "[rad]")
+    if not kwargs:  # panda-py's defaults, checked once
+        return waypoints, _default_joint_options()
+    return waypoints, _joint_options(kwargs)
+
+
+@functools.cache
+def _default_joint_options() -> JointMoveOptions:
+    """The defaults' options, shared by every move that gives none (read-only arrays)."""
+    options = _joint_options({})
+    options.stiffness.setflags(write=False)
+    options.damping.setflags(write=False)
+    return options
+
+
+def _joint_options(kwargs: dict[str, Any]) -> JointMoveOptions:
     opts = _options(JOINT_MOVE_DEFAULTS, kwargs, "move_to_joint_position")
     checked = JointMoveOptions(
         speed_factor=_speed(opts["speed_factor"]),
@@ -165,7 +180,7 @@ def parse_joint_targets(
         success_threshold=_positive("success_threshold", opts["success_threshold"], "[rad]"),
         max_deviation=_nonnegative("max_deviation", opts["max_deviation"], "[rad]"),
     )
-    return waypoints, checked
+    return checked
 
 
 def parse_pose_targets(
@@ -352,18 +367,30 @@ class Online(NamedTuple):
 
 def joint_online(spec: RobotSpec, speed_factor: float) -> Online:
     """The online generator's limits of a joint plan."""
-    return Online(
-        OnlineLimits.joints(spec, speed_factor),
-        OnlineLimits.joints(spec, max(speed_factor, STOP_SPEED_FACTOR)),
-    )
+    return _online("joint", spec, speed_factor)
 
 
 def pose_online(spec: RobotSpec, speed_factor: float) -> Online:
     """The online generator's limits of a Cartesian plan."""
-    return Online(
-        OnlineLimits.cartesian(spec, speed_factor),
-        OnlineLimits.cartesian(spec, max(speed_factor, STOP_SPEED_FACTOR)),
-    )
+    return _online("pose", spec, speed_factor)
+
+
+# a move's limits by (kind, the spec's id, speed factor), the spec kept with them (an id is
+# only unique while its object lives): hashing a RobotSpec costs 9 us, a move's budget
+_ONLINE: dict[tuple[str, int, float], tuple[RobotSpec, Online]] = {}
+
+
+def _online(kind: str, spec: RobotSpec, speed_factor: float) -> Online:
+    key = (kind, id(spec), speed_factor)
+    hit = _ONLINE.get(key)
+    if hit is not None and hit[0] is spec:
+        return hit[1]
+    make = OnlineLimits.joints if kind == "joint" else OnlineLimits.cartesian
+    online = Online(make(spec, speed_factor), make(spec, max(speed_factor, STOP_SPEED_FACTOR)))
+    if len(_ONLINE) >= 64:  # many speed factors (a policy's): keep the newest
+        _ONLINE.clear()
+    _ONLINE[key] = (spec, online)
+    return online
 
 
 def joint_goal(goal: FloatArray, opts: JointMoveOptions, spec: RobotSpec) -> JointPlan:
