@@ -493,7 +493,9 @@ class Panda:
         Keywords as panda-py: ``speed_factor=0.2, impedance, damping_ratio=1.0,
         nullspace_stiffness=15.0, dq_threshold=0.001, success_threshold=0.02,
         orientation_threshold=0.1``; ``max_deviation`` [m], ``asynchronous``, ``until``,
-        ``then`` as :meth:`move_to_joint_position`."""
+        ``then`` as :meth:`move_to_joint_position`. ``damping_ratio`` is the damping ratio on
+        the arm's own end-effector inertia (panda-py's ``2 damping_ratio sqrt(K)`` assumes a
+        unit mass; see :class:`~panda_py.controllers.tracking.PoseImpedance`)."""
         positions, quats, opts = _moves.parse_pose_targets(args, kwargs)
         flag, until, then = self._guard(asynchronous, until, then)
         if opts.joint_space is not None and (flag or until is not None):
