@@ -116,6 +116,50 @@ def test_the_pose_reaches_its_target_with_a_twist_that_matches_its_motion() -> N
     assert np.linalg.norm(gen.twist[:3]) <= 0.5 * c.translation_velocity
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_reset_toward_is_reset_then_set_target_in_one(seed: int) -> None:
+    """A move's hand-over restarts the pose generator once: the same trajectory, tick for
+    tick, as a reset to the state followed by the target; bad states are refused alike."""
+    rng = np.random.default_rng(seed)
+    limits = OnlineLimits.cartesian(FER, 0.5)
+    q0 = rotation.multiply(np.array([1.0, 0.0, 0.0, 0.0]), rotation.exp(rng.normal(size=3)))
+    start = (np.array([0.3, 0.0, 0.5]) + rng.normal(scale=0.05, size=3), q0,
+             rng.normal(scale=0.2, size=6), rng.normal(scale=1.0, size=6))  # fmt: skip
+    target = (np.array([0.4, 0.1, 0.4]), rotation.multiply(q0, rotation.exp(rng.normal(size=3))),
+              rng.normal(scale=0.05, size=6), np.zeros(6))  # fmt: skip
+    a, b = OnlinePose(limits), OnlinePose(limits)
+    a.reset(*start)
+    first = (a.position.copy(), a.orientation.copy(), a.twist.copy(), a.accel.copy())
+    a.set_target(*target)
+    b.reset_toward(*start, *target)
+    for x, y in zip(first, (b.position, b.orientation, b.twist, b.accel), strict=True):
+        np.testing.assert_allclose(y, x, atol=1e-12)  # the start state, published
+    for _ in range(3000):
+        done_a, done_b = a.step(), b.step()
+        assert done_a == done_b
+        np.testing.assert_allclose(b.position, a.position, atol=1e-9)
+        np.testing.assert_allclose(b.twist, a.twist, atol=1e-9)
+        assert abs(abs(float(a.orientation @ b.orientation)) - 1.0) < 1e-12
+        if done_a:
+            break
+    assert done_a
+    with pytest.raises(ValueError, match="twist: expected 6 finite values"):
+        b.reset_toward(start[0], q0, np.full(6, np.nan), np.zeros(6), *target[:2])
+    with pytest.raises(ValueError, match="orientation: expected a unit quaternion"):
+        b.reset_toward(start[0], np.zeros(4), np.zeros(6), np.zeros(6), *target[:2])
+
+
+def test_scaled_limits_refuse_factors_that_are_not_positive() -> None:
+    limits = OnlineLimits.cartesian(FER, 0.5)
+    assert limits.scaled(0.5, 0.25) == OnlineLimits(
+        tuple(0.5 * v for v in limits.velocity), tuple(0.25 * a for a in limits.acceleration),
+        tuple(0.25 * j for j in limits.jerk),
+    )  # fmt: skip
+    for bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="scaled: expected factors > 0"):
+            limits.scaled(bad, 1.0)
+
+
 def test_an_arm_at_rest_with_noise_sized_velocities_is_at_its_target() -> None:
     """ruckig 0.19 cannot synchronize velocities of 1e-14 (it raises): those are rest."""
     gen = OnlineGenerator(OnlineLimits.joints(FER, 1.0))

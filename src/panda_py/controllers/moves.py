@@ -359,13 +359,13 @@ class PoseMove(Tracker):
         if prev is None:
             T = state.O_T_EE
             z = np.zeros(6)
-            self.gen.reset(T[12:15].copy(), laws.quat_from_matrix(T), z, z)
+            p, quat, v, a = T[12:15].copy(), laws.quat_from_matrix(T), z, z
         else:
-            self.gen.reset(*prev.pose_reference(state, model))
-        g = self.gen
-        self.ref = (g.position.copy(), g.orientation.copy(), g.twist.copy(), g.accel.copy())
+            p, quat, v, a = prev.pose_reference(state, model)
         j = self.join
-        self.gen.set_target(self.p[j], self.quat[j], self.v[j], self.a[j])
+        g = self.gen
+        g.reset_toward(p, quat, v, a, self.p[j], self.quat[j], self.v[j], self.a[j])
+        self.ref = (g.position.copy(), g.orientation.copy(), g.twist.copy(), g.accel.copy())
         # within the joints' limits here (a Cartesian bound can ask a joint for more)
         J = model.ee_jacobian(state)
         self.gen.set_limits(joint_capped(self.limits, J, model.spec, self.gen.frames))

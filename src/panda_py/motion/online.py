@@ -119,12 +119,29 @@ class OnlineLimits:
         )
 
     def scaled(self, velocity: float = 1.0, acceleration: float = 1.0) -> OnlineLimits:
-        """These limits with the velocities and the accelerations (and jerks) scaled."""
-        return OnlineLimits(
-            tuple(velocity * v for v in self.velocity),
-            tuple(acceleration * a for a in self.acceleration),
-            tuple(acceleration * j for j in self.jerk),
+        """These limits with the velocities and the accelerations (and jerks) scaled by
+        factors > 0 (refused otherwise)."""
+        if not (0.0 < velocity < math.inf and 0.0 < acceleration < math.inf):
+            raise ValueError(
+                f"scaled: expected factors > 0, got velocity {velocity}, acceleration "
+                f"{acceleration}"
+            )
+        return OnlineLimits._trusted(
+            tuple([velocity * v for v in self.velocity]),
+            tuple([acceleration * a for a in self.acceleration]),
+            tuple([acceleration * j for j in self.jerk]),
         )
+
+    @classmethod
+    def _trusted(cls, velocity: tuple[float, ...], acceleration: tuple[float, ...],
+                 jerk: tuple[float, ...]) -> OnlineLimits:  # fmt: skip
+        """Limits derived from checked ones by factors > 0, not checked again: a Cartesian
+        move's hand-over derives two sets, whose checks took a tenth of its time."""
+        limits = object.__new__(cls)
+        object.__setattr__(limits, "velocity", velocity)
+        object.__setattr__(limits, "acceleration", acceleration)
+        object.__setattr__(limits, "jerk", jerk)
+        return limits
 
 
 def _factor(value: float) -> float:
@@ -313,6 +330,29 @@ class OnlinePose:
         )  # fmt: skip
         self._publish()
 
+    def reset_toward(
+        self, position: FloatArray, orientation: FloatArray, twist: FloatArray,
+        accel: FloatArray, target_position: FloatArray, target_orientation: FloatArray,
+        target_twist: FloatArray | None = None, target_accel: FloatArray | None = None,
+    ) -> None:  # fmt: skip
+        """:meth:`reset` to this state, then :meth:`set_target`, in one restart of the
+        generator (a move's hand-over: the two restarts were a third of it)."""
+        quat = np.asarray(orientation, dtype=np.float64)
+        if quat.shape != (4,) or not np.isfinite(quat).all() or np.linalg.norm(quat) == 0.0:
+            raise ValueError(f"orientation: expected a unit quaternion, got {orientation!r}")
+        p = np.array(position, dtype=np.float64)
+        tw = np.array(twist, dtype=np.float64)
+        ac = np.array(accel, dtype=np.float64)
+        for name, arr, n, given in (("position", p, 3, position), ("twist", tw, 6, twist),
+                                    ("accel", ac, 6, accel)):  # fmt: skip
+            if arr.shape != (n,) or not np.isfinite(arr).all():
+                raise ValueError(f"{name}: expected {n} finite values, got {given!r}")
+        self._anchor(quat / np.linalg.norm(quat))
+        R0t = self._R0.T
+        self._aim(p, tw[:3].copy(), ac[:3].copy(), np.zeros(3), R0t @ tw[3:], R0t @ ac[3:],
+                  target_position, target_orientation, target_twist, target_accel)  # fmt: skip
+        self._publish()
+
     def _anchor(self, quat: FloatArray) -> None:
         self._q0 = np.ascontiguousarray(quat, dtype=np.float64)
         self._R0 = np.ascontiguousarray(rotation.to_matrix(quat), dtype=np.float64)
@@ -365,6 +405,15 @@ class OnlinePose:
         """Go to this pose (arriving at rest, or with ``twist`` and ``accel`` in the
         base frame)."""
         p, v, a, x, xd, xdd = self._state_at_new_anchor()
+        self._aim(p, v, a, x, xd, xdd, position, orientation, twist, accel)
+
+    def _aim(
+        self, p: FloatArray, v: FloatArray, a: FloatArray, x: FloatArray, xd: FloatArray,
+        xdd: FloatArray, position: FloatArray, orientation: FloatArray,
+        twist: FloatArray | None, accel: FloatArray | None,
+    ) -> None:  # fmt: skip
+        """Restart from this state (as :meth:`_restart`'s) toward the target pose, in the
+        frames of the way there."""
         quat = np.asarray(orientation, dtype=np.float64)
         rel = rotation.multiply(rotation.conjugate(self._q0), quat / np.linalg.norm(quat))
         x_t = rotation.log(rel)  # the shortest way round
@@ -448,7 +497,9 @@ def _aligned(limits: OnlineLimits) -> OnlineLimits:
         t, r = values[0], values[3]
         return (t, LATERAL * t, LATERAL * t, r, LATERAL * r, LATERAL * r)
 
-    return OnlineLimits(spread(limits.velocity), spread(limits.acceleration), spread(limits.jerk))
+    return OnlineLimits._trusted(
+        spread(limits.velocity), spread(limits.acceleration), spread(limits.jerk)
+    )
 
 
 def _frame(direction: FloatArray, fallback: FloatArray) -> FloatArray:
