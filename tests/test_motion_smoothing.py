@@ -26,6 +26,16 @@ def test_the_moving_average_keeps_the_ends_and_the_bounds() -> None:
     np.testing.assert_array_equal(smoothing.box_filter(x, 1), x)
 
 
+def test_bad_widths_and_quaternions_are_refused_by_name() -> None:
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match="width: expected a whole number of samples >= 1"):
+            smoothing.box_filter(np.zeros((5, 3)), bad)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"quats: expected finite quaternions of shape \(N, 4\)"):
+        smoothing.smooth_quaternions(np.zeros((5, 3)), 3)
+    with pytest.raises(ValueError, match="quats: expected finite quaternions"):
+        smoothing.smooth_quaternions(np.full((5, 4), np.nan), 3)
+
+
 def test_a_step_becomes_a_ramp_and_the_derivatives_stay_consistent() -> None:
     dt, m = 1e-3, 30
     a = np.concatenate([np.zeros(50), np.full(300, 1.8), np.full(300, -1.8), np.zeros(50)])

@@ -33,8 +33,8 @@ def box_filter(samples: FloatArray, width: int) -> FloatArray:
     ...), padded with the first and the last sample: N + width - 1 samples, from the
     first sample to the last."""
     x = np.asarray(samples, dtype=np.float64)
-    if width < 1:
-        raise ValueError(f"width: expected a number of samples >= 1, got {width}")
+    if isinstance(width, bool) or not isinstance(width, (int, np.integer)) or width < 1:
+        raise ValueError(f"width: expected a whole number of samples >= 1, got {width!r}")
     if width == 1 or len(x) == 0:
         return x.copy()
     pad = np.concatenate([np.repeat(x[:1], width - 1, axis=0), x,
@@ -49,6 +49,10 @@ def smooth_quaternions(quats: FloatArray, width: int) -> FloatArray:
     before, averaged and normalized (within one window a move turns by a few hundredths of
     a radian, where the normalized mean is the rotations' mean to second order)."""
     q = np.array(quats, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 4 or not np.isfinite(q).all():
+        raise ValueError(f"quats: expected finite quaternions of shape (N, 4), got shape {q.shape}")
+    if len(q) == 0:
+        return q
     flips = np.cumsum(np.einsum("ij,ij->i", q[1:], q[:-1]) < 0.0) % 2
     q[1:][flips == 1] *= -1.0
     out = box_filter(q, width)
