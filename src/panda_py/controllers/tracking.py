@@ -46,9 +46,10 @@ def joint_impedance_torque(
     q))`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm s/rad]) around
     the reference ``q_d``, ``dq_d`` with the inertial (links and rotors) feed-forward of its
     motion and the dry friction cancelled along it and the way back to it."""
-    tau = K * (q_d - state.q) + D * (dq_d - state.dq)
+    e = q_d - state.q
+    tau = K * e + D * (dq_d - state.dq)
     tau += model.driven_mass_of(state) @ ddq_d
-    tau += model.friction_for(dq_d + FRICTION_ERROR_RATE * (q_d - state.q))
+    tau += model.friction_for(dq_d + FRICTION_ERROR_RATE * e)
     return tau
 
 
