@@ -308,9 +308,9 @@ def test_a_move_settles_at_its_goal_soon_after_its_trajectory(
 
 def test_an_fr3_cartesian_path_ends_at_rest_soon_after_its_trajectory() -> None:
     """The three-waypoint path of benchmarks/bench_franky_moves.py on the FR3 (whose
-    joints' dry friction is 2-4x the FER's): the arm tracks it within a millimetre and the
-    move ends at rest at its goal within 0.2 s of the trajectory (it used to arrive 4 mm
-    off, held there by friction, and end at its one-second settle timeout)."""
+    joints' dry friction is 2-4x the FER's): the move ends at rest within 1 mm and 2 mrad
+    of its goal within 0.2 s of the trajectory (it used to arrive 4 mm off, held there by
+    friction, and end at its one-second settle timeout)."""
     from panda_py.sim import Simulator, free_loopback_host
 
     with (
