@@ -172,7 +172,7 @@ def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
             t0 = time.monotonic()
             handle = panda.move_to_pose(p0 + np.array(spec["goal_b"]), quat,
                                         speed_factor=factor, asynchronous=True)  # fmt: skip
-            state = panda.get_state()  # the arm as the call found it
+            state = panda.get_state()  # the arm just after the call (within a tick of it)
             goal = p0 + np.array(spec["goal_b"])
             r = watch_rest(read, goal, t0, None, lambda: running(handle), rest)
             handle.wait()

@@ -40,7 +40,12 @@ SETTLE_JOINT = 2e-4  # [rad] at goal: every joint within this
 # within the settle time; a pose's lower, as its Cartesian damping is lighter.
 SETTLE_INTEGRAL = 10.0
 SETTLE_INTEGRAL_POSE = 2.0
-SETTLE_RATE = 10.0  # [1/s] the friction cancelled on the way back (see PoseMove.step)
+# [1/s] once the trajectory ended, a push of the drives' friction level toward the goal (as
+# if the joints moved there at this rate times the error), on top of the tracking's own
+# cancelling of it (tracking.FRICTION_ERROR_RATE): a joint that friction holds breaks free
+# at once. Measured without it: a Cartesian move and the FR3 path ran into SETTLE_TIMEOUT,
+# the FER's 15 cm move settled 0.55 s after its trajectory instead of 0.22 s
+SETTLE_RATE = 10.0
 SETTLE_RATE_JOINT = 50.0  # [1/s] the same for a joint move, whose errors are smaller
 SETTLE_POSITION = 2e-3  # [m]
 SETTLE_ORIENTATION = 2e-3  # [rad]
@@ -416,9 +421,7 @@ class PoseMove(Tracker):
         if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.law.K @ self.integral))
-            # the drives' dry friction cancelled along the way back to the goal (as if
-            # the joints moved there at SETTLE_RATE times the error): the impedance's few
-            # newtons at a millimetre otherwise stick, and the integral creeps for a second
+            # a push of the drives' friction level toward the goal (see SETTLE_RATE)
             tau += model.friction_for(self.law.J_pinv @ (err * -SETTLE_RATE))
         if self.until is not None:
             T = state.O_T_EE
