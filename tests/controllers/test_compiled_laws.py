@@ -13,7 +13,7 @@ import pytest
 from panda_py import controllers, kinematics
 from panda_py.controllers import laws
 from panda_py.motion.online import OnlineLimits
-from panda_py.robots.params import get_robot
+from panda_py.robots.params import START_POSE, get_robot
 
 KIN = kinematics.get_kinematics("fr3")
 
@@ -308,3 +308,90 @@ def test_the_compiled_joint_cap_equals_the_numpy_one(monkeypatch) -> None:  # ty
         for name in ("velocity", "acceleration", "jerk"):
             np.testing.assert_allclose(getattr(fast, name), getattr(slow, name), rtol=1e-9)
     assert 0 < capped < 300  # both branches seen
+
+
+def _robot_state(q, dq, F_T_EE, m_load, F_x_Cload, pose_q=None):  # type: ignore[no-untyped-def]
+    """A TickState (read-only fields, as the loop hands them) of a FER with a load (its
+    pose that of ``pose_q``, by default ``q``)."""
+    from panda_py import fci
+    from panda_py.libfranka.state import TickState
+
+    kin = kinematics.get_kinematics("fer", F_T_EE)
+    dialect = fci.dialect(5)
+    rec = np.zeros((), dialect.state_dtype)
+    rec["q"] = rec["q_d"] = q
+    rec["dq"] = dq
+    rec["O_T_EE"] = kin.fk(q if pose_q is None else pose_q).reshape(16, order="F")
+    rec["F_T_EE"] = F_T_EE.reshape(16, order="F")
+    rec["EE_T_K"] = np.eye(4).reshape(16)
+    rec["m_ee"] = 0.73
+    rec["F_x_Cee"] = (-0.01, 0.0, 0.03)
+    rec["I_ee"] = np.diag([0.001, 0.0025, 0.0017]).reshape(9)
+    rec["m_load"] = m_load
+    rec["F_x_Cload"] = F_x_Cload
+    rec["I_load"] = np.diag([0.002, 0.002, 0.001]).reshape(9)
+    return TickState(dialect, rec.tobytes())
+
+
+@pytest.mark.parametrize("path", ["separate kernels", "numpy"])
+def test_the_fused_step_equals_the_separate_calls_and_the_numpy_law(path: str, monkeypatch):  # type: ignore[no-untyped-def]
+    """CartesianImpedance's one-call step (filter, Jacobian, law, Coriolis: _fused) on a
+    real ControlModel, with a load and another end effector, while the target, the
+    stiffness and the load change, gives the torques of the separate calls and of the
+    plain law."""
+    from panda_py.controllers.model import ControlModel
+
+    assert laws.fused() is not None
+    rng = np.random.default_rng(7)
+    F_T_EE = np.eye(4)
+    F_T_EE[:3, 3] = (0.0, 0.02, 0.15)
+    F_T_EE[:2, :2] = [[0.0, -1.0], [1.0, 0.0]]
+    q0 = np.array([0.1, -0.6, 0.2, -2.2, 0.1, 1.7, 0.6])
+    states = []
+    for k in range(12):
+        load = (0.0, (0.0, 0.0, 0.0)) if k < 6 else (0.8, (0.01, -0.02, 0.05))  # picked up
+        states.append(_robot_state(q0 + rng.normal(size=7) * 0.02, rng.normal(size=7) * 0.2,
+                                   F_T_EE, *load))  # fmt: skip
+    A = rng.normal(size=(6, 6))
+    K = A @ A.T + np.diag([900.0] * 3 + [40.0] * 3)
+
+    def run() -> list[np.ndarray]:
+        model = ControlModel("fer")
+        ctrl = controllers.CartesianImpedance(filter_coeff=0.3, nullspace_stiffness=4.0)
+        ctrl.start(states[0], model)
+        out = []
+        for k, s in enumerate(states):
+            if k == 3:  # a new target, as set_control writes it
+                ctrl._p_t[:] = s.O_T_EE[12:15] + np.array([0.03, -0.02, 0.01])
+                ctrl._quat_t[:] = laws.quat_from_matrix(states[0].O_T_EE)[[1, 0, 2, 3]] * (
+                    1.0, -1.0, 1.0, 1.0)  # fmt: skip
+                ctrl._quat_t /= np.linalg.norm(ctrl._quat_t)
+            if k == 8:  # a stiffer, coupled impedance
+                ctrl._K_t[:] = K
+            ctrl.inputs_changed = k in (0, 3, 8)
+            ctrl.tick(1e-3)
+            out.append(np.array(ctrl.step(s, model)))
+        return out
+
+    fused = run()
+    monkeypatch.setattr(laws, "_FUSED", None)
+    if path == "numpy":
+        monkeypatch.setattr(laws, "_KERNELS", None)
+    for got, want in zip(fused, run(), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    assert np.abs(fused[-1]).max() > 1.0  # the target and the load made it work
+
+
+def test_the_fused_step_gives_nan_torques_for_a_non_finite_state() -> None:
+    from panda_py.controllers.model import ControlModel
+
+    q = np.array(START_POSE)
+    good = _robot_state(q, np.zeros(7), np.eye(4), 0.0, (0.0, 0.0, 0.0))
+    q_bad = q.copy()
+    q_bad[3] = np.nan
+    bad = _robot_state(q_bad, np.zeros(7), np.eye(4), 0.0, (0.0, 0.0, 0.0), pose_q=q)
+    model = ControlModel("fer")
+    ctrl = controllers.CartesianImpedance()
+    ctrl.start(good, model)
+    assert np.isfinite(ctrl.step(good, model)).all()
+    assert np.isnan(ctrl.step(bad, model)).all()  # which the loop's finalize refuses

@@ -16,6 +16,7 @@ from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
+from panda_py.controllers.model import ControlModel
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
 
@@ -41,6 +42,12 @@ _ZERO7_LIST = list(ZERO7)
 _START_LIST = list(START_POSE)
 _fast = checks.fast_floats
 _F64 = np.dtype(np.float64)
+# CartesianImpedance's filtered inputs in one buffer, as its fused step
+# (_fused.cartesian_impedance_step) takes them: K (6x6), Kd (6x6), p (3), quat (4),
+# q_n (7), k_n; and the inputs whose offsets it takes, in this order
+_FILTERED_SIZE = 87
+_FUSED_SIGNALS = ("position", "orientation", "q_nullspace", "impedance", "filter_coeff",
+                  "nullspace_stiffness")  # fmt: skip
 
 
 def _sqrtm_psd(K: FloatArray) -> FloatArray:
@@ -433,7 +440,8 @@ class CartesianImpedance(TorqueController):
         if self._Kd_key is None or not (
             np.array_equal(K, self._Kd_key[0]) and ratio == self._Kd_key[1]
         ):
-            self._Kd_target = 2.0 * ratio * _sqrtm_psd(K)
+            # C-ordered: the fused step is compiled for that layout
+            self._Kd_target = np.ascontiguousarray(2.0 * ratio * _sqrtm_psd(K))
             self._Kd_key = (K.copy(), ratio)
         return self._Kd_target
 
@@ -442,16 +450,31 @@ class CartesianImpedance(TorqueController):
         self.initial_signals(
             position=T[12:15], orientation=laws.quat_from_matrix(T), q_nullspace=state.q
         )
-        self._p, self._quat, self._qn = self._p_t.copy(), self._quat_t.copy(), self._qn_t.copy()
+        # the filtered inputs, in one buffer (views by name) as the fused step takes them
+        f = self._filtered = np.empty(_FILTERED_SIZE)
+        self._K, self._Kd = f[0:36].reshape(6, 6), f[36:72].reshape(6, 6)
+        self._p, self._quat, self._qn = f[72:75], f[75:79], f[79:86]
+        self._p[:], self._quat[:], self._qn[:] = self._p_t, self._quat_t, self._qn_t
         self._Kd_key = None
-        self._K = self._K_t.copy()
-        self._Kd = self._damping_target().copy()
-        self._kn = self._scalar("nullspace_stiffness")
+        self._K[:] = self._K_t
+        self._Kd[:] = self._damping_target()
+        f[86] = self._scalar("nullspace_stiffness")
+        layout = self._sig_layout
+        self._at = np.array([layout[name][0] for name in _FUSED_SIGNALS], dtype=np.int64)
+        self._J = np.empty((1, 6, 7))
 
     def step(self, state: Any, model: Any) -> FloatArray:
-        a = self._scalar("filter_coeff")
         # the damping's target depends on the inputs only: redone when they changed
         Kd_t = self._damping_target() if self.inputs_changed else self._Kd_target
+        fused = laws.fused()
+        if fused is not None and type(model) is ControlModel:  # all of it in one call
+            chain, arm = model.kernel_arrays(state)
+            tau = np.empty(7)
+            fused.cartesian_impedance_step(self._values, self._at, self._filtered, Kd_t,
+                                           state.O_T_EE, state.q, state.dq, chain, *arm,
+                                           self._J, tau)  # fmt: skip
+            return tau
+        a = self._scalar("filter_coeff")
         kernels = laws.compiled()
         if kernels is not None:  # the same filter, compiled, in place
             kernels.pose_filter(a, self._K, self._K_t, self._Kd, Kd_t, self._p, self._p_t,
@@ -461,11 +484,12 @@ class CartesianImpedance(TorqueController):
             laws.ema(self._Kd, Kd_t, a)
             laws.ema(self._p, self._p_t, a)
             laws.ema(self._qn, self._qn_t, a)
-            self._quat = laws.slerp(self._quat, self._quat_t, a)
-        self._kn += a * (self._scalar("nullspace_stiffness") - self._kn)
+            self._quat[:] = laws.slerp(self._quat, self._quat_t, a)
+        f = self._filtered
+        f[86] += a * (self._scalar("nullspace_stiffness") - f[86])
+        kn = float(f[86])
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
-        kn = self._kn
         if kernels is not None:  # the same law, compiled
             tau = np.empty(7)
             kernels.cartesian_impedance_torque(

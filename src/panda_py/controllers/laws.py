@@ -26,6 +26,7 @@ __all__ = [
     "compiled",
     "damped_pinv",
     "ema",
+    "fused",
     "nullspace_projector",
     "quat_from_matrix",
     "saturate_torque_rate",
@@ -47,6 +48,7 @@ PINV_DAMPING = 0.01
 
 _UNSET: Any = object()
 _KERNELS: Any = _UNSET
+_FUSED: Any = _UNSET
 
 
 def compiled() -> Any:
@@ -65,6 +67,23 @@ def compiled() -> Any:
     return _KERNELS
 
 
+def fused() -> Any:
+    """The laws compiled with their model terms (:mod:`._fused`: ``CartesianImpedance``'s
+    step in one call), or None where the laws, the kinematics or the dynamics run without
+    numba: imported on first use."""
+    global _FUSED
+    if _FUSED is _UNSET:
+        _FUSED = None
+        if compiled() is not None:
+            try:
+                from panda_py.controllers import _fused
+            except ImportError:
+                pass
+            else:
+                _FUSED = _fused
+    return _FUSED
+
+
 def warmup() -> None:
     """Compile (or load from numba's cache) the compiled laws now: the control process
     calls this before its loop, whose first tick must not wait for a compiler."""
@@ -75,7 +94,7 @@ def warmup() -> None:
         z7, K = np.zeros(7), np.eye(6)
         T = np.eye(4).reshape(16)
         z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        with progress.work("panda_py: compiling the control laws, once after installing", 6) as w:
+        with progress.work("panda_py: compiling the control laws, once after installing", 7) as w:
             k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
             w.advance()
             k.pose_filter(0.5, K, K, K, K, z3, z3, z7, z7, quat.copy(), quat)
@@ -93,6 +112,11 @@ def warmup() -> None:
             w.advance()
             # the Cartesian moves' and CartesianTarget's limits at a new target
             k.joint_scales(J, np.eye(3), np.eye(3), 0.5, 1.0, 1.0, 1.0, 1.0, z7 + 1.0, z7 + 1.0)
+            w.advance()
+            # CartesianImpedance's step with its model terms, in one call
+            f = fused()
+            if f is not None:
+                f.warmup()
             w.advance()
 
 

@@ -66,6 +66,12 @@ class ControlModel(Model):
         self._jac = (state, J)
         return J
 
+    def kernel_arrays(self, state: Any) -> tuple[FloatArray, tuple[FloatArray, ...]]:
+        """What a law compiled with its model terms takes (``_fused``): the packed chain to
+        the state's end effector (``F_T_EE``) and the arm's parameters with the state's
+        total load (``LoadedArm.arrays``), each prepared once per end effector and load."""
+        return self._kinematics(state.F_T_EE).chain_constants, self._arm(state).arrays
+
     def _arm(self, state: Any) -> dynamics.LoadedArm:
         """The arm with the state's total load, prepared once per load: keyed on the raw
         end-effector and payload fields, combined (``combine_load``) only when they

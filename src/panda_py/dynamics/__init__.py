@@ -29,7 +29,14 @@ from numpy.typing import ArrayLike, NDArray
 from panda_py import checks
 from panda_py.robots.params import GRAVITY, RobotSpec, get_robot
 
-__all__ = ["LoadedArm", "coriolis", "gravity", "inverse_dynamics", "mass_matrix"]
+__all__ = [
+    "LoadedArm",
+    "compiled_kernels",
+    "coriolis",
+    "gravity",
+    "inverse_dynamics",
+    "mass_matrix",
+]
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[float, float, float, float, float, float, float, float, float]  # row-major
@@ -379,6 +386,13 @@ def _jit() -> Any:
     return _JIT
 
 
+def compiled_kernels() -> Any:
+    """The compiled recursion (numba: ``rnea``, ``crba`` on :attr:`LoadedArm.arrays`),
+    loaded or compiled on first use, or None where the dynamics run as plain Python (numba
+    missing, ``PANDA_PY_NO_JIT=1``): for a compiled loop that calls it itself."""
+    return _jit()
+
+
 def _floats(values: ArrayLike) -> list[float]:
     out: list[float] = np.asarray(values, dtype=np.float64).reshape(-1).tolist()
     return out
@@ -412,6 +426,14 @@ class LoadedArm:
         )
         self._zero = np.zeros(_N)
         self._zero3 = np.zeros(3)
+
+    @property
+    def arrays(self) -> tuple[NDArray[np.float64], ...]:
+        """The arm's parameters as the compiled recursion takes them (see
+        :func:`compiled_kernels`): frame origins (7, 3), cos and sin of the twists (7,),
+        the links' masses (7,) with the load in the last, first moments (7, 3) and
+        inertias about the frame origins (7, 3, 3)."""
+        return self._arrays
 
     def coriolis(self, q: ArrayLike, dq: ArrayLike) -> NDArray[np.float64]:
         """``C(q, dq) dq`` [Nm] at ``q`` [rad], ``dq`` [rad/s]."""

@@ -140,6 +140,13 @@ class Kinematics:
 
     # ---------------------------------------------------------------- forward kinematics
 
+    @property
+    def chain_constants(self) -> FloatArray:
+        """The arm's chain to this end effector, packed as the compiled kernels take it
+        (shared: not to be changed), for a compiled loop that calls
+        :func:`compiled_kernels` itself."""
+        return self._CF
+
     def fk(self, q: object) -> FloatArray:
         """``O_T_EE`` (4, 4) for joint positions q (7,) [rad]; a batch (N, 7) gives
         (N, 4, 4). Translations in [m]."""

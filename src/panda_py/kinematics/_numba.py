@@ -8,31 +8,25 @@ objects Python runs plain) and the branch-free :mod:`._nbmath` in place of
 :mod:`._scalar`'s libm calls; nothing is compiled until a kernel is first called or
 :func:`compile_all` runs.
 
-The compile cache lives where the user can write, never in site-packages:
-``$PANDA_PY_CACHE/numba/<key>`` (default ``$XDG_CACHE_HOME/panda_py`` or
-``~/.cache/panda_py``), ``key`` a SHA-256 over the source of every module in this
-package (what the kernels compile: the solvers, the math, the constants they bake in),
-numba's version and the Python build. numba's own cache would key on the kernel's file
-alone, so an edit to a helper or a constant elsewhere would silently load stale machine
-code; here any edit selects a new directory and the kernels compile afresh (old
-directories are left for the user to delete). Where no directory is writable the
-kernels compile in memory, each process anew.
+The compile cache (:mod:`panda_py.jitcache`: where the user can write, never in
+site-packages) is keyed over the source of every module in this package (what the kernels
+compile: the solvers, the math, the constants they bake in), numba's version and the
+Python build: an edit to a helper or a constant elsewhere selects a new directory and the
+kernels compile afresh, where numba's own cache would key on the kernel's file alone and
+load stale machine code.
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import sys
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numba
 import numpy as np
 from numba.extending import overload, register_jitable
 
-from panda_py import progress
+from panda_py import jitcache, progress
 from panda_py.kinematics import _fk, _ik, _nbmath, _scalar
 
 _OPTS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
@@ -68,90 +62,17 @@ for _fn in (_fk.fk_range, _fk.frames_range, _fk.jacobian_range, _ik.ik_range, _i
 
 # ----------------------------------------------------------------- the keyed disk cache
 
-
-def _source_key() -> str:
-    h = hashlib.sha256(f"{numba.__version__}\n{sys.version}\n{sys.platform}\n".encode())
-    for path in sorted(Path(__file__).parent.glob("*.py")):
-        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
-    return h.hexdigest()[:20]
-
-
-SOURCE_KEY = _source_key()
+SOURCE_KEY = jitcache.source_key(Path(__file__).parent.glob("*.py"))
 
 
 def cache_dir() -> Path:
     """Where the compiled kernels are kept (see the module docstring)."""
-    root = os.environ.get("PANDA_PY_CACHE")
-    if root:
-        base = Path(root)
-    else:
-        xdg = os.environ.get("XDG_CACHE_HOME")
-        base = (Path(xdg) if xdg else Path.home() / ".cache") / "panda_py"
-    return base / "numba" / SOURCE_KEY
-
-
-def _make_cache_class() -> Any:
-    """numba's per-function cache, located in :func:`cache_dir` and stamped with
-    SOURCE_KEY (numba stamps with the kernel's own file); None if this numba's caching
-    internals differ (then no disk cache)."""
-    try:
-        from numba.core import caching
-    except ImportError:
-        return None
-    base_locator = getattr(caching, "_CacheLocator", None)
-    base_impl = getattr(caching, "CompileResultCacheImpl", None)
-    base_cache = getattr(caching, "FunctionCache", None)
-    if base_locator is None or base_impl is None or base_cache is None:
-        return None
-
-    class Locator(base_locator):  # type: ignore[misc, valid-type]
-        def __init__(self, py_func: Any, py_file: str) -> None:
-            self._lineno = py_func.__code__.co_firstlineno
-            self._path = str(cache_dir())
-
-        def get_cache_path(self) -> str:
-            return self._path
-
-        def get_source_stamp(self) -> str:
-            return SOURCE_KEY
-
-        def get_disambiguator(self) -> str:
-            return str(self._lineno)
-
-        @classmethod
-        def from_function(cls, py_func: Any, py_file: str) -> Any:
-            self = cls(py_func, py_file)
-            try:
-                self.ensure_cache_path()  # creates it, and tests that it is writable
-            except OSError:
-                return None
-            return self
-
-    class Impl(base_impl):  # type: ignore[misc, valid-type]
-        _locator_classes: ClassVar[list[Any]] = [Locator]
-
-    class Cache(base_cache):  # type: ignore[misc, valid-type]
-        _impl_class = Impl
-
-    return Cache
-
-
-_CACHE_CLASS = _make_cache_class()
+    return jitcache.cache_dir(SOURCE_KEY)
 
 
 def _jit(**kw: Any) -> Any:
     """numba.njit, caching in :func:`cache_dir` where it can."""
-
-    def deco(fn: Any) -> Any:
-        dispatcher = numba.njit(**kw)(fn)
-        if _CACHE_CLASS is not None:
-            try:
-                dispatcher._cache = _CACHE_CLASS(fn)
-            except (RuntimeError, OSError):  # no writable place: compile in memory
-                pass
-        return dispatcher
-
-    return deco
+    return jitcache.keyed_jit(SOURCE_KEY, **kw)
 
 
 # ----------------------------------------------------------------------------- kernels

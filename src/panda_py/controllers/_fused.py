@@ -1,0 +1,94 @@
+"""``CartesianImpedance``'s whole step in one compiled call: the input filter, the end
+effector's Jacobian, the law and the Coriolis torques, on the controller's own buffers.
+
+The same kernels the separate calls run (:mod:`._kernels`' filter and law, the
+kinematics' Jacobian, the dynamics' recursion), called from one kernel: one dispatch a
+tick where there were four, and none of the Python between them (in the loop, where code
+runs on cold caches once a millisecond, that Python cost more than the arithmetic).
+
+Compiled with the kinematics' and the dynamics' kernels inside, so cached under a key over
+all of their sources (:mod:`panda_py.jitcache`): an edit to any of them compiles afresh.
+Imported on first use (:func:`panda_py.controllers.laws.fused`) unless
+``PANDA_PY_NO_JIT=1`` or numba is missing.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from panda_py import dynamics, jitcache, kinematics
+from panda_py.controllers import _kernels
+
+_KIN = kinematics.compiled_kernels()
+_DYN = dynamics.compiled_kernels()
+if _KIN is None or _DYN is None:  # plain Python: the separate calls run
+    raise ImportError("the kinematics or the dynamics run without numba")
+
+__all__ = ["cartesian_impedance_step", "warmup"]
+
+KEY = jitcache.source_key([
+    Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__),
+    *Path(_KIN.__file__).parent.glob("*.py"),
+])  # fmt: skip
+_jacobian_one = _KIN.jacobian_one
+_rnea = _DYN.rnea
+_pose_filter = _kernels.pose_filter
+_torque = _kernels.cartesian_impedance_torque
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
+    values, at, filtered, Kd_t, O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, J, tau
+):  # fmt: skip
+    """One tick of ``CartesianImpedance``: the filter moves ``filtered`` (K (6x6), Kd
+    (6x6), p (3), quat (4), q_n (7), k_n) toward the inputs ``values`` (at the offsets
+    ``at`` of position, orientation, q_nullspace, impedance, filter_coeff and
+    nullspace_stiffness; the damping's target ``Kd_t`` computed by the caller when they
+    change); the torque
+    ``J^T (-K e - Kd J dq) + N (k_n (q_n - q) - 2 sqrt(k_n) dq) + C(q, dq) dq`` into
+    ``tau`` (7,), with the Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7)
+    and the Coriolis torques of the arm ``origin ... inertia``
+    (``dynamics.LoadedArm.arrays``). NaN torques where ``q`` is not finite."""
+    alpha = values[at[4]]
+    K = filtered[0:36].reshape((6, 6))
+    Kd = filtered[36:72].reshape((6, 6))
+    p = filtered[72:75]
+    quat = filtered[75:79]
+    q_n = filtered[79:86]
+    K_t = values[at[3] : at[3] + 36].reshape((6, 6))
+    p_t = values[at[0] : at[0] + 3]
+    quat_t = values[at[1] : at[1] + 4]
+    q_n_t = values[at[2] : at[2] + 7]
+    _pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t)
+    filtered[86] += alpha * (values[at[5]] - filtered[86])
+    if not _jacobian_one(q, chain, False, J):  # q not finite
+        for i in range(7):
+            tau[i] = math.nan
+        return
+    _torque(O_T_EE, J[0], q, dq, p, quat, K, Kd, q_n, filtered[86], tau)
+    coriolis = np.empty(7)
+    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
+    for i in range(7):
+        tau[i] += coriolis[i]
+
+
+def warmup() -> None:
+    """Compile (or load) the kernel for the types the loop passes: the controller's own
+    buffers, and the state's fields as a ``TickState`` has them (read-only)."""
+    from panda_py.controllers import _builtin
+
+    state = np.zeros(7), np.zeros(7), np.eye(4).reshape(16)
+    for a in state:
+        a.flags.writeable = False
+    q, dq, O_T_EE = state
+    ctrl = _builtin.CartesianImpedance()
+    at = np.array([ctrl._sig_layout[n][0] for n in _builtin._FUSED_SIGNALS], dtype=np.int64)
+    filtered = np.zeros(_builtin._FILTERED_SIZE)
+    filtered[78] = 1.0  # a unit quaternion
+    arm = dynamics.LoadedArm("fer")
+    chain = kinematics.get_kinematics("fer").chain_constants
+    cartesian_impedance_step(ctrl._values, at, filtered, np.eye(6), O_T_EE, q, dq, chain,
+                             *arm.arrays, np.empty((1, 6, 7)), np.empty(7))  # fmt: skip

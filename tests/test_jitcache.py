@@ -1,0 +1,43 @@
+"""The keyed disk cache of the compiled kernels (panda_py.jitcache): the key covers every
+source file a kernel compiles, so an edit to any of them selects a new directory."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from panda_py import dynamics, jitcache, kinematics
+from panda_py.controllers import laws
+
+
+def test_the_key_changes_with_any_file_and_only_then(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.py", tmp_path / "b.py"
+    a.write_text("X = 1\n")
+    b.write_text("Y = 2\n")
+    key = jitcache.source_key([a, b])
+    assert key == jitcache.source_key([b, a])  # the order given does not matter
+    b.write_text("Y = 3\n")
+    assert jitcache.source_key([a, b]) != key
+    b.write_text("Y = 2\n")
+    assert jitcache.source_key([a, b]) == key
+    assert jitcache.source_key([a]) != key
+
+
+def test_the_cache_lives_under_panda_py_cache(monkeypatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("PANDA_PY_CACHE", str(tmp_path))
+    assert jitcache.cache_dir("k1") == tmp_path / "numba" / "k1"
+    monkeypatch.delenv("PANDA_PY_CACHE")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert jitcache.cache_dir("k1") == tmp_path / "xdg" / "panda_py" / "numba" / "k1"
+
+
+def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles() -> None:
+    """CartesianImpedance's fused step inlines the Jacobian (kinematics) and the Coriolis
+    recursion (dynamics): an edit to either must compile it afresh."""
+    fused = laws.fused()
+    assert fused is not None
+    kin, dyn = kinematics.compiled_kernels(), dynamics.compiled_kernels()
+    sources = [Path(fused.__file__), Path(laws.compiled().__file__), Path(dyn.__file__),
+               *Path(kin.__file__).parent.glob("*.py")]  # fmt: skip
+    assert fused.KEY == jitcache.source_key(sources)
+    fused.warmup()
+    assert fused.cartesian_impedance_step.stats.cache_path == str(jitcache.cache_dir(fused.KEY))
