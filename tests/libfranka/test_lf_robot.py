@@ -334,3 +334,37 @@ def test_rigid_errors_refuses_what_is_not_a_transform() -> None:
         checks.rigid_errors(np.eye(3))
     with pytest.raises(ValueError, match="T: expected 4x4 transforms"):
         checks.rigid_errors("eye")
+
+
+def test_write_torques_sends_what_write_once_sends_and_refuses_bad_input(robot, sim) -> None:
+    """ActiveControl.write_torques (the owning loop's write: a list, no Torques object):
+    the robot gets the same torques as from writeOnce(Torques(...)); bad input is refused
+    with a clear error and nothing is sent, the motion going on."""
+    tau = [0.05, -0.1, 0.15, -0.2, 0.25, -0.3, 0.35]  # (steps within the rate limit)
+    active = robot.start_torque_control()
+    try:
+        active.readOnce()
+        active.write_torques(tau)
+        state, _ = active.readOnce()
+        np.testing.assert_allclose(state.tau_J_d, tau, atol=1e-12)
+        active.writeOnce(lf.Torques([-t for t in tau]))
+        state, _ = active.readOnce()
+        np.testing.assert_allclose(state.tau_J_d, [-t for t in tau], atol=1e-12)
+        received = sim.stats()["commands_received"]
+        for bad in (tau[:6], [*tau[:6], float("nan")], [*tau[:6], float("inf")]):
+            with pytest.raises(ValueError, match="tau_J: expected 7 finite torques"):
+                active.write_torques(bad)
+        assert sim.stats()["commands_received"] == received
+        active.write_torques(tau, motion_finished=True)  # still running: ends it
+        assert active.finished
+    finally:
+        active.cancel()
+    with pytest.raises(lf.InvalidOperationException, match="already finished"):
+        active.write_torques(tau)
+    moving = robot.start_joint_position_control()
+    try:
+        moving.readOnce()
+        with pytest.raises(lf.InvalidOperationException, match="is for torque control"):
+            moving.write_torques(tau)
+    finally:
+        moving.cancel()

@@ -49,6 +49,7 @@ class ActiveControl:
         self._session = session
         self._commander = commander
         self._convert = convert  # the Commander method for this motion's command type
+        self._torque = convert == commander.torques
         self._flags = (motion, control)
         self._last_id: int | None = None
         self._last_data: bytes | None = None
@@ -93,17 +94,41 @@ class ActiveControl:
         if data is None:
             raise InvalidOperationException("libfranka: call readOnce() before writeOnce()")
         try:
-            finished = self._convert(command, data)
-            if finished:
-                self._session.finish(
-                    self._commander.buffer, motion=self._flags[0], control=self._flags[1]
-                )
-                self._end()
-            else:
-                self._session.send(self._commander.buffer)
+            self._send(self._convert(command, data))
         except BaseException:
             self.cancel()
             raise
+
+    def write_torques(self, tau: list[float], motion_finished: bool = False) -> None:
+        """``writeOnce(Torques(tau))`` for a loop that owns its arrays (an extension of
+        ours): ``tau`` seven floats [Nm] (a list, as ``ndarray.tolist()`` gives), checked
+        finite, filtered and rate-limited as ``writeOnce``; no command object is made.
+        Torque control only."""
+        self._check()
+        data = self._last_data
+        if data is None:
+            raise InvalidOperationException("libfranka: call readOnce() before write_torques()")
+        if not self._torque:
+            raise InvalidOperationException("libfranka: write_torques() is for torque control")
+        s = sum(tau)  # a builtin sum of floats: NaN or infinity anywhere shows
+        if len(tau) != 7 or s - s != 0.0:
+            raise ValueError(f"tau_J: expected 7 finite torques [Nm], got {tau!r}")
+        try:
+            self._commander.torque_values(tau, data)
+            self._send(motion_finished)
+        except BaseException:
+            self.cancel()
+            raise
+
+    def _send(self, finished: bool) -> None:
+        """Send the command in the commander's buffer (the last one if ``finished``)."""
+        if finished:
+            self._session.finish(
+                self._commander.buffer, motion=self._flags[0], control=self._flags[1]
+            )
+            self._end()
+        else:
+            self._session.send(self._commander.buffer)
 
     read_once = readOnce
     write_once = writeOnce

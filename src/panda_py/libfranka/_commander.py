@@ -138,6 +138,12 @@ class Commander:
         if tau is None:
             _expect(out, Torques)
             tau = _values("tau_J", out.tau_J, 7)
+        self.torque_values(tau, state)
+        return bool(out.motion_finished)
+
+    def torque_values(self, tau: list[float], state: bytes) -> None:
+        """Seven finite torques [Nm] (checked by the caller) into the command, filtered
+        and rate-limited as configured."""
         if self._process:
             last = self._tau_J_d.unpack(state)
             g = self.gain
@@ -153,7 +159,6 @@ class Commander:
                 tau = [last[i] + g * (tau[i] - last[i]) for i in range(7)]
             _finite("tau_J", tau)
         self._c_tau.pack(self.buffer, *tau)
-        return bool(out.motion_finished)
 
     # --- motion generators ------------------------------------------------------------
 

@@ -36,6 +36,11 @@ __all__ = ["MotionSession", "motion_running"]
 START_TIMEOUT = 2.0  # [s] for the robot to switch into the requested modes
 STOP_TIMEOUT = 1.0  # [s] for the robot to go idle after StopMove
 FINISH_TIMEOUT = 1.0  # [s] for the robot to go idle after the last command
+# The TCP connection is looked at (a select) every this many states of a motion, not at
+# each as libfranka does: on this project's 2-core VM each system call a tick costs the
+# loop several microseconds; a robot that closed the connection also stops sending
+# states, and the receive looks at the connection before it waits for one.
+CLOSED_CHECK_STATES = 16
 
 _STATE_MG = fci.STATE_GENERATOR_OF_MOVE
 _IDLE_MG = (int(MotionGeneratorMode.IDLE), int(MotionGeneratorMode.NONE))
@@ -77,6 +82,7 @@ class MotionSession:
         self.done = False  # finished or cancelled: nothing left to clean up
         self.final_received = False  # the second Move response has been taken
         self.caller_driven = False  # an ActiveControl (the caller's thread) runs the loop
+        self._unchecked = 0  # states until the TCP connection is looked at again
         self._pack_id = conn.layout.c_message_id.struct_.pack_into  # at offset 0
         self.expect_mg = int(_STATE_MG[generator])
         self.expect_ctrl = int(controller)
@@ -116,10 +122,13 @@ class MotionSession:
     # --- per tick ---------------------------------------------------------------------
 
     def receive(self) -> bytes:
-        """Check the TCP connection, take the newest state datagram, raise if the motion
-        ended."""
+        """Take the newest state datagram (and every CLOSED_CHECK_STATES, check the TCP
+        connection), raise if the motion ended."""
         conn = self.conn
-        conn.net.check_closed()
+        self._unchecked -= 1
+        if self._unchecked <= 0:
+            self._unchecked = CLOSED_CHECK_STATES
+            conn.net.check_closed()
         data = conn.receive_state()
         _, mg, ctrl, mode = conn.last_header
         if mode != _MOVE or mg != self.expect_mg or ctrl != self.expect_ctrl:

@@ -384,16 +384,19 @@ class Network:
         unpack = _MESSAGE_ID.unpack_from
         deadline = 0.0
         while True:
-            while self._queued(udp):  # take every state already queued, keep the newest
-                data = self._recv_udp(block=False)
-                if data is None:
-                    break
+            # take every state already queued, keep the newest: a receive first (in a
+            # loop the state is there: two system calls a tick, not three), then one
+            # more for each the ioctl says is queued
+            data = self._recv_udp(block=False)
+            while data is not None:
                 mid = unpack(data)[0]
                 if mid > best_id:
                     best, best_id = data, mid
+                data = self._recv_udp(block=False) if self._queued(udp) else None
             if best is not None:
                 return best
-            if not deadline:
+            if not deadline:  # none queued: a robot that closed the connection sends none
+                self.check_closed()
                 deadline = _clock() + UDP_TIMEOUT
             data = self._recv_udp(block=True, deadline=deadline)
             if data is not None and unpack(data)[0] > best_id:

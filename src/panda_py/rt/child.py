@@ -45,7 +45,6 @@ from panda_py.libfranka import (
     Robot,
     RobotMode,
     RobotState,
-    Torques,
     lowpass_filter,
 )
 from panda_py.libfranka.limits import MAX_CUTOFF_FREQUENCY
@@ -505,9 +504,7 @@ class ControlServer:
                         law = successor
                         self.current = (law, move_rid)
                         finished = False
-                cmd = Torques(tau)
-                cmd.motion_finished = finished
-                active.writeOnce(cmd)
+                active.write_torques(tau, finished)
                 self._publish(state.raw)
                 law.published()
                 if finished:
