@@ -395,3 +395,60 @@ def test_the_fused_step_gives_nan_torques_for_a_non_finite_state() -> None:
     ctrl.start(good, model)
     assert np.isfinite(ctrl.step(good, model)).all()
     assert np.isnan(ctrl.step(bad, model)).all()  # which the loop's finalize refuses
+
+
+@pytest.mark.parametrize("path", ["separate kernels", "numpy"])
+def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
+    path: str, monkeypatch
+) -> None:
+    """PoseMove and CartesianTarget on a real ControlModel (a load picked up mid-way,
+    another end effector): the tracking in one call (_fused.pose_tracking_step: Jacobian,
+    mass matrix, damping from the arm's inertia on the first tick and the 21st, tracking
+    torque with its feed-forward, Coriolis) gives the torques of the separate calls and of
+    the plain law, through the plan, its end and the settle phase after it."""
+    from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.moves import PoseMove
+    from panda_py.controllers.plans import PosePlan
+
+    assert laws.fused() is not None
+    rng = np.random.default_rng(5)
+    F_T_EE = np.eye(4)
+    F_T_EE[:3, 3] = (0.01, 0.0, 0.12)
+    kin = kinematics.get_kinematics("fer", F_T_EE)
+    q0 = np.array([0.1, -0.5, 0.1, -2.1, 0.0, 1.6, 0.7])
+    T0 = kin.fk(q0).reshape(16, order="F")
+    n = 20
+    p = T0[12:15] + np.linspace(0.0, 0.01, n)[:, None] * np.array([1.0, -0.5, 0.3])
+    quat = np.tile(laws.quat_from_matrix(T0), (n, 1))
+    twist, accel = rng.normal(scale=0.05, size=(n, 6)), rng.normal(scale=0.5, size=(n, 6))
+    plan = PosePlan(p, quat, twist, accel, q0, np.diag([800.0] * 3 + [40.0] * 3), 0.9, 10.0,
+                    1e-3, 2e-2, 0.1, OnlineLimits.cartesian(get_robot("fer"), 1.0))  # fmt: skip
+    states = []
+    for k in range(32):
+        load = (0.0, (0.0, 0.0, 0.0)) if k < 10 else (0.6, (0.0, 0.01, 0.04))
+        q = q0 + rng.normal(scale=0.005, size=7)
+        states.append(_robot_state(q, rng.normal(scale=0.1, size=7), F_T_EE, *load))
+
+    def run() -> list[np.ndarray]:
+        model, out = ControlModel("fer"), []
+        move = PoseMove(plan)
+        target = controllers.CartesianTarget()
+        target.dt = 1e-3
+        target.start(states[0], model)
+        layout = target._sig_layout  # a target away, as set_target writes it
+        target._values[layout["position"][0] : layout["position"][0] + 3] += (0.02, 0.0, -0.01)
+        target._values[layout["count"][0]] += 1.0
+        for k, s in enumerate(states):
+            move.tick(0.0 if k == 0 else 1e-3)
+            target.tick(1e-3)
+            out.append(np.concatenate([move.step(s, model), target.step(s, model)]))
+        assert move.t > move.t_end  # into the settle phase
+        assert np.abs(out[-1][7:]).max() > 0.5  # the target pulls
+        return out
+
+    fused = run()
+    monkeypatch.setattr(laws, "_FUSED", None)
+    if path == "numpy":
+        monkeypatch.setattr(laws, "_KERNELS", None)
+    for got, want in zip(fused, run(), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)

@@ -1,10 +1,14 @@
-"""``CartesianImpedance``'s whole step in one compiled call: the input filter, the end
-effector's Jacobian, the law and the Coriolis torques, on the controller's own buffers.
+"""Laws compiled with the model terms they need, each tick in one call on the law's own
+buffers: ``CartesianImpedance``'s step (the input filter, the end effector's Jacobian, the
+law, the Coriolis torques) and the Cartesian tracking of the moves and the streamed
+targets (``tracking.PoseImpedance``: the Jacobian, the mass matrix, the damping from the
+arm's inertia, the tracking torque with its feed-forward, the Coriolis torques).
 
-The same kernels the separate calls run (:mod:`._kernels`' filter and law, the
-kinematics' Jacobian, the dynamics' recursion), called from one kernel: one dispatch a
-tick where there were four, and none of the Python between them (in the loop, where code
-runs on cold caches once a millisecond, that Python cost more than the arithmetic).
+The same kernels the separate calls run (:mod:`._kernels`' filter and laws, the
+kinematics' Jacobian, the dynamics' recursions), called from one kernel: one dispatch a
+tick where there were four or five, and none of the Python between them (in the loop,
+where code runs on cold caches once a millisecond, that Python cost more than the
+arithmetic).
 
 Compiled with the kinematics' and the dynamics' kernels inside, so cached under a key over
 all of their sources (:mod:`panda_py.jitcache`): an edit to any of them compiles afresh.
@@ -27,7 +31,7 @@ _DYN = dynamics.compiled_kernels()
 if _KIN is None or _DYN is None:  # plain Python: the separate calls run
     raise ImportError("the kinematics or the dynamics run without numba")
 
-__all__ = ["cartesian_impedance_step", "warmup"]
+__all__ = ["cartesian_impedance_step", "pose_tracking_step", "warmup"]
 
 KEY = jitcache.source_key([
     Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__),
@@ -35,6 +39,9 @@ KEY = jitcache.source_key([
 ])  # fmt: skip
 _jacobian_one = _KIN.jacobian_one
 _rnea = _DYN.rnea
+_crba = _DYN.crba
+_mass_damping = _kernels.mass_damping
+_tracking = _kernels.pose_tracking_torque
 _pose_filter = _kernels.pose_filter
 _torque = _kernels.cartesian_impedance_torque
 
@@ -75,8 +82,41 @@ def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
         tau[i] += coriolis[i]
 
 
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
+    O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, armature, coulomb, scalars,
+    p_d, quat_d, v_d, a_d, K, D, q_n, J, J_prev, tau, err, J_pinv,
+):  # fmt: skip
+    """One tick of ``tracking.PoseImpedance`` with the Coriolis torques, into ``tau`` (7,):
+    the Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7) (``J_prev`` (1, 6,
+    7): the previous tick's), the arm's mass matrix (``origin ... inertia``:
+    ``dynamics.LoadedArm.arrays``), the damping ``D`` from the arm's inertia where asked
+    (``_kernels.mass_damping``), the tracking torque (``_kernels.pose_tracking_torque``,
+    its pose error into ``err``, the pseudo-inverse into ``J_pinv``) and ``C(q, dq) dq``.
+    ``scalars``: dt, k_n, the damping ratio, the friction's speed, the friction's error
+    rate, the smallest inverse inertia, 1 to update the damping now (else 0), 1 if
+    ``J_prev`` holds the previous tick's Jacobian (else 0: no rate of the Jacobian). NaN
+    torques where ``q`` is not finite."""
+    if not _jacobian_one(q, chain, False, J):
+        for i in range(7):
+            tau[i] = math.nan
+        return
+    M = np.empty((7, 7))
+    _crba(origin, ca, sa, mass, h, inertia, q, M)
+    if scalars[6] != 0.0:
+        _mass_damping(K, scalars[2], M, armature, J[0], scalars[5], D)
+    Jp = J_prev[0] if scalars[7] != 0.0 else J[0]
+    dt, k_n, speed, rate = scalars[0], scalars[1], scalars[3], scalars[4]
+    _tracking(O_T_EE, J[0], Jp, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
+              coulomb, speed, rate, tau, err, J_pinv)  # fmt: skip
+    coriolis = np.empty(7)
+    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
+    for i in range(7):
+        tau[i] += coriolis[i]
+
+
 def warmup() -> None:
-    """Compile (or load) the kernel for the types the loop passes: the controller's own
+    """Compile (or load) the kernels for the types the loop passes: the laws' own
     buffers, and the state's fields as a ``TickState`` has them (read-only)."""
     from panda_py.controllers import _builtin
 
@@ -92,3 +132,10 @@ def warmup() -> None:
     chain = kinematics.get_kinematics("fer").chain_constants
     cartesian_impedance_step(ctrl._values, at, filtered, np.eye(6), O_T_EE, q, dq, chain,
                              *arm.arrays, np.empty((1, 6, 7)), np.empty(7))  # fmt: skip
+    z6, K = np.zeros(6), np.eye(6)
+    scalars = np.array([1e-3, 1.0, 1.0, 0.01, 10.0, 1e-2, 1.0, 0.0])
+    J = np.zeros((1, 6, 7))
+    quat = np.array([0.0, 0.0, 0.0, 1.0])
+    pose_tracking_step(O_T_EE, q, dq, chain, *arm.arrays, np.zeros(7), np.zeros(7), scalars,
+                       np.zeros(3), quat, z6, z6.copy(), K, K.copy(), np.zeros(7), J, J.copy(),
+                       np.empty(7), np.empty(6), np.empty((7, 6)))  # fmt: skip

@@ -417,7 +417,7 @@ class PoseMove(Tracker):
         p_d, quat_d, v_d, a_d = self.ref = self._reference()
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
-        err, J = self.law.err, model.ee_jacobian(state)  # (cached)
+        err, J = self.law.err, self.law.J_prev  # (this tick's)
         if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.law.K @ self.integral))
@@ -426,7 +426,7 @@ class PoseMove(Tracker):
         if self.until is not None:
             T = state.O_T_EE
             self.check_until(state, Progress(self.t, float(np.linalg.norm(T[12:15] - self.p[-1]))))
-        return self._blended(tau + model.coriolis_of(state), state, model)
+        return self._blended(tau, state, model)  # (the law's torque has the Coriolis')
 
     def _errors(self, state: Any) -> tuple[float, float]:
         T = state.O_T_EE

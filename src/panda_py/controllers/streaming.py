@@ -333,7 +333,7 @@ class CartesianTarget(_Streamed):
         tau = self._law.torque(state, model, self.dt, gen.position, gen.orientation, gen.twist,
                                gen.accel)  # fmt: skip
         self._publish(p, quat)
-        return tau + model.coriolis_of(state)
+        return tau  # (with the Coriolis torques)
 
 
 def reach(spec: Any, F_T_EE: FloatArray) -> tuple[float, float]:

@@ -4,8 +4,9 @@ the arm follows the reference instead of lagging behind it.
 
 Shared by the laws that track a reference in the control process: the planned moves
 (:mod:`panda_py.controllers.moves`) and the streamed targets
-(:mod:`panda_py.controllers.streaming`). Neither adds the Coriolis torques here: the
-callers add them last (after what else they add).
+(:mod:`panda_py.controllers.streaming`). :func:`joint_impedance_torque` leaves the
+Coriolis torques to its callers; :meth:`PoseImpedance.torque` includes them (compiled with
+the model terms in one call where numba is installed: ``_fused.pose_tracking_step``).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
-from panda_py.controllers.model import FRICTION_SPEED
+from panda_py.controllers.model import FRICTION_SPEED, ControlModel
 
 __all__ = ["PoseImpedance", "joint_impedance_torque"]
 
@@ -98,17 +99,40 @@ class PoseImpedance:
         self.J_prev: FloatArray | None = None
         self.J_pinv = np.empty((7, 6))
         self._damping_due = 0  # ticks until the damping is updated
+        # the fused step's: this tick's and the previous tick's Jacobian (swapped each
+        # tick), and its scalars (see _fused.pose_tracking_step)
+        self._J, self._J_last = np.empty((1, 6, 7)), np.empty((1, 6, 7))
+        self._scalars = np.array([0.0, self.kn, self.zeta, FRICTION_SPEED, FRICTION_ERROR_RATE,
+                                  MIN_INVERSE_INERTIA, 0.0, 0.0])  # fmt: skip
 
     def torque(self, state: Any, model: Any, dt: float, p_d: FloatArray, quat_d: FloatArray,
                v_d: FloatArray, a_d: FloatArray) -> FloatArray:  # fmt: skip
-        """The torques [Nm] (without Coriolis) toward the reference position ``p_d`` [m],
-        orientation ``quat_d`` (x, y, z, w), twist ``v_d`` [m/s, rad/s] and its rate
-        ``a_d`` [m/s^2, rad/s^2], ``dt`` [s] after the previous call."""
+        """The torques [Nm] (with the Coriolis torques) toward the reference position
+        ``p_d`` [m], orientation ``quat_d`` (x, y, z, w), twist ``v_d`` [m/s, rad/s] and its
+        rate ``a_d`` [m/s^2, rad/s^2], ``dt`` [s] after the previous call."""
+        self._damping_due -= 1
+        fused = laws.fused()
+        if fused is not None and type(model) is ControlModel:  # all of it in one call
+            chain, arm = model.kernel_arrays(state)
+            s = self._scalars
+            s[0], s[1], s[2] = dt, self.kn, self.zeta
+            s[6] = 1.0 if self._damping_due < 0 else 0.0
+            s[7] = 0.0 if self.J_prev is None else 1.0
+            if self._damping_due < 0:
+                self._damping_due = DAMPING_TICKS - 1
+            tau = np.empty(7)
+            J, last = self._J, self._J_last
+            fused.pose_tracking_step(state.O_T_EE, state.q, state.dq, chain, *arm,
+                                     model.armature, model.coulomb, s, p_d, quat_d, v_d, a_d,
+                                     self.K, self.D, self.qn, J, last, tau, self.err,
+                                     self.J_pinv)  # fmt: skip
+            self._J, self._J_last = last, J  # this tick's is the next one's previous
+            self.J_prev = J[0]
+            return tau
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
         kn = self.kn
         kernels = laws.compiled()
-        self._damping_due -= 1
         if kernels is not None:  # the same terms, compiled in one call
             M = model.mass_of(state)
             if self._damping_due < 0:
@@ -135,4 +159,4 @@ class PoseImpedance:
             tau += model.driven_mass_of(state) @ (J_pinv @ a)
             tau += model.friction_for(J_pinv @ (v_d - FRICTION_ERROR_RATE * err))
         self.J_prev = J
-        return tau
+        return tau + model.coriolis_of(state)
