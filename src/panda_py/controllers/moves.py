@@ -418,6 +418,7 @@ class PoseMove(Tracker):
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
         err, J = self.law.err, self.law.J_prev  # (this tick's)
+        assert J is not None  # (set by the torque's call)
         if self.t > self.t_end and not self.stopping:  # remove what friction and errors leave
             self.integral += self.dt * err
             tau -= J.T @ (SETTLE_INTEGRAL_POSE * (self.law.K @ self.integral))
