@@ -441,9 +441,11 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
         for k, s in enumerate(states):
             move.tick(0.0 if k == 0 else 1e-3)
             target.tick(1e-3)
-            out.append(np.concatenate([move.step(s, model), target.step(s, model)]))
+            torques = [move.step(s, model), target.step(s, model)]
+            out.append(np.concatenate([*torques, target._out]))  # and the target's outputs
         assert move.t > move.t_end  # into the settle phase
-        assert np.abs(out[-1][7:]).max() > 0.5  # the target pulls
+        assert np.abs(out[-1][7:14]).max() > 0.5  # the target pulls
+        assert out[-1][14 + target._out_layout["lag"][0]] > 0.01  # and lags
         return out
 
     fused = run()

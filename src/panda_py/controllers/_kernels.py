@@ -21,6 +21,7 @@ __all__ = [
     "joint_scales",
     "mass_damping",
     "pose_filter",
+    "pose_target_outputs",
     "pose_tracking_torque",
 ]
 
@@ -381,3 +382,21 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
     for i in range(6):
         for j in range(6):
             D[i, j] = zeta * (out[i, j] + out[j, i])
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def pose_target_outputs(p_d, quat_d, v_d, p, quat, stale, out, o):  # type: ignore[no-untyped-def,unused-ignore]
+    """``CartesianTarget``'s outputs from offset ``o`` of ``out``: the reference's position,
+    orientation and twist, its distance [m] and angle [rad] to the target ``p``, ``quat``,
+    and 1 if the targets went stale (else 0)."""
+    for i in range(3):
+        out[o + i] = p_d[i]
+    for i in range(4):
+        out[o + 3 + i] = quat_d[i]
+    for i in range(6):
+        out[o + 7 + i] = v_d[i]
+    dx, dy, dz = p[0] - p_d[0], p[1] - p_d[1], p[2] - p_d[2]
+    out[o + 13] = math.sqrt(dx * dx + dy * dy + dz * dz)
+    d = abs(quat[0] * quat_d[0] + quat[1] * quat_d[1] + quat[2] * quat_d[2] + quat[3] * quat_d[3])
+    out[o + 14] = 2.0 * math.acos(min(1.0, d))
+    out[o + 15] = 1.0 if stale else 0.0

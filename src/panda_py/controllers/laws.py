@@ -112,6 +112,8 @@ def warmup() -> None:
             w.advance()
             # the Cartesian moves' and CartesianTarget's limits at a new target
             k.joint_scales(J, np.eye(3), np.eye(3), 0.5, 1.0, 1.0, 1.0, 1.0, z7 + 1.0, z7 + 1.0)
+            # and CartesianTarget's outputs
+            k.pose_target_outputs(z3, quat, np.zeros(6), z3, quat, False, np.zeros(16), 0)
             w.advance()
             # CartesianImpedance's step with its model terms, in one call
             f = fused()

@@ -301,8 +301,13 @@ class CartesianTarget(_Streamed):
 
     def _publish(self, p: FloatArray, quat: FloatArray) -> None:
         # straight into the outputs, declared in this order (set_output's lookups would be
-        # a tenth of this controller's own cost per tick)
+        # a tenth of this controller's own cost per tick); compiled, one call
         gen, out, o = self._gen, self._out, self._out_layout["position_d"][0]
+        kernels = laws.compiled()
+        if kernels is not None:
+            kernels.pose_target_outputs(gen.position, gen.orientation, gen.twist, p, quat,
+                                        self._stale, out, o)  # fmt: skip
+            return
         out[o : o + 3] = gen.position
         out[o + 3 : o + 7] = gen.orientation
         out[o + 7 : o + 13] = gen.twist
