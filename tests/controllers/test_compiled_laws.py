@@ -375,8 +375,6 @@ def test_the_fused_step_equals_the_separate_calls_and_the_numpy_law(path: str, m
 
     fused = run()
     monkeypatch.setattr(laws, "_FUSED", None)
-    if path == "numpy":
-        monkeypatch.setattr(laws, "_KERNELS", None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
     assert np.abs(fused[-1]).max() > 1.0  # the target and the load made it work
@@ -454,3 +452,49 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
         monkeypatch.setattr(laws, "_KERNELS", None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)
+
+
+def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """JointMove and JointTarget on a real ControlModel (a load picked up mid-way): the
+    joint tracking in one call (_fused.joint_tracking_step: mass matrix, impedance,
+    inertial and friction feed-forward, Coriolis) gives the torques of the NumPy law on
+    the model's terms, through the plan, its end and the settle phase."""
+    from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.moves import JointMove
+    from panda_py.controllers.plans import JointPlan
+
+    assert laws.fused() is not None
+    rng = np.random.default_rng(9)
+    q0 = np.array([0.1, -0.5, 0.1, -2.1, 0.0, 1.6, 0.7])
+    n = 20
+    q = q0 + np.linspace(0.0, 0.02, n)[:, None] * rng.normal(size=7)
+    dq, ddq = rng.normal(scale=0.1, size=(n, 7)), rng.normal(scale=1.0, size=(n, 7))
+    plan = JointPlan(q, dq, ddq, np.full(7, 600.0), np.full(7, 40.0), 1e-3, 1e-2,
+                     OnlineLimits.joints(get_robot("fer"), 1.0))  # fmt: skip
+    states = []
+    for k in range(32):
+        load = (0.0, (0.0, 0.0, 0.0)) if k < 10 else (0.6, (0.0, 0.01, 0.04))
+        states.append(_robot_state(q0 + rng.normal(scale=0.005, size=7),
+                                   rng.normal(scale=0.1, size=7), np.eye(4), *load))  # fmt: skip
+
+    def run() -> list[np.ndarray]:
+        model, out = ControlModel("fer"), []
+        move = JointMove(plan)
+        target = controllers.JointTarget()
+        target.dt = 1e-3
+        target.start(states[0], model)
+        layout = target._sig_layout  # a target away, as set_target writes it
+        target._values[layout["q"][0] : layout["q"][0] + 7] += 0.05
+        target._values[layout["count"][0]] += 1.0
+        for k, s in enumerate(states):
+            move.tick(0.0 if k == 0 else 1e-3)
+            target.tick(1e-3)
+            out.append(np.concatenate([move.step(s, model), target.step(s, model)]))
+        assert move.t > move.t_end  # into the settle phase
+        assert np.abs(out[-1][7:]).max() > 1.0  # the target pulls
+        return out
+
+    fused = run()
+    monkeypatch.setattr(laws, "_FUSED", None)
+    for got, want in zip(fused, run(), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)

@@ -1,8 +1,10 @@
 """Laws compiled with the model terms they need, each tick in one call on the law's own
 buffers: ``CartesianImpedance``'s step (the input filter, the end effector's Jacobian, the
-law, the Coriolis torques) and the Cartesian tracking of the moves and the streamed
-targets (``tracking.PoseImpedance``: the Jacobian, the mass matrix, the damping from the
-arm's inertia, the tracking torque with its feed-forward, the Coriolis torques).
+law, the Coriolis torques), and the moves' and the streamed targets' tracking, Cartesian
+(``tracking.PoseImpedance``: the Jacobian, the mass matrix, the damping from the arm's
+inertia, the tracking torque with its feed-forward, the Coriolis torques) and in joint
+space (``tracking.joint_impedance_torque``: the mass matrix, the impedance, the inertial
+and friction feed-forward, the Coriolis torques).
 
 The same kernels the separate calls run (:mod:`._kernels`' filter and laws, the
 kinematics' Jacobian, the dynamics' recursions), called from one kernel: one dispatch a
@@ -31,7 +33,7 @@ _DYN = dynamics.compiled_kernels()
 if _KIN is None or _DYN is None:  # plain Python: the separate calls run
     raise ImportError("the kinematics or the dynamics run without numba")
 
-__all__ = ["cartesian_impedance_step", "pose_tracking_step", "warmup"]
+__all__ = ["cartesian_impedance_step", "joint_tracking_step", "pose_tracking_step", "warmup"]
 
 KEY = jitcache.source_key([
     Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__),
@@ -115,6 +117,28 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
         tau[i] += coriolis[i]
 
 
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def joint_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
+    q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D, q_d, dq_d, ddq_d,
+    friction_speed, error_rate, tau,
+):  # fmt: skip
+    """``tracking.joint_impedance_torque`` with the Coriolis torques, into ``tau`` (7,):
+    ``K (q_d - q) + D (dq_d - dq) + (M + diag(armature)) ddq_d + coulomb tanh((dq_d +
+    error_rate (q_d - q)) / friction_speed) + C(q, dq) dq``, ``M`` the arm's mass matrix
+    (``origin ... inertia``: ``dynamics.LoadedArm.arrays``)."""
+    M = np.empty((7, 7))
+    _crba(origin, ca, sa, mass, h, inertia, q, M)
+    coriolis = np.empty(7)
+    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
+    for i in range(7):
+        e = q_d[i] - q[i]
+        acc = K[i] * e + D[i] * (dq_d[i] - dq[i]) + armature[i] * ddq_d[i]
+        for c in range(7):
+            acc += M[i, c] * ddq_d[c]
+        v = (dq_d[i] + error_rate * e) / friction_speed
+        tau[i] = acc + coulomb[i] * math.tanh(v) + coriolis[i]
+
+
 def warmup() -> None:
     """Compile (or load) the kernels for the types the loop passes: the laws' own
     buffers, and the state's fields as a ``TickState`` has them (read-only)."""
@@ -135,6 +159,9 @@ def warmup() -> None:
     z6, K = np.zeros(6), np.eye(6)
     scalars = np.array([1e-3, 1.0, 1.0, 0.01, 10.0, 1e-2, 1.0, 0.0])
     J = np.zeros((1, 6, 7))
+    z7 = np.zeros(7)
+    joint_tracking_step(q, dq, *arm.arrays, z7, z7, z7 + 1.0, z7 + 1.0, z7, z7, z7, 0.01, 10.0,
+                        np.empty(7))  # fmt: skip
     quat = np.array([0.0, 0.0, 0.0, 1.0])
     pose_tracking_step(O_T_EE, q, dq, chain, *arm.arrays, np.zeros(7), np.zeros(7), scalars,
                        np.zeros(3), quat, z6, z6.copy(), K, K.copy(), np.zeros(7), J, J.copy(),

@@ -313,7 +313,7 @@ class JointMove(Tracker):
             tau += model.friction_for(error * SETTLE_RATE_JOINT)  # as PoseMove's
         if self.until is not None:
             self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
-        return self._blended(tau + model.coriolis_of(state), state, model)
+        return self._blended(tau, state, model)  # (the law's torque has the Coriolis')
 
     def at_goal(self, state: Any) -> bool:
         return float(np.abs(self.goal - state.q).max()) <= SETTLE_JOINT

@@ -215,7 +215,7 @@ class JointTarget(_Streamed):
         q_d, dq_d, ddq_d = gen.position, gen.velocity, gen.acceleration
         tau = joint_impedance_torque(self.stiffness, self.damping, q_d, dq_d, ddq_d, state, model)
         self._publish(target)
-        return tau + model.coriolis_of(state)
+        return tau  # (with the Coriolis torques)
 
 
 class CartesianTarget(_Streamed):

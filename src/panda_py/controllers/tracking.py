@@ -4,9 +4,8 @@ the arm follows the reference instead of lagging behind it.
 
 Shared by the laws that track a reference in the control process: the planned moves
 (:mod:`panda_py.controllers.moves`) and the streamed targets
-(:mod:`panda_py.controllers.streaming`). :func:`joint_impedance_torque` leaves the
-Coriolis torques to its callers; :meth:`PoseImpedance.torque` includes them (compiled with
-the model terms in one call where numba is installed: ``_fused.pose_tracking_step``).
+(:mod:`panda_py.controllers.streaming`). Both include the Coriolis torques (compiled with
+the model terms in one call where numba is installed: :mod:`._fused`).
 """
 
 from __future__ import annotations
@@ -44,14 +43,23 @@ def joint_impedance_torque(
     state: Any, model: Any,
 ) -> FloatArray:  # fmt: skip
     """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d + FRICTION_ERROR_RATE (q_d -
-    q))`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm s/rad]) around
-    the reference ``q_d``, ``dq_d`` with the inertial (links and rotors) feed-forward of its
-    motion and the dry friction cancelled along it and the way back to it."""
+    q)) + C(q, dq) dq`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm
+    s/rad]) around the reference ``q_d``, ``dq_d`` with the inertial (links and rotors)
+    feed-forward of its motion, the dry friction cancelled along it and the way back to it,
+    and the Coriolis torques (compiled in one call with the model terms where numba is
+    installed: ``_fused.joint_tracking_step``)."""
+    fused = laws.fused()
+    if fused is not None and type(model) is ControlModel:
+        tau = np.empty(7)
+        fused.joint_tracking_step(state.q, state.dq, *model.kernel_arrays(state)[1],
+                                  model.armature, model.coulomb, K, D, q_d, dq_d, ddq_d,
+                                  FRICTION_SPEED, FRICTION_ERROR_RATE, tau)  # fmt: skip
+        return tau
     e = q_d - state.q
     tau = K * e + D * (dq_d - state.dq)
     tau += model.driven_mass_of(state) @ ddq_d
     tau += model.friction_for(dq_d + FRICTION_ERROR_RATE * e)
-    return tau
+    return tau + model.coriolis_of(state)
 
 
 def mass_damping(K: FloatArray, zeta: float, M: FloatArray, J: FloatArray) -> FloatArray:
