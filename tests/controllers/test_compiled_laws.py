@@ -498,3 +498,24 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
     monkeypatch.setattr(laws, "_FUSED", None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+
+
+def test_the_fused_kernels_never_compile_in_the_loop() -> None:
+    """Each fused kernel has one signature, compiled at import, taking read-only and
+    writable inputs alike; an input of another layout is refused with a TypeError, not
+    compiled for (which would stop the loop for seconds)."""
+    fused = laws.fused()
+    assert fused is not None
+    kernels = (fused.cartesian_impedance_step, fused.pose_tracking_step,
+               fused.joint_tracking_step)  # fmt: skip
+    fused.warmup()  # read-only state fields and writable buffers
+    assert [len(k.signatures) for k in kernels] == [1, 1, 1]
+    from panda_py import dynamics
+
+    arm = dynamics.LoadedArm("fer").arrays
+    z7 = np.zeros(7)
+    strided = np.zeros(14)[::2]  # not C-contiguous
+    with pytest.raises(TypeError, match="No matching definition"):
+        fused.joint_tracking_step(strided, z7, *arm, z7, z7, z7, z7, z7, z7, z7, 0.01, 10.0,
+                                  np.empty(7))  # fmt: skip
+    assert [len(k.signatures) for k in kernels] == [1, 1, 1]

@@ -24,6 +24,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from numba import types
 
 from panda_py import dynamics, jitcache, kinematics
 from panda_py.controllers import _kernels
@@ -139,9 +140,46 @@ def joint_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
         tau[i] = acc + coulomb[i] * math.tanh(v) + coriolis[i]
 
 
+# One signature each, compiled (or loaded) at import, and no other: an input read-only
+# (a state's field, a plan sent from the user's process) or writable (the laws' own
+# buffers) is taken by the same code, and a call of any other type raises a TypeError
+# instead of stopping the loop for seconds to compile (a joint move fed from its plan and
+# then from its lead-in once did, in the middle of a motion, ending in a reflex).
+_F8 = types.float64
+
+
+def _in(ndim: int) -> types.Array:
+    return types.Array(_F8, ndim, "C", readonly=True)
+
+
+def _out(ndim: int) -> types.Array:
+    return types.Array(_F8, ndim, "C")
+
+
+_ARM = (_in(2), _in(1), _in(1), _in(1), _in(2), _in(3))  # LoadedArm.arrays
+_SIGNATURES = {
+    cartesian_impedance_step: (
+        _in(1), types.Array(types.int64, 1, "C", readonly=True), _out(1), _in(2), _in(1),
+        _in(1), _in(1), _in(1), *_ARM, _out(3), _out(1),
+    ),
+    pose_tracking_step: (
+        _in(1), _in(1), _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1),
+        _in(1), _in(1), _in(2), _out(2), _in(1), _out(3), _in(3), _out(1), _out(1), _out(2),
+    ),
+    joint_tracking_step: (
+        _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1), _in(1), _in(1), _F8,
+        _F8, _out(1),
+    ),
+}  # fmt: skip
+for _kernel, _signature in _SIGNATURES.items():
+    _kernel.compile(_signature)
+    _kernel.disable_compile()
+
+
 def warmup() -> None:
-    """Compile (or load) the kernels for the types the loop passes: the laws' own
-    buffers, and the state's fields as a ``TickState`` has them (read-only)."""
+    """Run each kernel once (they are compiled or loaded at import, for one signature
+    each), on inputs as the loop has them: the laws' own buffers, and the state's fields
+    as a ``TickState`` has them (read-only)."""
     from panda_py.controllers import _builtin
 
     state = np.zeros(7), np.zeros(7), np.eye(4).reshape(16)
