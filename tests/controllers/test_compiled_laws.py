@@ -395,6 +395,25 @@ def test_the_fused_step_gives_nan_torques_for_a_non_finite_state() -> None:
     assert np.isnan(ctrl.step(bad, model)).all()  # which the loop's finalize refuses
 
 
+def _loaded_states(rng, q0, F_T_EE):  # type: ignore[no-untyped-def]
+    """32 states near ``q0``, moving, a load picked up from the 11th."""
+    states = []
+    for k in range(32):
+        load = (0.0, (0.0, 0.0, 0.0)) if k < 10 else (0.6, (0.0, 0.01, 0.04))
+        q = q0 + rng.normal(scale=0.005, size=7)
+        states.append(_robot_state(q, rng.normal(scale=0.1, size=7), F_T_EE, *load))
+    return states
+
+
+def _target_away(target, name, offset):  # type: ignore[no-untyped-def]
+    """A streamed target moved by ``offset`` from where it started, as set_target writes
+    it (the signal, then its count)."""
+    layout = target._sig_layout
+    start, size = layout[name]
+    target._values[start : start + size] += offset
+    target._values[layout["count"][0]] += 1.0
+
+
 @pytest.mark.parametrize("path", ["separate kernels", "numpy"])
 def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     path: str, monkeypatch
@@ -421,11 +440,7 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     twist, accel = rng.normal(scale=0.05, size=(n, 6)), rng.normal(scale=0.5, size=(n, 6))
     plan = PosePlan(p, quat, twist, accel, q0, np.diag([800.0] * 3 + [40.0] * 3), 0.9, 10.0,
                     1e-3, 2e-2, 0.1, OnlineLimits.cartesian(get_robot("fer"), 1.0))  # fmt: skip
-    states = []
-    for k in range(32):
-        load = (0.0, (0.0, 0.0, 0.0)) if k < 10 else (0.6, (0.0, 0.01, 0.04))
-        q = q0 + rng.normal(scale=0.005, size=7)
-        states.append(_robot_state(q, rng.normal(scale=0.1, size=7), F_T_EE, *load))
+    states = _loaded_states(rng, q0, F_T_EE)
 
     def run() -> list[np.ndarray]:
         model, out = ControlModel("fer"), []
@@ -433,9 +448,7 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
         target = controllers.CartesianTarget()
         target.dt = 1e-3
         target.start(states[0], model)
-        layout = target._sig_layout  # a target away, as set_target writes it
-        target._values[layout["position"][0] : layout["position"][0] + 3] += (0.02, 0.0, -0.01)
-        target._values[layout["count"][0]] += 1.0
+        _target_away(target, "position", np.array([0.02, 0.0, -0.01]))
         for k, s in enumerate(states):
             move.tick(0.0 if k == 0 else 1e-3)
             target.tick(1e-3)
@@ -471,11 +484,7 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
     dq, ddq = rng.normal(scale=0.1, size=(n, 7)), rng.normal(scale=1.0, size=(n, 7))
     plan = JointPlan(q, dq, ddq, np.full(7, 600.0), np.full(7, 40.0), 1e-3, 1e-2,
                      OnlineLimits.joints(get_robot("fer"), 1.0))  # fmt: skip
-    states = []
-    for k in range(32):
-        load = (0.0, (0.0, 0.0, 0.0)) if k < 10 else (0.6, (0.0, 0.01, 0.04))
-        states.append(_robot_state(q0 + rng.normal(scale=0.005, size=7),
-                                   rng.normal(scale=0.1, size=7), np.eye(4), *load))  # fmt: skip
+    states = _loaded_states(rng, q0, np.eye(4))
 
     def run() -> list[np.ndarray]:
         model, out = ControlModel("fer"), []
@@ -483,9 +492,7 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
         target = controllers.JointTarget()
         target.dt = 1e-3
         target.start(states[0], model)
-        layout = target._sig_layout  # a target away, as set_target writes it
-        target._values[layout["q"][0] : layout["q"][0] + 7] += 0.05
-        target._values[layout["count"][0]] += 1.0
+        _target_away(target, "q", np.full(7, 0.05))
         for k, s in enumerate(states):
             move.tick(0.0 if k == 0 else 1e-3)
             target.tick(1e-3)

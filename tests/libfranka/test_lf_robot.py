@@ -351,7 +351,8 @@ def test_write_torques_sends_what_write_once_sends_and_refuses_bad_input(robot, 
         state, _ = active.readOnce()
         np.testing.assert_allclose(state.tau_J_d, [-t for t in tau], atol=1e-12)
         received = sim.stats()["commands_received"]
-        for bad in (tau[:6], [*tau[:6], float("nan")], [*tau[:6], float("inf")]):
+        for bad in (tau[:6], [*tau[:6], float("nan")], [*tau[:6], float("inf")],
+                    [*tau[:6], "0.1"], None):  # fmt: skip
             with pytest.raises(ValueError, match="tau_J: expected 7 finite torques"):
                 active.write_torques(bad)
         assert sim.stats()["commands_received"] == received

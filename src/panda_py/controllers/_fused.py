@@ -50,6 +50,26 @@ _torque = _kernels.cartesian_impedance_torque
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _jacobian_or_nan(q, chain, J, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """The Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7); False, and NaN
+    torques in ``tau``, where ``q`` is not finite."""
+    if _jacobian_one(q, chain, False, J):
+        return True
+    for i in range(7):
+        tau[i] = math.nan
+    return False
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """``tau += C(q, dq) dq`` of the arm ``origin ... inertia``."""
+    coriolis = np.empty(7)
+    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
+    for i in range(7):
+        tau[i] += coriolis[i]
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
     values, at, filtered, Kd_t, O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, J, tau
 ):  # fmt: skip
@@ -74,15 +94,10 @@ def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
     q_n_t = values[at[2] : at[2] + 7]
     _pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t)
     filtered[86] += alpha * (values[at[5]] - filtered[86])
-    if not _jacobian_one(q, chain, False, J):  # q not finite
-        for i in range(7):
-            tau[i] = math.nan
+    if not _jacobian_or_nan(q, chain, J, tau):
         return
     _torque(O_T_EE, J[0], q, dq, p, quat, K, Kd, q_n, filtered[86], tau)
-    coriolis = np.empty(7)
-    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
-    for i in range(7):
-        tau[i] += coriolis[i]
+    _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -100,9 +115,7 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     rate, the smallest inverse inertia, 1 to update the damping now (else 0), 1 if
     ``J_prev`` holds the previous tick's Jacobian (else 0: no rate of the Jacobian). NaN
     torques where ``q`` is not finite."""
-    if not _jacobian_one(q, chain, False, J):
-        for i in range(7):
-            tau[i] = math.nan
+    if not _jacobian_or_nan(q, chain, J, tau):
         return
     M = np.empty((7, 7))
     _crba(origin, ca, sa, mass, h, inertia, q, M)
@@ -112,10 +125,7 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     dt, k_n, speed, rate = scalars[0], scalars[1], scalars[3], scalars[4]
     _tracking(O_T_EE, J[0], Jp, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
               coulomb, speed, rate, tau, err, J_pinv)  # fmt: skip
-    coriolis = np.empty(7)
-    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
-    for i in range(7):
-        tau[i] += coriolis[i]
+    _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -129,15 +139,14 @@ def joint_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     (``origin ... inertia``: ``dynamics.LoadedArm.arrays``)."""
     M = np.empty((7, 7))
     _crba(origin, ca, sa, mass, h, inertia, q, M)
-    coriolis = np.empty(7)
-    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
     for i in range(7):
         e = q_d[i] - q[i]
         acc = K[i] * e + D[i] * (dq_d[i] - dq[i]) + armature[i] * ddq_d[i]
         for c in range(7):
             acc += M[i, c] * ddq_d[c]
         v = (dq_d[i] + error_rate * e) / friction_speed
-        tau[i] = acc + coulomb[i] * math.tanh(v) + coriolis[i]
+        tau[i] = acc + coulomb[i] * math.tanh(v)
+    _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 
 
 # One signature each, compiled (or loaded) at import, and no other: an input read-only

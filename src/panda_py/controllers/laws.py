@@ -69,8 +69,9 @@ def compiled() -> Any:
 
 def fused() -> Any:
     """The laws compiled with their model terms (:mod:`._fused`: ``CartesianImpedance``'s
-    step in one call), or None where the laws, the kinematics or the dynamics run without
-    numba: imported on first use."""
+    step and the moves' and streamed targets' tracking, each in one call), or None where
+    the laws, the kinematics or the dynamics run without numba: imported (and compiled or
+    loaded) on first use."""
     global _FUSED
     if _FUSED is _UNSET:
         _FUSED = None
@@ -115,7 +116,7 @@ def warmup() -> None:
             # and CartesianTarget's outputs
             k.pose_target_outputs(z3, quat, np.zeros(6), z3, quat, False, np.zeros(16), 0)
             w.advance()
-            # CartesianImpedance's step with its model terms, in one call
+            # the laws compiled with their model terms (CartesianImpedance, the tracking)
             f = fused()
             if f is not None:
                 f.warmup()

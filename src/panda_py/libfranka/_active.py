@@ -110,8 +110,12 @@ class ActiveControl:
             raise InvalidOperationException("libfranka: call readOnce() before write_torques()")
         if not self._torque:
             raise InvalidOperationException("libfranka: write_torques() is for torque control")
-        s = sum(tau)  # a builtin sum of floats: NaN or infinity anywhere shows
-        if len(tau) != 7 or s - s != 0.0:
+        try:
+            s = sum(tau)  # a builtin sum of floats: NaN or infinity anywhere shows
+            ok = len(tau) == 7 and s - s == 0.0
+        except TypeError:
+            ok = False
+        if not ok:
             raise ValueError(f"tau_J: expected 7 finite torques [Nm], got {tau!r}")
         try:
             self._commander.torque_values(tau, data)
