@@ -3,7 +3,7 @@ on the same simulator, in the same run. Run by hand:
 
     python benchmarks/bench_panda.py calls   [--n 20000]        # per call: q, get_pose, set_control
     python benchmarks/bench_panda.py latency [--seconds 10]     # set_control -> command
-    python benchmarks/bench_panda.py lost    [--seconds 60]     # lost commands under load
+    python benchmarks/bench_panda.py lost    [--seconds 60] [--runs 3]  # lost commands under load
     python benchmarks/bench_panda.py moves                      # move accuracy
     python benchmarks/bench_panda.py cpu     [--seconds 10]     # loop CPU, laws' cost/tick
     python benchmarks/bench_panda.py start   [--n 20]           # Simulator start, Panda connect
@@ -12,7 +12,10 @@ on the same simulator, in the same run. Run by hand:
 ``lost``: a controller runs on a simulator on the wall clock (SCHED_FIFO when permitted),
 while the user's main thread runs a busy pure-Python loop and a CPU burner runs beside;
 the simulator counts the commands that did not arrive. For ours also with a user-written
-Python ``step()``. Each figure prints median, p99 and worst case and ours/theirs.
+Python ``step()``; panda-python's twice: with its main thread as libfranka leaves it after
+a move (SCHED_FIFO 99: the busy loop then holds a core at realtime priority, and the
+simulator and the control loop share the other), and put back to SCHED_OTHER, as ours is.
+Each figure prints median, p99 and worst case and ours/theirs.
 """
 
 from __future__ import annotations
@@ -61,6 +64,13 @@ def _fifo(pid: int) -> bool:
     except (OSError, AttributeError):
         return False
     return True
+
+
+def _policy() -> str:
+    """The calling thread's scheduling policy and priority."""
+    names = {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}
+    policy = os.sched_getscheduler(0)
+    return f"{names.get(policy, policy)} {os.sched_getparam(0).sched_priority}"
 
 
 def _peer(mode: str, host: str, *args: str, on_start: Any = None) -> dict:
@@ -184,34 +194,49 @@ def _lost_run(sim: Simulator, seconds: float, controller: Any) -> dict:
         except Exception as exc:
             error = str(exc)
         panda.stop_controller()
-    return {**stats, "error": error}
+    return {**stats, "error": error, "main_thread": _policy()}
 
 
-def lost(seconds: float) -> None:
+def lost(seconds: float, runs: int = 1) -> None:
     print(f"lost commands over {seconds:.0f} s: controller running, busy user main thread, "
           "CPU burner beside, realtime simulator")  # fmt: skip
+    print("  panda-python's main thread runs its moves, and libfranka's control() leaves the "
+          "calling thread at SCHED_FIFO 99:\n  its busy main thread then holds a core at "
+          "realtime priority. 'normal' puts it back to SCHED_OTHER after move_to_start,\n"
+          "  as ours is (our moves run in the control process, the user's threads keep their "
+          "scheduling).")  # fmt: skip
+    counts: dict[str, list[int]] = {}
     burn = subprocess.Popen([sys.executable, "-c", "while True: pass"])
     try:
-        rows = []
-        for label, ctrl in (("CartesianImpedance", controllers.CartesianImpedance),
-                            ("user step() (Python)", Hold)):  # fmt: skip
-            with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
-                _fifo(sim._process.pid)
-                rows.append((f"ours, {label}", _lost_run(sim, seconds, ctrl)))
-        with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
-            _fifo(sim._process.pid)
-            box: dict = {}
-            theirs = _peer("lost", sim.host, str(seconds),
-                           on_start=lambda: (sim.reset_stats(), box.update(t=1)))  # fmt: skip
-            stats = sim.stats()
-            rows.append(("panda-python, CartesianImpedance", {**stats, **theirs}))
+        for run in range(runs):
+            rows = []
+            for label, ctrl in (("CartesianImpedance", controllers.CartesianImpedance),
+                                ("user step() (Python)", Hold)):  # fmt: skip
+                with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+                    _fifo(sim._process.pid)
+                    rows.append((f"ours, {label}", _lost_run(sim, seconds, ctrl)))
+            for main_thread in ("as-left", "normal"):
+                with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+                    _fifo(sim._process.pid)
+                    theirs = _peer("lost", sim.host, str(seconds), main_thread,
+                                   on_start=sim.reset_stats)  # fmt: skip
+                    label = f"panda-python, main thread {main_thread}"
+                    rows.append((label, {**sim.stats(), **theirs}))
+            print(f" run {run + 1} of {runs}")
+            for label, st in rows:
+                total = st["commands_lost"] + st["commands_received"]
+                counts.setdefault(label, []).append(st["commands_lost"])
+                thread = st["main_thread"]
+                print(f"  {label:<40} lost {st['commands_lost']:6d} of {total:7d}; late ticks "
+                      f"{st['late_ticks']:3d}; user's main thread {thread}; "
+                      f"error: {st.get('error')}")  # fmt: skip
     finally:
         burn.kill()
         burn.wait()
-    for label, st in rows:
-        total = st["commands_lost"] + st["commands_received"]
-        print(f"  {label:<36} lost {st['commands_lost']:6d} of {total:7d}; late ticks "
-              f"{st['late_ticks']}; error: {st.get('error')}")  # fmt: skip
+    if runs > 1:
+        print(" lost commands per run:")
+        for label, values in counts.items():
+            print(f"  {label:<40} {values}")
 
 
 def _deviation(path: np.ndarray, goal: np.ndarray) -> float:
@@ -405,6 +430,7 @@ def main() -> None:
     p.add_argument("mode", choices=("calls", "latency", "lost", "moves", "cpu", "start", "all"))
     p.add_argument("--n", type=int, default=20000)
     p.add_argument("--seconds", type=float, default=None)
+    p.add_argument("--runs", type=int, default=1, help="lost: repeat the whole comparison")
     a = p.parse_args()
     if a.mode in ("calls", "all"):
         calls(a.n)
@@ -413,7 +439,7 @@ def main() -> None:
     if a.mode in ("moves", "all"):
         moves()
     if a.mode in ("lost", "all"):
-        lost(a.seconds or 60.0)
+        lost(a.seconds or 60.0, a.runs)
     if a.mode in ("cpu", "all"):
         cpu(a.seconds or 10.0, min(a.n, 5000))
     if a.mode in ("start", "all"):

@@ -2,7 +2,7 @@
 ``panda_py``), prints one JSON line. Not part of the package.
 
     python peer_panda.py calls HOST N
-    python peer_panda.py lost HOST SECONDS
+    python peer_panda.py lost HOST SECONDS [normal]
     python peer_panda.py moves HOST
     python peer_panda.py cpu HOST SECONDS
     python peer_panda.py connect HOST N
@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 
@@ -48,12 +49,24 @@ def calls(host: str, n: int) -> dict:
     return result
 
 
-def lost(host: str, seconds: float) -> dict:
+def _policy() -> str:
+    names = {os.SCHED_OTHER: "SCHED_OTHER", os.SCHED_FIFO: "SCHED_FIFO", os.SCHED_RR: "SCHED_RR"}
+    policy = os.sched_getscheduler(0)
+    return f"{names.get(policy, policy)} {os.sched_getparam(0).sched_priority}"
+
+
+def lost(host: str, seconds: float, main_thread: str = "as-left") -> dict:
+    """``main_thread``: "as-left", the user's main thread as libfranka leaves it after a
+    move (its control() raises the calling thread to SCHED_FIFO 99 and never lowers it
+    again); "normal", put back to SCHED_OTHER, as it was before the move."""
     panda = panda_py.Panda(host)
     try:  # the simulator starts there; panda-python's planner fails on a null move
         panda.move_to_start()
     except RuntimeError:
         pass
+    left = _policy()
+    if main_thread == "normal":
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
     ctrl = controllers.CartesianImpedance()
     panda.start_controller(ctrl)
     x, o = panda.get_position(), panda.get_orientation()
@@ -70,7 +83,7 @@ def lost(host: str, seconds: float) -> dict:
     except Exception as exc:
         error = str(exc)
     panda.stop_controller()
-    return {"error": error, "busy": busy}
+    return {"error": error, "busy": busy, "main_thread_left": left, "main_thread": _policy()}
 
 
 def moves(host: str) -> dict:
@@ -139,7 +152,7 @@ if __name__ == "__main__":
     if mode == "calls":
         res = calls(host, int(sys.argv[3]))
     elif mode == "lost":
-        res = lost(host, float(sys.argv[3]))
+        res = lost(host, float(sys.argv[3]), *sys.argv[4:5])
     elif mode == "connect":
         res = connect(host, int(sys.argv[3]))
     else:
