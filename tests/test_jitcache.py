@@ -41,3 +41,18 @@ def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles
     assert fused.KEY == jitcache.source_key(sources)
     fused.warmup()
     assert fused.cartesian_impedance_step.stats.cache_path == str(jitcache.cache_dir(fused.KEY))
+
+
+def test_every_compiled_module_caches_under_a_key_over_its_own_file() -> None:
+    """The laws, the dynamics, the online generator's helpers and the simulator's tick
+    compile nothing from elsewhere: each is keyed over its file, so a fresh checkout of
+    the same sources loads what an earlier one compiled, and an edit compiles afresh."""
+    import panda_py.controllers._kernels as kernels
+    import panda_py.dynamics._compiled as compiled
+    import panda_py.motion._online_jit as online
+    import panda_py.sim._tick_jit as tick
+
+    for module, kernel in ((kernels, kernels.finalize_torques), (compiled, compiled.rnea),
+                           (online, online.publish_pose), (tick, tick.fill_state)):  # fmt: skip
+        assert module.KEY == jitcache.source_key([Path(module.__file__)]), module.__name__
+        assert kernel.stats.cache_path == str(jitcache.cache_dir(module.KEY)), module.__name__

@@ -10,8 +10,12 @@ the kernels compile afresh (old directories are left for the user to delete). Th
 lives where the user can write, never in site-packages; where no directory is writable
 the kernels compile in memory, each process anew.
 
-Used by the kinematics (its solvers, over its package's files) and by the control laws
-compiled with the model terms they need (:mod:`panda_py.controllers._fused`).
+Used by every compiled module: the kinematics (over its package's files), the control laws
+compiled with the model terms they need (:mod:`panda_py.controllers._fused`, over the
+files it inlines), and the laws, the dynamics, the online generator's helpers and the
+simulator's tick (each over its own file). The key names the sources, not where they
+lie: a fresh checkout or a reinstall of the same sources loads what an earlier one
+compiled.
 """
 
 from __future__ import annotations

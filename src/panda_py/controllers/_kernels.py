@@ -4,15 +4,17 @@ microseconds, where the same NumPy expressions take 50-60 us. The plain version 
 :mod:`.laws` stays the reference (tests hold them together).
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
-per machine and cached by numba.
+per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
-import numba
 import numpy as np
+
+from panda_py import jitcache
 
 __all__ = [
     "cartesian_impedance_torque",
@@ -25,10 +27,13 @@ __all__ = [
     "pose_tracking_torque",
 ]
 
+# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
+KEY = jitcache.source_key([Path(__file__)])
+
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: ignore[no-untyped-def,unused-ignore]
     """``controllers.moves.joint_capped``'s factors with the generator's frames: the
     largest scales (<= 1) of the Cartesian velocity (``vt``, ``vr``: the norms' limits of
@@ -58,7 +63,7 @@ def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: 
     return sv, sa
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
     """Unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -91,7 +96,7 @@ def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[k] /= n
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
     definite): the damped pseudo-inverse of J^T."""
@@ -128,7 +133,7 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
             out[i, c] = s / L[i, i]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
     """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
     ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
@@ -188,14 +193,14 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
         tau[i] = acc
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, np.zeros(6), K, Kd, q_n, k_n, tau,
                      np.empty(6), np.empty((7, 6)))  # fmt: skip
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max, gain, out):  # type: ignore[no-untyped-def,unused-ignore]
     """What the loop does to every law's torques, in one call: panda-py's joint walls
     (``laws.JointWalls.torques``, the reference: ``walls`` holds per joint lower, upper,
@@ -264,7 +269,7 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
     return finite
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     O_T_EE, J, J_prev, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
     coulomb, friction_speed, error_rate, tau, err, J_pinv,
@@ -304,7 +309,7 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
         tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
     f = filtered.reshape(-1)
     t = target.reshape(-1)
@@ -316,7 +321,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
             f[i] += alpha * (t[i] - f[i])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # type: ignore[no-untyped-def,unused-ignore]
     """``CartesianImpedance``'s input filter in place (the reference: laws.ema on the
     stiffness, damping, position and nullspace pose, laws.slerp on the orientation)."""
@@ -344,7 +349,7 @@ def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # t
     quat[0], quat[1], quat[2], quat[3] = o0 / n, o1 / n, o2 / n, o3 / n
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untyped-def,unused-ignore]
     """Into ``D`` (6, 6): the Cartesian damping that gives the stiffness ``K`` the damping
     ratio ``zeta`` on the end effector's inertia ``Lambda = (J (M + diag(armature))^-1
@@ -384,7 +389,7 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
             D[i, j] = zeta * (out[i, j] + out[j, i])
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_outputs(p_d, quat_d, v_d, p, quat, stale, out, o):  # type: ignore[no-untyped-def,unused-ignore]
     """``CartesianTarget``'s outputs from offset ``o`` of ``out``: the reference's position,
     orientation and twist, its distance [m] and angle [rad] to the target ``p``, ``quat``,

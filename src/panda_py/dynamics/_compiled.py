@@ -3,25 +3,28 @@ compiled by numba on float64 arrays (the same recursion, term for term), for the
 loop's model terms: about 1.5 us a call where the plain-Python recursion takes 40-110 us.
 
 Imported by :mod:`.dynamics` on first use unless ``PANDA_PY_NO_JIT=1`` or numba is
-missing; compiled once per machine and cached by numba (next to this file, or in its
-per-user cache where that is not writable).
+missing; compiled once per machine and cached on disk under a key over this file
+(:mod:`panda_py.jitcache`: per user, whichever checkout or install compiled it).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
-import numba
 import numpy as np
 
-from panda_py import progress
+from panda_py import jitcache, progress
 
 __all__ = ["crba", "rnea", "warmup"]
+
+# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
+KEY = jitcache.source_key([Path(__file__)])
 
 _N = 7
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
     """R_{i-1,i} = RotX(alpha_i) RotZ(q_i), i = 1..7, as (7, 3, 3)."""
     R = np.empty((_N, 3, 3))
@@ -33,14 +36,14 @@ def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
     return R
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _cross(a, b, out):  # type: ignore[no-untyped-def,unused-ignore]
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A x`` for a 3x3 ``A`` (written out: numba's ``@`` calls BLAS, whose call
     costs more than this product)."""
@@ -49,7 +52,7 @@ def _mv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[r] = A[r, 0] * x0 + A[r, 1] * x1 + A[r, 2] * x2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mtv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A^T x`` for a 3x3 ``A``."""
     x0, x1, x2 = x[0], x[1], x[2]
@@ -57,7 +60,7 @@ def _mtv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[c] = A[0, c] * x0 + A[1, c] * x1 + A[2, c] * x2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """Joint torques into ``tau`` (7,) for (q, dq, ddq) with base acceleration
     ``a_base`` (``-gravity``); links' ``mass`` (7,), first moments ``h`` (7, 3) and
@@ -120,7 +123,7 @@ def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ig
         tau[i] = no[2]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def,unused-ignore]
     """The joint-space mass matrix into ``M`` (7, 7) (arguments as :func:`rnea`)."""
     R = _rotations(ca, sa, q)

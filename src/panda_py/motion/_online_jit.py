@@ -4,20 +4,25 @@ and acceleration in one call of about a microsecond, where the same scalar Pytho
 (``OnlinePose._publish_python``, the reference: tests hold them together) takes 8-10 us.
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
-per machine and cached by numba.
+per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
-import numba
 import numpy as np
+
+from panda_py import jitcache
 
 __all__ = ["publish_pose"]
 
+# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
+KEY = jitcache.source_key([Path(__file__)])
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mv(A, x, i0, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
     """``out[o0:o0+3] = A x[i0:i0+3]`` for a 3x3 ``A``."""
     x0, x1, x2 = x[i0], x[i0 + 1], x[i0 + 2]
@@ -25,7 +30,7 @@ def _mv(A, x, i0, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
         out[o0 + r] = A[r, 0] * x0 + A[r, 1] * x1 + A[r, 2] * x2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``J_l(x) y``: ``y + a (x × y) + b x × (x × y)`` (the rotation vector's left
     Jacobian, series expansions near 0 as the Python reference)."""
@@ -44,7 +49,7 @@ def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignor
     out[2] = y2 + a * c2 + b * d2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel):  # type: ignore[no-untyped-def,unused-ignore]
     """From the generator's position ``p``, velocity ``v`` and acceleration ``a`` (6,
     translation in frame ``Ft``, rotation vector about the anchor ``q0``/``R0`` in frame
@@ -71,7 +76,7 @@ def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel): 
     _rates(a, accel, Ft, Fr, R0, xs, scratch)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _rates(src, dst, Ft, Fr, R0, xs, scratch):  # type: ignore[no-untyped-def,unused-ignore]
     """A velocity or acceleration ``src`` (6, aligned frames) into ``dst`` (6, base
     frame): the angular part's world rate is ``R0 J_l(x) xd`` (without the Jacobian's
