@@ -159,7 +159,7 @@ def latency(seconds: float) -> None:
     p50, p99 = edges[np.searchsorted(c, 0.5)], edges[np.searchsorted(c, 0.99)]
     worst = edges[np.flatnonzero(hist)[-1]] if hist.any() else float("nan")
     print(f"  samples {int(hist.sum())}: median <= {p50:.0f} us, p99 <= {p99:.0f} us, "
-          f"worst <= {worst:.0f} us (target p99 <= 2000 us)")  # fmt: skip
+          f"worst <= {worst:.0f} us (target p99 <= 1000 us)")  # fmt: skip
 
 
 class Hold(controllers.TorqueController):
