@@ -151,7 +151,9 @@ def test_token_reused_across_sessions(fr3: Simulator, tokens: str) -> None:
     assert not first.has_control()
 
 
-def test_pilot_events_reach_listen(fer: Simulator, tokens: str) -> None:
+def test_pilot_events_reach_listen(
+    fer: Simulator, tokens: str, caplog: pytest.LogCaptureFixture
+) -> None:
     fresh(fer)
     d = desk(fer, tokens)
     events: list[dict[str, bool]] = []
@@ -172,6 +174,10 @@ def test_pilot_events_reach_listen(fer: Simulator, tokens: str) -> None:
         assert got.wait(5)
     finally:
         d.stop_listen()
+    # stop_listen closes the stream itself (at once, not at the listener's next timeout):
+    # no warning that the Desk closed it, and the listener has ended
+    assert "closed the Pilot event stream" not in caplog.text
+    assert not any(t.name == "panda-py-desk-listen" for t in threading.enumerate())
     assert events[0] == dict.fromkeys(
         ("circle", "cross", "check", "left", "right", "down", "up"), False
     )

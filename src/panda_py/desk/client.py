@@ -98,6 +98,7 @@ class Desk(DeskDuties):
         self._token = self._store.token(hostname, username)
         self._listening = False
         self._listen_thread: threading.Thread | None = None
+        self._listen_ws: Any = None  # the Pilot event stream the listener reads
         if connect:
             self.login()
             self.take_control()
@@ -393,6 +394,7 @@ class Desk(DeskDuties):
         self._need_login()
         ws = self._open_events()
         self._listening = True
+        self._listen_ws = ws
         self._listen_thread = threading.Thread(
             target=self._listen, args=(ws, cb), name="panda-py-desk-listen", daemon=True
         )
@@ -427,7 +429,8 @@ class Desk(DeskDuties):
                 except TimeoutError:
                     continue
                 except ConnectionClosed:
-                    log.warning("the Desk at %s closed the Pilot event stream", self._hostname)
+                    if self._listening:  # (stop_listen closes it too)
+                        log.warning("the Desk at %s closed the Pilot event stream", self._hostname)
                     return
                 try:
                     event = json.loads(message)
@@ -440,6 +443,14 @@ class Desk(DeskDuties):
         """Stop the listener thread started by :meth:`listen`."""
         self._listening = False
         thread, self._listen_thread = self._listen_thread, None
+        ws, self._listen_ws = self._listen_ws, None
+        if ws is not None:
+            # the closing handshake ends the listener's receive at once (it would see the
+            # flag only at its next 0.2 s timeout)
+            try:
+                ws.close()
+            except OSError:
+                pass  # the connection is gone: the listener's receive ends all the same
         if thread is not None:
             thread.join()
 
