@@ -122,13 +122,17 @@ def test_the_callers_thread_keeps_its_scheduling_and_the_loop_runs_fifo_where_pe
     """panda-python's moves run libfranka's control() in the calling thread and leave it at
     SCHED_FIFO 99 (a busy loop in it then holds a core at realtime priority); ours run in
     the control process, whose loop alone takes SCHED_FIFO."""
-    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+
+    def mine() -> tuple[int, int]:
+        return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+    before = mine()
     with panda_py.Panda(sim.host) as panda:
         q = panda_py.constants.JOINT_POSITION_START + np.array([0.1, 0, 0, 0, 0, 0, 0])
         assert panda.move_to_joint_position(q)
         panda.start_controller(panda_py.controllers.CartesianImpedance())
         loop = os.sched_getscheduler(panda._proc.proc.pid)
-        assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+        assert mine() == before
         panda.stop_controller()
-    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    assert mine() == before
     assert loop == (os.SCHED_FIFO if fifo_permitted() else before[0])
