@@ -414,6 +414,23 @@ def _target_away(target, name, offset):  # type: ignore[no-untyped-def]
     target._values[layout["count"][0]] += 1.0
 
 
+def _drive(move, target, name, offset, states):  # type: ignore[no-untyped-def]
+    """A move and a streamed target (moved by ``offset`` after its start) stepped
+    through ``states`` on a fresh ControlModel; per tick the move's torques, the target's
+    and a copy of the target's outputs."""
+    from panda_py.controllers.model import ControlModel
+
+    model, out = ControlModel("fer"), []
+    target.dt = 1e-3
+    target.start(states[0], model)
+    _target_away(target, name, offset)
+    for k, s in enumerate(states):
+        move.tick(0.0 if k == 0 else 1e-3)
+        target.tick(1e-3)
+        out.append((move.step(s, model), target.step(s, model), target._out.copy()))
+    return out
+
+
 @pytest.mark.parametrize("path", ["separate kernels", "numpy"])
 def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     path: str, monkeypatch
@@ -423,7 +440,6 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     mass matrix, damping from the arm's inertia on the first tick and the 21st, tracking
     torque with its feed-forward, Coriolis) gives the torques of the separate calls and of
     the plain law, through the plan, its end and the settle phase after it."""
-    from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import PoseMove
     from panda_py.controllers.plans import PosePlan
 
@@ -443,17 +459,9 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     states = _loaded_states(rng, q0, F_T_EE)
 
     def run() -> list[np.ndarray]:
-        model, out = ControlModel("fer"), []
-        move = PoseMove(plan)
-        target = controllers.CartesianTarget()
-        target.dt = 1e-3
-        target.start(states[0], model)
-        _target_away(target, "position", np.array([0.02, 0.0, -0.01]))
-        for k, s in enumerate(states):
-            move.tick(0.0 if k == 0 else 1e-3)
-            target.tick(1e-3)
-            torques = [move.step(s, model), target.step(s, model)]
-            out.append(np.concatenate([*torques, target._out]))  # and the target's outputs
+        move, target = PoseMove(plan), controllers.CartesianTarget()
+        ticks = _drive(move, target, "position", np.array([0.02, 0.0, -0.01]), states)
+        out = [np.concatenate(tick) for tick in ticks]  # and the target's outputs
         assert move.t > move.t_end  # into the settle phase
         assert np.abs(out[-1][7:14]).max() > 0.5  # the target pulls
         assert out[-1][14 + target._out_layout["lag"][0]] > 0.01  # and lags
@@ -472,7 +480,6 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
     joint tracking in one call (_fused.joint_tracking_step: mass matrix, impedance,
     inertial and friction feed-forward, Coriolis) gives the torques of the NumPy law on
     the model's terms, through the plan, its end and the settle phase."""
-    from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import JointMove
     from panda_py.controllers.plans import JointPlan
 
@@ -487,16 +494,9 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
     states = _loaded_states(rng, q0, np.eye(4))
 
     def run() -> list[np.ndarray]:
-        model, out = ControlModel("fer"), []
-        move = JointMove(plan)
-        target = controllers.JointTarget()
-        target.dt = 1e-3
-        target.start(states[0], model)
-        _target_away(target, "q", np.full(7, 0.05))
-        for k, s in enumerate(states):
-            move.tick(0.0 if k == 0 else 1e-3)
-            target.tick(1e-3)
-            out.append(np.concatenate([move.step(s, model), target.step(s, model)]))
+        move, target = JointMove(plan), controllers.JointTarget()
+        ticks = _drive(move, target, "q", np.full(7, 0.05), states)
+        out = [np.concatenate(tick[:2]) for tick in ticks]
         assert move.t > move.t_end  # into the settle phase
         assert np.abs(out[-1][7:]).max() > 1.0  # the target pulls
         return out
