@@ -134,7 +134,6 @@ def test_11_rtb_arrives_at_its_goal(tmp_path: Path) -> None:
     assert [float(v) for v in moved[1].split()] == pytest.approx([0.2, 0.2, -0.1], abs=0.01)
 
 
-@pytest.mark.serial
 def test_12_mujoco_mirrors_and_predicts(tmp_path: Path) -> None:
     # on the wall clock: the prediction is 10 ms of the robot's time ahead, with the
     # torques then commanded; in lockstep the robot runs as fast as it can between two of
@@ -162,7 +161,6 @@ def test_no_robot_at_host_is_a_clear_error(tmp_path: Path) -> None:
     assert "No robot answers at 127.0.0.1" in done.stderr
 
 
-@pytest.mark.serial
 def test_13_two_arms_move_together_and_mirror(tmp_path: Path) -> None:
     out = run_example("13", "--runtime", "3.2", cwd=tmp_path)
     assert "both at the start pose: True" in out

@@ -175,7 +175,6 @@ def test_stop_controller_cancels_a_running_move_gently(panda: panda_py.Panda) ->
     assert np.abs(panda.get_state().dq).max() < 0.01
 
 
-@pytest.mark.serial
 def test_preempting_at_random_instants_keeps_every_tick_within_the_limits(
     panda: panda_py.Panda,
 ) -> None:

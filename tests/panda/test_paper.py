@@ -102,7 +102,6 @@ def test_logged_paths_straight_and_curved(panda: panda_py.Panda) -> None:
     }  # fmt: skip
 
 
-@pytest.mark.serial
 def test_block6_cartesian_impedance(panda: panda_py.Panda) -> None:
     """Code block 6 (the paper's examples/cartesian_impedance.py), with a log."""
     panda.move_to_start()
