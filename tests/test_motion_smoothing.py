@@ -82,3 +82,47 @@ def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
     assert jerk.max() <= 2 * 1.8 / smoothing.SMOOTHING_TIME + 1e-6
     np.testing.assert_allclose(plan.position[-1], points[-1], atol=1e-9)
     np.testing.assert_allclose(plan.twist[[0, -1]], 0.0, atol=1e-12)
+
+
+def _planned_joint_accelerations(plan: object, q0: np.ndarray) -> np.ndarray:
+    """The plan's joints by IK at every sample, twice differentiated [rad/s^2] (N-2, 7)."""
+    from panda_py.kinematics import get_kinematics
+    from panda_py.panda import planning
+
+    poses = planning._poses(plan.position, plan.orientation)  # type: ignore[attr-defined]
+    q = get_kinematics("fer").ik(poses, q0, float(q0[6]))
+    assert np.isfinite(q).all()
+    return np.diff(q, n=2, axis=0) / 1e-6
+
+
+def test_a_move_to_a_pose_runs_slower_where_its_joints_need_it() -> None:
+    """Near the start pose the Cartesian limits (2.6 m/s^2 at speed factor 0.2) ask joint
+    2 for all of its acceleration (1.08 of it planned before): the plan keeps every joint
+    within JOINT_SHARE of its limits, and a move the joints can follow keeps its time."""
+    from panda_py import fk
+    from panda_py.controllers import laws
+    from panda_py.controllers.moves import JOINT_SHARE
+    from panda_py.motion import CartesianTrajectory
+    from panda_py.panda import planning
+    from panda_py.robots.params import get_robot
+
+    fer = get_robot("fer")
+    q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+    T = fk(q0)
+    p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
+    limit = JOINT_SHARE * np.array(fer.joints.ddq_max)
+    slowed = 0
+    for offset in ([0.065, -0.09, -0.11], [0.1, 0.0, 0.0], [0.0, 0.0, 0.03], [-0.1, 0.05, 0.1]):
+        target = T.copy()
+        target[:3, 3] += offset
+        positions, quats, opts = planning.parse_pose_targets((target,), {})
+        plan = planning.pose_move(p0, quat, positions, quats, opts, q0, fer)
+        assert plan is not None
+        ddq = _planned_joint_accelerations(plan, q0)
+        assert (np.abs(ddq) / limit).max() <= 1.0 + 1e-3, offset
+        free = CartesianTrajectory(np.stack([T, target]), 0.2).get_duration()
+        duration = (len(plan.position) - 1) * 1e-3 - smoothing.SMOOTHING_TIME  # (its ramps)
+        assert duration >= free - 2e-3
+        slowed += duration > free + 0.01
+        np.testing.assert_allclose(plan.position[-1], target[:3, 3], atol=1e-9)
+    assert 0 < slowed < 4  # only the moves that needed it

@@ -13,6 +13,7 @@ from test_law_steps import KIN, MODEL, Q0, ctrl_quat, make_state
 from panda_py.controllers import laws
 from panda_py.controllers.moves import JointMove, PoseMove, Tracker, tracker_for
 from panda_py.controllers.plans import Progress
+from panda_py.controllers.tracking import joint_impedance_torque
 from panda_py.fci import PERIOD
 from panda_py.panda import planning
 from panda_py.robots.params import get_robot
@@ -126,7 +127,7 @@ def test_joint_and_cartesian_moves_take_over_from_each_other() -> None:
     state = make_state(first.ref[0], first.ref[1])
     pose = pose_law(first.ref[0], np.array([0.1, 0.0, -0.1]))
     pose.handover(first, state, MODEL)
-    # the pose's reference starts where the arm is, moving as the joints' reference moved
+    # the pose's reference starts where the arm is, moving as it moves (here: on its reference)
     T = state.O_T_EE
     np.testing.assert_allclose(pose.ref[0], T[12:15], atol=1e-12)
     np.testing.assert_allclose(pose.ref[2], MODEL.ee_jacobian(state) @ first.ref[1], atol=1e-12)
@@ -137,6 +138,39 @@ def test_joint_and_cartesian_moves_take_over_from_each_other() -> None:
     back.handover(pose, state, MODEL)
     np.testing.assert_allclose(back.ref[0], state.q)
     np.testing.assert_allclose(back.ref[1], state.dq)
+
+
+def test_across_spaces_the_blend_pulls_both_laws_toward_the_new_reference() -> None:
+    """During the blend the previous law tracks the new move's reference in its own space
+    (not its own plan, which pulled the arm off the new one: up to 1.4x the planned
+    accelerations after the blend): an arm 5 mm behind the new reference along x is pushed
+    along +x by either law, an arm on it is not pushed at all."""
+    first = joint_law(Q0, Q0 + OFFSET)
+    follow(first, 300)
+    state = make_state(first.ref[0], first.ref[1])
+    J = MODEL.ee_jacobian(state)
+    to_force = np.linalg.pinv(J.T)  # torques -> the end effector's wrench
+    pose = pose_law(first.ref[0], np.array([0.1, 0.0, -0.1]))
+    pose.handover(first, state, MODEL)
+    T = state.O_T_EE
+    here = (T[12:15].copy(), laws.quat_from_matrix(T), J @ state.dq, np.zeros(6))
+    ahead = (here[0] + [0.005, 0.0, 0.0], *here[1:])
+    on = first.torque_toward(here, state, MODEL)
+    # on the reference: no pull anywhere, only what the arm's motion itself needs
+    hold = joint_impedance_torque(first.K, first.D, state.q, state.dq, np.zeros(7), state, MODEL)
+    np.testing.assert_allclose(on, hold, atol=1e-9)
+    push = to_force @ (first.torque_toward(ahead, state, MODEL) - on)
+    assert push[0] > 0.7 * np.linalg.norm(push[:3])  # toward it (the joint stiffness is
+    # not the same in every direction at the end effector)
+    back = joint_law(first.ref[0], Q0)
+    back.handover(pose, state, MODEL)
+    pose.tick(PERIOD)
+    shift = np.linalg.pinv(J) @ np.array([0.005, 0.0, 0.0, 0.0, 0.0, 0.0])
+    still = (state.q.copy(), state.dq.copy(), np.zeros(7))
+    pose_on = pose.torque_toward(still, state, MODEL)
+    pose_push = to_force @ (pose.torque_toward((still[0] + shift, *still[1:]), state, MODEL)
+                            - pose_on)  # fmt: skip
+    assert pose_push[0] > 0.7 * np.linalg.norm(pose_push[:3])
 
 
 @dataclass(frozen=True)

@@ -208,6 +208,24 @@ def test_preempting_at_random_instants_keeps_every_tick_within_the_limits(
     np.testing.assert_allclose(panda.q, start, atol=0.01)
 
 
+def test_a_cartesian_move_keeps_the_joints_well_within_their_limits(
+    panda: panda_py.Panda,
+) -> None:
+    """Near the start pose the Cartesian limits alone asked joint 2 for all of its
+    acceleration (a plain move_to_pose measured 1.07 of it): the plan runs slower there."""
+    panda.move_to_start()
+    start = panda.get_pose()
+    panda.enable_logging(10_000)
+    for offset in ([0.1, 0.0, 0.0], [0.065, -0.09, -0.11]):
+        pose = start.copy()
+        pose[:3, 3] += offset
+        assert panda.move_to_pose(pose) is True
+        assert panda.move_to_pose(start) is True
+    acc, jerk = motion_limits(panda, panda.get_log())
+    assert acc <= 0.8, f"acceleration at {acc:.2f} of the limit"
+    assert jerk <= 1.0, f"jerk at {jerk:.2f} of the limit"
+
+
 def test_bad_arguments_are_refused_before_anything_moves(panda: panda_py.Panda) -> None:
     q = panda.q
     with pytest.raises(ValueError, match="asynchronous: expected True or False"):

@@ -28,6 +28,7 @@ from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
 from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
 from panda_py.fci import PERIOD
+from panda_py.motion import rotation as rot
 from panda_py.motion.online import LATERAL, OnlineGenerator, OnlineLimits, OnlinePose
 
 __all__ = ["JointMove", "PoseMove", "Tracker", "joint_capped", "tracker_for"]
@@ -54,10 +55,11 @@ SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
 # while another move ran: it leads in from where the arm is (the plan's own start is the
 # arm's state when it was planned, within the robot's joint limits)
 START_JOINT = 1e-2  # [rad]
-# of the joints' velocity and acceleration limits a Cartesian lead-in or stop may ask for:
-# the arm tracks its reference through impedance and overshoots it a little (at the whole
-# limits, 100 random preemptions measured 0.97-0.98 of the acceleration limit)
-JOINT_SHARE = 0.7
+# of the joints' velocity and acceleration limits a Cartesian move (its plan, lead-in or
+# stop) may ask for: the arm tracks its reference through impedance and overshoots it (100
+# random preemptions, five sequences: at 0.7 the arm reached 0.76-0.92 of the acceleration
+# limit, at 0.6 0.67-0.81)
+JOINT_SHARE = 0.6
 BLEND_TIME = 0.05  # [s] from one space's law to the other's (see Tracker._blend_from)
 START_POSITION = 5e-3  # [m]
 START_ORIENTATION = 1e-2  # [rad]
@@ -135,6 +137,7 @@ class Tracker(ControlLaw):
         self.condition_time = math.nan
         self.successor: Tracker | None = None  # set when the condition hands over
         self.previous: Tracker | None = None  # the law it blends from (see _blend_from)
+        self.ref: tuple[FloatArray, ...] = ()  # this tick's reference (the subclass's space)
 
     def sample(self) -> int:
         """The plan's sample at this tick."""
@@ -160,7 +163,9 @@ class Tracker(ControlLaw):
     def _blend_from(self, prev: Tracker | None) -> None:
         """Across a change of space (joint <-> Cartesian) the laws' tracking terms differ
         even on one reference: blend from the previous law's torques to this one's over
-        BLEND_TIME, so the torque (and the arm's acceleration) changes smoothly."""
+        BLEND_TIME, so the torque (and the arm's acceleration) changes smoothly. Both laws
+        track this move's reference (the previous one's own plan would pull the arm off it
+        and the new law catch up after the blend: up to 1.4x the planned accelerations)."""
         same = prev is None or type(prev) is type(self)
         self.previous = None if same else prev
         if prev is not None:
@@ -176,7 +181,11 @@ class Tracker(ControlLaw):
         prev.tick(self.dt)
         s = self.t / BLEND_TIME
         s = s * s * (3.0 - 2.0 * s)  # smoothstep: no step in the rate either
-        return s * tau + (1.0 - s) * np.asarray(prev.step(state, model), dtype=np.float64)
+        return s * tau + (1.0 - s) * prev.torque_toward(self.ref, state, model)
+
+    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+        """This law's torques toward the other space's reference ``ref`` (a blend's)."""
+        raise NotImplementedError
 
     def off_start(self, state: Any) -> bool:
         """Whether the arm is away from where the plan starts (beyond what panda-py's
@@ -283,10 +292,27 @@ class JointMove(Tracker):
         return self.ref[0].copy(), self.ref[1].copy(), self.ref[2].copy()
 
     def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
-        """The pose the arm is at, with the reference's twist and acceleration."""
+        """The pose and twist the arm has, with the reference's acceleration (as
+        :meth:`PoseMove.joint_reference`: a lead-in from the reference's twist where the arm
+        lags it would make the new law catch up, up to 1.3x the planned accelerations)."""
         J = model.ee_jacobian(state)
         T = state.O_T_EE
-        return T[12:15].copy(), laws.quat_from_matrix(T), J @ self.ref[1], J @ self.ref[2]
+        return T[12:15].copy(), laws.quat_from_matrix(T), J @ state.dq, J @ self.ref[2]
+
+    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+        """Toward a pose reference ``(position, orientation, twist, acceleration)``: the
+        joints it asks for to first order (``J^+`` of its error, twist, acceleration), the
+        arm's motion in the task's nullspace kept as it is (the Cartesian law damps it
+        gently; the joint damping would brake it at once)."""
+        p_d, quat_d, v_d, a_d = ref
+        J = model.ee_jacobian(state)
+        pinv = laws.damped_pinv(J)
+        err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
+        err[3:] *= 2.0  # the quaternion's vector part: half the rotation, to first order
+        dq = np.asarray(state.dq)
+        q_d = np.asarray(state.q) - pinv @ err
+        dq_d = dq + pinv @ (v_d - J @ dq)
+        return joint_impedance_torque(self.K, self.D, q_d, dq_d, pinv @ a_d, state, model)
 
     def _begin_rest(self) -> None:
         self.gen.reset(*(r.copy() for r in self.ref))
@@ -391,6 +417,17 @@ class PoseMove(Tracker):
         """The joints where they are, with the reference's acceleration mapped to them."""
         J_pinv = laws.damped_pinv(model.ee_jacobian(state))
         return np.array(state.q), np.array(state.dq), J_pinv @ self.ref[3]
+
+    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+        """Toward a joint reference ``(q, dq, ddq)``: the pose, twist and acceleration it
+        gives to first order (``J`` of its offset, velocity, acceleration)."""
+        q_d, dq_d, ddq_d = ref
+        J = model.ee_jacobian(state)
+        dx = J @ (q_d - state.q)
+        T = state.O_T_EE
+        quat_d = rot.multiply(rot.exp(dx[3:]), laws.quat_from_matrix(T))
+        return self.law.torque(state, model, self.dt, T[12:15] + dx[:3], quat_d, J @ dq_d,
+                               J @ ddq_d)  # fmt: skip
 
     def _begin_rest(self) -> None:
         p, quat, v, a = (r.copy() for r in self.ref)

@@ -76,6 +76,22 @@ def to_matrix(q: Array) -> Array:
     )
 
 
+def to_matrix_many(q: Array) -> Array:
+    """:func:`to_matrix` of each row of ``q`` (shape (N, 4)) -> (N, 3, 3)."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    m = np.empty((len(q), 3, 3))
+    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    m[:, 0, 1] = 2 * (x * y - z * w)
+    m[:, 0, 2] = 2 * (x * z + y * w)
+    m[:, 1, 0] = 2 * (x * y + z * w)
+    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    m[:, 1, 2] = 2 * (y * z - x * w)
+    m[:, 2, 0] = 2 * (x * z - y * w)
+    m[:, 2, 1] = 2 * (y * z + x * w)
+    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return m
+
+
 def from_matrix(m: Array) -> Array:
     """Unit quaternion of rotation matrix ``m`` (Shepperd's method: divide by the
     largest of the four candidate terms, so it is well conditioned everywhere)."""

@@ -456,7 +456,8 @@ class Panda:
         else:
             p, quat = state.O_T_EE[12:15].copy(), laws.quat_from_matrix(state.O_T_EE)
         return _moves.pose_move(p, quat, then.positions, then.orientations, then.options,
-                                state.q.copy(), self._limits, at_rest=True)  # fmt: skip
+                                state.q.copy(), self._limits, at_rest=True,
+                                F_T_EE=state.F_T_EE.reshape(4, 4, order="F"))  # fmt: skip
 
     def move_to_start(
         self,
@@ -517,7 +518,14 @@ class Panda:
             p_now = state.O_T_EE[12:15].copy()
             quat_now = laws.quat_from_matrix(state.O_T_EE)
             plan = _moves.pose_move(
-                p_now, quat_now, positions, quats, opts, state.q.copy(), self._limits
+                p_now,
+                quat_now,
+                positions,
+                quats,
+                opts,
+                state.q.copy(),
+                self._limits,
+                F_T_EE=F_T_EE,
             )
         if opts.joint_space is None or plan is None:
             return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))

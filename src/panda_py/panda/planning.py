@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import checks
+from panda_py.controllers.moves import JOINT_SHARE
 from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
@@ -455,6 +456,49 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
             )
 
 
+# a joint's step over one sample above this [rad] is a jump to another IK branch (no joint
+# moves 10 rad/s), not motion: left out of joint_time_scale
+IK_JUMP = 0.01
+
+
+def _poses(positions: FloatArray, orientations: FloatArray) -> FloatArray:
+    """4x4 transforms (N, 4, 4) of positions (N, 3) and unit quaternions (N, 4)."""
+    from panda_py.motion.rotation import to_matrix_many
+
+    poses = np.zeros((len(positions), 4, 4))
+    poses[:, :3, :3] = to_matrix_many(orientations)
+    poses[:, :3, 3] = positions
+    poses[:, 3, 3] = 1.0
+    return poses
+
+
+def joint_time_scale(positions: FloatArray, orientations: FloatArray, q_now: FloatArray,
+                     spec: RobotSpec, F_T_EE: FloatArray | None = None) -> float:  # fmt: skip
+    """How many times slower (>= 1) the poses sampled every PERIOD must be run for the
+    joints to stay within JOINT_SHARE of their velocity and acceleration limits (as the
+    online lead-ins do: the arm tracks through impedance and overshoots a little). The
+    joints along the path by inverse kinematics in the configuration's case with its q7
+    (where the Cartesian law's nullspace keeps them); samples without a solution, and
+    jumps to another branch, are left out."""
+    from panda_py.kinematics import get_kinematics
+
+    if len(positions) < 3:
+        return 1.0
+    q = get_kinematics(spec, F_T_EE).ik(_poses(positions, orientations), q_now,
+                                        float(q_now[6]))  # fmt: skip
+    step = np.diff(q, axis=0)
+    step[~(np.abs(step) <= IK_JUMP).all(axis=1)] = np.nan  # (NaN rows too)
+    dq = step / PERIOD
+    ddq = np.diff(dq, axis=0) / PERIOD
+    joints = spec.joints
+    with np.errstate(invalid="ignore"):
+        v = np.abs(dq) / (JOINT_SHARE * np.asarray(joints.dq_max))
+        a = np.abs(ddq) / (JOINT_SHARE * np.asarray(joints.ddq_max))
+    v_max = float(np.max(v, initial=0.0, where=np.isfinite(v)))
+    a_max = float(np.max(a, initial=0.0, where=np.isfinite(a)))
+    return max(1.0, v_max, math.sqrt(a_max))
+
+
 def pose_move_in_joint_space(
     plan: PosePlan, opts: PoseMoveOptions, q_now: FloatArray, spec: RobotSpec,
     F_T_EE: FloatArray,
@@ -464,14 +508,8 @@ def pose_move_in_joint_space(
     tracked with the joint stiffness and damping of the plan's options (judged on the
     pose by the caller: the joint success threshold is infinite)."""
     from panda_py.kinematics import get_kinematics
-    from panda_py.motion.rotation import to_matrix
 
-    n = len(plan.position)
-    poses = np.zeros((n, 4, 4))
-    poses[:, 3, 3] = 1.0
-    for i, quat in enumerate(plan.orientation):
-        poses[i, :3, :3] = to_matrix(quat)
-    poses[:, :3, 3] = plan.position
+    poses = _poses(plan.position, plan.orientation)
     q = get_kinematics(spec, F_T_EE).ik(poses, q_now, float(q_now[6]))
     bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
     if bad.size:
@@ -494,17 +532,23 @@ def pose_move_in_joint_space(
 @overload
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
-              spec: RobotSpec, *, at_rest: Literal[True]) -> PosePlan: ...  # fmt: skip
+              spec: RobotSpec, *, at_rest: Literal[True],
+              F_T_EE: FloatArray | None = None) -> PosePlan: ...  # fmt: skip
 @overload
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
-              spec: RobotSpec, *, at_rest: bool = False) -> PosePlan | None: ...  # fmt: skip
+              spec: RobotSpec, *, at_rest: bool = False,
+              F_T_EE: FloatArray | None = None) -> PosePlan | None: ...  # fmt: skip
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
-              spec: RobotSpec, *, at_rest: bool = False) -> PosePlan | None:  # fmt: skip
+              spec: RobotSpec, *, at_rest: bool = False,
+              F_T_EE: FloatArray | None = None) -> PosePlan | None:  # fmt: skip
     """The sampled Cartesian plan from the current pose through the targets, its
-    nullspace resting at ``q_nullspace``; None if already there (``at_rest``: then a plan
-    that rests there)."""
+    nullspace resting at ``q_nullspace`` (the arm's configuration now); None if already
+    there (``at_rest``: then a plan that rests there). The Cartesian limits alone can ask a
+    joint for more than its own (near the start pose, 2.6 m/s^2 at speed factor 0.2 is all
+    of joint 2's): the plan runs slower where its joints need it (:func:`joint_time_scale`,
+    ``F_T_EE`` the end effector's, None: the robot's hand)."""
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
         opts.max_deviation, robot=spec,
@@ -519,7 +563,13 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
             opts.success_threshold, opts.orientation_threshold,
             **pose_online(spec, opts.speed_factor)._asdict(),
         )  # fmt: skip
-    s = traj.sample(_times(traj.get_duration()))
+    duration = traj.get_duration()
+    s = traj.sample(_times(duration))
+    k = joint_time_scale(s.positions, s.orientations, q_nullspace, spec, F_T_EE)
+    if k > 1.0:  # the same path, k times slower: velocities / k, accelerations / k^2
+        s = traj.sample(_times(k * duration) / k)
+        s = s._replace(velocities=s.velocities / k, accelerations=s.accelerations / (k * k),
+                       angular_velocities=s.angular_velocities / k)  # fmt: skip
     # the angular acceleration, by central differences of the sampled angular velocity
     alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
     # its acceleration steps ramped (smoothing.py): the arm can follow them
