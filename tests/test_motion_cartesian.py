@@ -249,3 +249,64 @@ def test_bad_poses_are_rejected() -> None:
             CartesianTrajectory([good, pose])
     with pytest.raises(ValueError, match="speed_factor"):
         CartesianTrajectory([good], 1.5)
+
+
+class ArmAtStart:
+    """A JointMap: the FER's joints near the start pose (``J^+`` at the IK configuration),
+    bounded by half their limits."""
+
+    def __init__(self) -> None:
+        from panda_py.kinematics import get_kinematics
+
+        self.kin = get_kinematics("fer")
+        self.q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
+        self.velocity = 0.5 * np.array(FER.joints.dq_max)
+        self.acceleration = 0.5 * np.array(FER.joints.ddq_max)
+        self.start = self.kin.fk(self.q0)
+
+    def rates(self, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
+        q = self.kin.ik(poses, self.q0, float(self.q0[6]))
+        return np.array([np.linalg.pinv(self.kin.zero_jacobian(qi)) @ t
+                         for qi, t in zip(q, twists, strict=True)])  # fmt: skip
+
+
+def test_a_joint_map_bounds_the_joints_at_every_sample_as_well() -> None:
+    """Beyond panda-py: with ``joints`` the path keeps the joints' bounds too (where the
+    Cartesian ones alone would ask a joint for more), on lines and blends alike."""
+    arm = ArmAtStart()
+    rng = np.random.default_rng(3)
+    slower = 0
+    for _ in range(6):
+        poses = [arm.start]
+        for _ in range(int(rng.integers(1, 4))):
+            pose = arm.start.copy()
+            pose[:3, 3] += rng.uniform(-0.15, 0.15, 3)
+            poses.append(pose)
+        sf = float(rng.uniform(0.1, 1.0))
+        traj = CartesianTrajectory(np.stack(poses), sf, 0.02, joints=arm)
+        s = traj.sample(np.arange(0.0, traj.get_duration() + DT, DT))
+        dq = arm.rates(np.array(_poses(s)), np.hstack([s.velocities, s.angular_velocities]))
+        assert np.isfinite(dq).all()
+        assert (np.abs(dq) / arm.velocity).max() <= 1.0 + 1e-3
+        assert (np.abs(np.diff(dq, axis=0)) / DT / arm.acceleration).max() <= 1.0 + 1e-3
+        v_t = sf * FER.cartesian.translation_velocity
+        assert np.linalg.norm(s.velocities, axis=1).max() <= v_t * (1 + 1e-9)
+        np.testing.assert_allclose(s.positions[-1], poses[-1][:3, 3], atol=1e-9)
+        free = CartesianTrajectory(np.stack(poses), sf, 0.02).get_duration()
+        slower += traj.get_duration() > free * 1.01
+    assert slower >= 3  # at half their limits the joints held most of these paths back
+
+
+def _poses(s: object) -> list[np.ndarray]:
+    out = []
+    for p, q in zip(s.positions, s.orientations, strict=True):  # type: ignore[attr-defined]
+        pose = np.eye(4)
+        pose[:3, :3] = rot.to_matrix(q)
+        pose[:3, 3] = p
+        out.append(pose)
+    return out
+
+
+def test_a_joint_map_must_be_one() -> None:
+    with pytest.raises(ValueError, match="joints: expected a JointMap"):
+        CartesianTrajectory([P0, P0 + 0.1], [Q0, Q0], joints=object())

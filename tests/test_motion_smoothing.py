@@ -85,23 +85,24 @@ def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
 
 
 def _planned_joint_accelerations(plan: object, q0: np.ndarray) -> np.ndarray:
-    """The plan's joints by IK at every sample, twice differentiated [rad/s^2] (N-2, 7)."""
-    from panda_py.kinematics import get_kinematics
+    """The plan's joint accelerations [rad/s^2] (N-1, 7) as the Cartesian law moves the
+    joints (``J^+`` of the planned twist, planning.ArmJoints)."""
     from panda_py.panda import planning
+    from panda_py.robots.params import get_robot
 
     poses = planning._poses(plan.position, plan.orientation)  # type: ignore[attr-defined]
-    q = get_kinematics("fer").ik(poses, q0, float(q0[6]))
-    assert np.isfinite(q).all()
-    return np.diff(q, n=2, axis=0) / 1e-6
+    dq = planning.ArmJoints(get_robot("fer"), q0).rates(poses, plan.twist)  # type: ignore[attr-defined]
+    assert np.isfinite(dq).all()
+    return np.diff(dq, axis=0) / 1e-3
 
 
 def test_a_move_to_a_pose_runs_slower_where_its_joints_need_it() -> None:
     """Near the start pose the Cartesian limits (2.6 m/s^2 at speed factor 0.2) ask joint
     2 for all of its acceleration (1.08 of it planned before): the plan keeps every joint
-    within JOINT_SHARE of its limits, and a move the joints can follow keeps its time."""
+    within PLAN_JOINT_SHARE of its limits, and a move the joints can follow keeps its
+    time."""
     from panda_py import fk
     from panda_py.controllers import laws
-    from panda_py.controllers.moves import JOINT_SHARE
     from panda_py.motion import CartesianTrajectory
     from panda_py.panda import planning
     from panda_py.robots.params import get_robot
@@ -110,7 +111,7 @@ def test_a_move_to_a_pose_runs_slower_where_its_joints_need_it() -> None:
     q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
     T = fk(q0)
     p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
-    limit = JOINT_SHARE * np.array(fer.joints.ddq_max)
+    limit = planning.PLAN_JOINT_SHARE * np.array(fer.joints.ddq_max)
     slowed = 0
     for offset in ([0.065, -0.09, -0.11], [0.1, 0.0, 0.0], [0.0, 0.0, 0.03], [-0.1, 0.05, 0.1]):
         target = T.copy()

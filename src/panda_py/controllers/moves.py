@@ -55,10 +55,11 @@ SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
 # while another move ran: it leads in from where the arm is (the plan's own start is the
 # arm's state when it was planned, within the robot's joint limits)
 START_JOINT = 1e-2  # [rad]
-# of the joints' velocity and acceleration limits a Cartesian move (its plan, lead-in or
-# stop) may ask for: the arm tracks its reference through impedance and overshoots it (100
-# random preemptions, five sequences: at 0.7 the arm reached 0.76-0.92 of the acceleration
-# limit, at 0.6 0.67-0.81)
+# of the joints' velocity and acceleration limits a Cartesian lead-in or stop may ask
+# for: the arm tracks the online reference through impedance and overshoots it, by up to
+# 1.3x from a running move (100 random preemptions, five sequences: at 0.7 the arm reached
+# 0.76-0.92 of the acceleration limit, at 0.6 0.67-0.80); a sampled plan is tracked more
+# closely (planning.PLAN_JOINT_SHARE)
 JOINT_SHARE = 0.6
 BLEND_TIME = 0.05  # [s] from one space's law to the other's (see Tracker._blend_from)
 START_POSITION = 5e-3  # [m]

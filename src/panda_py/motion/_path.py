@@ -132,6 +132,22 @@ def build_path(points: Array, max_deviation: float, deadline: float, timeout: fl
     return Path(pieces, node_stop)
 
 
+def piece_points(piece: Piece, sigma: Array) -> Array:
+    """The points ``q(σ)`` of a piece at arc lengths ``sigma`` (shape (N,)) -> (N, n)."""
+    if not piece.is_arc:
+        return piece.start + sigma[:, None] * piece.x
+    th = sigma / piece.radius
+    return piece.start + np.outer(np.cos(th) - 1.0, piece.x) + np.outer(np.sin(th), piece.y)
+
+
+def piece_tangents(piece: Piece, sigma: Array) -> Array:
+    """The unit tangents ``q'(σ)`` of a piece at arc lengths ``sigma`` -> (N, n)."""
+    if not piece.is_arc:
+        return np.tile(piece.x, (len(sigma), 1))
+    th = sigma / piece.radius
+    return (np.outer(-np.sin(th), piece.x) + np.outer(np.cos(th), piece.y)) / piece.radius
+
+
 def max_norm_on_arc(a: Array, b: Array, start: Array, stop: Array) -> Array:
     """``max over θ in [start_k, stop_k]`` of ``|a_g cos θ + b_g sin θ|``, for each
     sub-interval k and each group g; result shape (K, G).

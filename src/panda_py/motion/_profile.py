@@ -88,6 +88,22 @@ def arc_stretches(bounds: Bounds, piece: Piece) -> tuple[Array, Array, Array]:
     return np.diff(edges) * piece.radius, speed, accel
 
 
+def stretch_bounds(
+    m1: Array, m2: Array, velocity: Array, acceleration: Array,
+    fraction: Array,
+) -> tuple[Array, Array]:  # fmt: skip
+    """Per stretch k (rows of ``m1``, ``m2``: shape (K, G)) the max path speed ``V`` and
+    acceleration ``A`` with ``m1 A + m2 V² <= a`` and ``m1 V <= v`` for every group, so
+    any motion with ``ṡ <= V``, ``|s̈| <= A`` keeps the bounds on the stretch. ``V`` is at
+    most ``fraction[g]`` of the speed at which ``m2 V²`` takes all of group g's
+    acceleration, leaving ``1 - fraction[g]²`` of it to speed up and slow down with."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        top = np.min(velocity / m1, axis=1)
+        speed = np.minimum(top, np.min(fraction * np.sqrt(acceleration / m2), axis=1))
+        accel = np.min((acceleration - m2 * (speed * speed)[:, None]) / m1, axis=1)
+    return speed, accel
+
+
 # One constant-acceleration stretch of the profile:
 # (t0, σ0, ṡ0, s̈, start, x, y, 1/radius (0 on a line), piece index)
 Segment = tuple[float, float, float, float, Array, Array, Array, float, int]
@@ -112,9 +128,20 @@ class Profile:
         # stretches of constant bounds: (piece, σ offset, length, V, A); stop at its end?
         stretches: list[tuple[int, float, float, float, float]] = []
         stop_after: list[bool] = []
+        split = getattr(bounds, "stretches", None)  # bounds that vary along lines too
         for k, piece in enumerate(pieces):
             check_deadline(deadline, timeout)
-            if piece.is_arc:
+            if split is not None:
+                lengths, speeds, accels = split(k, piece)
+                offset = 0.0
+                for i, (length, v, a) in enumerate(
+                    zip(lengths.tolist(), speeds.tolist(), accels.tolist(), strict=True)
+                ):
+                    stretches.append((k, offset, length, v, a))
+                    final = i == len(lengths) - 1
+                    stop_after.append(final and not piece.is_arc and path.stop[k + 1])
+                    offset += length
+            elif piece.is_arc:
                 lengths, speeds, accels = arc_stretches(bounds, piece)
                 offset = 0.0
                 for length, v, a in zip(

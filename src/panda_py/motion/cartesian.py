@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import math
 import time as _time
-from typing import Any, NamedTuple, overload
+from collections.abc import Callable
+from typing import Any, NamedTuple, Protocol, overload
 
 import numpy as np
 
@@ -33,8 +34,16 @@ from panda_py.motion._path import (
     build_path,
     check_deadline,
     max_norm_on_arc,
+    piece_points,
+    piece_tangents,
 )
-from panda_py.motion._profile import Profile
+from panda_py.motion._profile import (
+    ARC_SPEED_FRACTION,
+    ARC_STRETCH_ANGLE,
+    Profile,
+    arc_stretches,
+    stretch_bounds,
+)
 from panda_py.robots.params import RobotKind, RobotSpec, get_robot
 
 # [-] |‖q‖ - 1| above this is an error, below it normalised (one tolerance everywhere)
@@ -59,15 +68,49 @@ def _blend_rotation_gain(theta: float) -> float:
     return 1.01 * (theta / 6.0 + theta * theta / 12.0 + theta**3 / 60.0)
 
 
-class CartesianBounds:
-    """Norm bounds on translation and rotation (groups 0 and 1 of the 6-D path)."""
+class JointMap(Protocol):
+    """The arm's joints along a Cartesian path, given by the caller (the kinematics are
+    not this module's): how fast they turn for an end-effector twist at a pose, and the
+    bounds they keep."""
 
-    def __init__(self, v_t: float, a_t: float, v_r: float, a_r: float) -> None:
+    velocity: Array  # (7,) [rad/s]
+    acceleration: Array  # (7,) [rad/s^2]
+
+    def rates(self, poses: Array, twists: Array) -> Array:
+        """Joint velocities (N, 7) that move the end effector at each pose (N, 4, 4) with
+        the twist (N, 6: linear, angular, base frame); NaN rows where it cannot reach."""
+        ...
+
+
+# the joints' bounds are taken on stretches at most JOINT_STRETCH long [path units: m and
+# rad], from their rates at points JOINT_STEP apart at most (their change between points:
+# the rates' derivative along the path)
+JOINT_STRETCH = 0.01
+JOINT_STEP = 2.5e-3
+# a stretch's top speed is at most this fraction of the speed at which the joints' rates'
+# change (q'' ṡ²) takes all of a joint's acceleration: half of it is left to speed up and
+# slow down with (the constant bound holds from standstill to the top speed)
+JOINT_SPEED_FRACTION = math.sqrt(0.5)
+
+
+class CartesianBounds:
+    """Norm bounds on translation and rotation (groups 0 and 1 of the 6-D path), and,
+    given ``joints`` and the poses and twists of path points (``pose_of(piece index,
+    points (N, 6), tangents (N, 6)) -> poses (N, 4, 4), twists (N, 6) per unit path
+    length``), the joints' own bounds along the path (seven more groups)."""
+
+    def __init__(
+        self, v_t: float, a_t: float, v_r: float, a_r: float,
+        joints: JointMap | None = None,
+        pose_of: Callable[[int, Array, Array], tuple[Array, Array]] | None = None,
+    ) -> None:  # fmt: skip
         self.velocity = np.array([v_t, v_r])
         self.acceleration = np.array([a_t, a_r])
+        self.joints = joints
+        self.pose_of = pose_of
 
     def line(self, direction: Array) -> tuple[float, float]:
-        mag = np.array([np.linalg.norm(direction[:3]), np.linalg.norm(direction[3:])])
+        mag = self.line_coefficients(direction)
         with np.errstate(divide="ignore"):
             return float(np.min(self.velocity / mag)), float(np.min(self.acceleration / mag))
 
@@ -81,6 +124,51 @@ class CartesianBounds:
         reach = min(r * math.tan(0.5 * piece.angle), math.pi)
         m2[:, 1] += _blend_rotation_gain(reach) * m1[:, 1] ** 2
         return m1, m2
+
+    def stretches(self, k: int, piece: Piece) -> tuple[Array, Array, Array]:
+        """Piece ``k`` in stretches of constant bounds on its translation, rotation and
+        joints: lengths, max path speeds and accelerations (``stretch_bounds``). The joints'
+        rates ``q'`` (by path length) at points of each stretch and their change ``q''``
+        bound ``q̇ = q' ṡ`` and ``q̈ = q' s̈ + q'' ṡ²`` (an estimate between the points).
+        Without joints: one stretch a line, a blend's own (:func:`arc_stretches`)."""
+        if self.joints is None or self.pose_of is None:
+            if piece.is_arc:
+                return arc_stretches(self, piece)
+            v, a = self.line(piece.x)
+            return np.array([piece.length]), np.array([v]), np.array([a])
+        count = math.ceil(piece.length / JOINT_STRETCH)
+        if piece.is_arc:
+            count = max(count, math.ceil(piece.angle / ARC_STRETCH_ANGLE))
+        count = max(count, 1)
+        edges = np.linspace(0.0, piece.length, count + 1)
+        if piece.is_arc:
+            m1, m2 = self.arc_coefficients(piece, edges[:-1] / piece.radius,
+                                           edges[1:] / piece.radius)  # fmt: skip
+        else:
+            m1 = np.tile(self.line_coefficients(piece.x), (count, 1))
+            m2 = np.zeros((count, 2))
+        # the joints' rates q' (per path length) at points along the piece, and their
+        # change q'': q̇ = q' ṡ and q̈ = q' s̈ + q'' ṡ²
+        per = max(2, math.ceil(piece.length / count / JOINT_STEP))
+        sigma = np.linspace(0.0, piece.length, count * per + 1)
+        poses, twists = self.pose_of(k, piece_points(piece, sigma), piece_tangents(piece, sigma))
+        rate = self.joints.rates(poses, twists)
+        change = np.gradient(rate, sigma, axis=0)
+        rate, change = np.nan_to_num(np.abs(rate)), np.nan_to_num(np.abs(change))
+        # each stretch: its points, both ends included
+        idx = np.arange(count)[:, None] * per + np.arange(per + 1)
+        speed, accel = stretch_bounds(
+            np.hstack([m1, rate[idx].max(axis=1)]), np.hstack([m2, change[idx].max(axis=1)]),
+            np.concatenate([self.velocity, self.joints.velocity]),
+            np.concatenate([self.acceleration, self.joints.acceleration]),
+            np.array([ARC_SPEED_FRACTION] * 2 + [JOINT_SPEED_FRACTION] * rate.shape[1]),
+        )  # fmt: skip
+        return np.diff(edges), speed, accel
+
+    @staticmethod
+    def line_coefficients(direction: Array) -> Array:
+        """``|ṗ| / ṡ`` and ``|ω| / ṡ`` on a line of unit ``direction``."""
+        return np.array([np.linalg.norm(direction[:3]), np.linalg.norm(direction[3:])])
 
 
 class CartesianTrajectory:
@@ -99,6 +187,9 @@ class CartesianTrajectory:
         past it.
     :param robot: whose limits apply: ``"fer"`` (default, as panda-py), ``"fr3"``,
         ``"fr3-pre-5.9"`` or a :class:`~panda_py.robots.params.RobotSpec`.
+    :param joints: beyond panda-py: the arm's joints along the path and their bounds (a
+        :class:`JointMap`); the motion keeps those too (the Cartesian limits alone can ask
+        a joint for more than its own).
     """
 
     @overload
@@ -111,6 +202,7 @@ class CartesianTrajectory:
         timeout: float = 30.0,
         *,
         robot: str | RobotKind | RobotSpec = "fer",
+        joints: JointMap | None = None,
     ) -> None: ...
 
     @overload
@@ -122,16 +214,24 @@ class CartesianTrajectory:
         timeout: float = 30.0,
         *,
         robot: str | RobotKind | RobotSpec = "fer",
+        joints: JointMap | None = None,
     ) -> None: ...
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         binder = _bind_poses if _is_poses_call(args, kwargs) else _bind_positions
-        positions, quats, speed_factor, max_deviation, timeout, robot = binder(*args, **kwargs)
+        positions, quats, speed_factor, max_deviation, timeout, robot, joints = binder(
+            *args, **kwargs
+        )
         plan_timeout = _checks.timeout(timeout)
         deadline = _time.perf_counter() + plan_timeout
         self.speed_factor = _checks.speed_factor(speed_factor)
         self.max_deviation = _checks.max_deviation(max_deviation)
         self.robot = get_robot(robot)  # type: ignore[arg-type]  # get_robot validates
+        if joints is not None and not callable(getattr(joints, "rates", None)):
+            raise ValueError(
+                "joints: expected a JointMap (rates(poses, twists), velocity, acceleration), "
+                f"got {type(joints).__name__}"
+            )
         c = self.robot.cartesian
         sf = self.speed_factor
         #: the bounds kept: [m/s], [m/s^2], [rad/s], [rad/s^2]
@@ -156,19 +256,33 @@ class CartesianTrajectory:
         self.orientations = quats.copy()  # as used: normalised, sign-continuous
         points, quats, phi = points[kept], quats[kept], phi[kept]
         path = build_path(points, self.max_deviation, deadline, plan_timeout)
+        # per piece: left-multiplication matrix of its chart's quaternion and the chart's φ
+        self._chart_L = np.array([rot.left_matrix(quats[p.corner]) for p in path.pieces])
+        self._chart_phi = np.array([phi[p.corner] for p in path.pieces]).reshape(-1, 3)
         bounds = CartesianBounds(
             self.max_translation_velocity,
             self.max_translation_acceleration,
             self.max_rotation_velocity,
             self.max_rotation_acceleration,
+            joints,
+            self._poses_on,
         )
         self._profile = Profile(path, bounds, points[0], points[-1], deadline, plan_timeout)
         self._duration = self._profile.duration
-        # per piece: left-multiplication matrix of its chart's quaternion and the chart's φ
-        self._chart_L = np.array([rot.left_matrix(quats[p.corner]) for p in path.pieces])
-        self._chart_phi = np.array([phi[p.corner] for p in path.pieces]).reshape(-1, 3)
         self._q_first = quats[0].copy()
         self._q_last = quats[-1].copy()
+
+    def _poses_on(self, k: int, points: Array, tangents: Array) -> tuple[Array, Array]:
+        """The poses (N, 4, 4) of path ``points`` (N, 6) on piece ``k`` (its chart's) and
+        the twists (N, 6, base frame) of the path's ``tangents`` there."""
+        x = points[:, 3:] - self._chart_phi[k]
+        quat = rot.exp_many(x) @ self._chart_L[k].T
+        poses = np.zeros((len(points), 4, 4))
+        poses[:, :3, :3] = rot.to_matrix_many(quat)
+        poses[:, :3, 3] = points[:, :3]
+        poses[:, 3, 3] = 1.0
+        omega = rot.rotate_many(quat, rot.right_jacobian_times(x, tangents[:, 3:]))
+        return poses, np.hstack([tangents[:, :3], omega])
 
     def get_duration(self) -> float:
         """Duration of the motion [s]."""
@@ -240,7 +354,7 @@ class CartesianTrajectory:
 
 # -- argument parsing: panda-py's two overloads --
 
-_Bound = tuple[Array, Array, object, object, object, object]
+_Bound = tuple[Array, Array, object, object, object, object, Any]
 
 
 def _is_poses_call(args: tuple[Any, ...], kwargs: dict[str, Any]) -> bool:
@@ -262,9 +376,10 @@ def _bind_poses(
     timeout: object = 30.0,
     *,
     robot: object = "fer",
+    joints: object = None,
 ) -> _Bound:
     positions, quats = parse_poses(poses)
-    return positions, quats, speed_factor, max_deviation, timeout, robot
+    return positions, quats, speed_factor, max_deviation, timeout, robot, joints
 
 
 def _bind_positions(
@@ -275,6 +390,7 @@ def _bind_positions(
     timeout: object = 30.0,
     *,
     robot: object = "fer",
+    joints: object = None,
 ) -> _Bound:
     p = stack_rows("positions", positions, 3, "[m]")
     q = stack_rows("orientations", orientations, 4, "(unit quaternions x, y, z, w)")
@@ -289,7 +405,7 @@ def _bind_positions(
         raise ValueError(
             f"orientations[{i}]: expected a unit quaternion (x, y, z, w), got norm {norms[i]:.6g}"
         )
-    return p, q / norms[:, None], speed_factor, max_deviation, timeout, robot
+    return p, q / norms[:, None], speed_factor, max_deviation, timeout, robot, joints
 
 
 def stack_rows(name: str, value: object, width: int, unit: str) -> Array:

@@ -17,11 +17,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import checks
-from panda_py.controllers.moves import JOINT_SHARE
+from panda_py.controllers import laws
 from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
-from panda_py.motion.cartesian import parse_poses, stack_rows
+from panda_py.motion.cartesian import CartesianSamples, parse_poses, stack_rows
 from panda_py.motion.online import OnlineLimits
 from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter, smooth_quaternions
 from panda_py.robots.params import RobotSpec
@@ -456,9 +456,10 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
             )
 
 
-# a joint's step over one sample above this [rad] is a jump to another IK branch (no joint
-# moves 10 rad/s), not motion: left out of joint_time_scale
-IK_JUMP = 0.01
+# of the joints' velocity and acceleration limits a sampled Cartesian plan may ask for:
+# the arm tracks a plan with its feed-forward closely (measured within 1-2 % of the
+# planned joint accelerations), unlike a lead-in from a running move (moves.JOINT_SHARE)
+PLAN_JOINT_SHARE = 0.85
 
 
 def _poses(positions: FloatArray, orientations: FloatArray) -> FloatArray:
@@ -472,28 +473,44 @@ def _poses(positions: FloatArray, orientations: FloatArray) -> FloatArray:
     return poses
 
 
-def joint_time_scale(positions: FloatArray, orientations: FloatArray, q_now: FloatArray,
-                     spec: RobotSpec, F_T_EE: FloatArray | None = None) -> float:  # fmt: skip
-    """How many times slower (>= 1) the poses sampled every PERIOD must be run for the
-    joints to stay within JOINT_SHARE of their velocity and acceleration limits (as the
-    online lead-ins do: the arm tracks through impedance and overshoots a little). The
-    joints along the path by inverse kinematics in the configuration's case with its q7
-    (where the Cartesian law's nullspace keeps them); samples without a solution, and
-    jumps to another branch, are left out."""
-    from panda_py.kinematics import get_kinematics
+class ArmJoints:
+    """The arm's joints along a Cartesian plan (a :class:`~panda_py.motion.JointMap`), as
+    the Cartesian law moves them: ``q̇ = J^+ v`` (its feed-forward's damped pseudo-inverse)
+    at a configuration that reaches the pose (inverse kinematics in the current one's case,
+    with its q7), bounded by PLAN_JOINT_SHARE of the joints' limits."""
 
-    if len(positions) < 3:
-        return 1.0
-    q = get_kinematics(spec, F_T_EE).ik(_poses(positions, orientations), q_now,
-                                        float(q_now[6]))  # fmt: skip
-    step = np.diff(q, axis=0)
-    step[~(np.abs(step) <= IK_JUMP).all(axis=1)] = np.nan  # (NaN rows too)
-    dq = step / PERIOD
+    def __init__(self, spec: RobotSpec, q_now: FloatArray,
+                 F_T_EE: FloatArray | None = None) -> None:  # fmt: skip
+        from panda_py.kinematics import get_kinematics
+
+        self.kinematics = get_kinematics(spec, F_T_EE)
+        self.q_now = np.asarray(q_now, dtype=np.float64)
+        self.velocity = PLAN_JOINT_SHARE * np.asarray(spec.joints.dq_max, dtype=np.float64)
+        self.acceleration = PLAN_JOINT_SHARE * np.asarray(spec.joints.ddq_max, dtype=np.float64)
+
+    def rates(self, poses: FloatArray, twists: FloatArray) -> FloatArray:
+        q = self.kinematics.ik(poses, self.q_now, float(self.q_now[6]))
+        out = np.full((len(q), 7), np.nan)
+        ok = np.isfinite(q).all(axis=1)
+        if ok.any():
+            J = self.kinematics.zero_jacobian(q[ok])  # (M, 6, 7)
+            JJt = J @ J.transpose(0, 2, 1)
+            JJt[:, range(6), range(6)] += laws.PINV_DAMPING**2
+            y = np.linalg.solve(JJt, twists[ok][:, :, None])
+            out[ok] = (J.transpose(0, 2, 1) @ y)[:, :, 0]
+        return out
+
+
+def joint_time_scale(s: CartesianSamples, joints: ArmJoints) -> float:
+    """How many times slower (>= 1) the samples (every PERIOD) must be run for the joints
+    to stay within their bounds: the check of every sample after the profile (which bounds
+    them from points a few millimetres apart). Samples the arm cannot reach are left out."""
+    twists = np.hstack([s.velocities, s.angular_velocities])
+    dq = joints.rates(_poses(s.positions, s.orientations), twists)
     ddq = np.diff(dq, axis=0) / PERIOD
-    joints = spec.joints
     with np.errstate(invalid="ignore"):
-        v = np.abs(dq) / (JOINT_SHARE * np.asarray(joints.dq_max))
-        a = np.abs(ddq) / (JOINT_SHARE * np.asarray(joints.ddq_max))
+        v = np.abs(dq) / joints.velocity
+        a = np.abs(ddq) / joints.acceleration
     v_max = float(np.max(v, initial=0.0, where=np.isfinite(v)))
     a_max = float(np.max(a, initial=0.0, where=np.isfinite(a)))
     return max(1.0, v_max, math.sqrt(a_max))
@@ -549,9 +566,10 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     joint for more than its own (near the start pose, 2.6 m/s^2 at speed factor 0.2 is all
     of joint 2's): the plan runs slower where its joints need it (:func:`joint_time_scale`,
     ``F_T_EE`` the end effector's, None: the robot's hand)."""
+    joints = ArmJoints(spec, q_nullspace, F_T_EE)
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
-        opts.max_deviation, robot=spec,
+        opts.max_deviation, robot=spec, joints=joints,
     )  # fmt: skip
     if traj.get_duration() == 0.0:
         if not at_rest:
@@ -565,7 +583,7 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         )  # fmt: skip
     duration = traj.get_duration()
     s = traj.sample(_times(duration))
-    k = joint_time_scale(s.positions, s.orientations, q_nullspace, spec, F_T_EE)
+    k = joint_time_scale(s, joints)
     if k > 1.0:  # the same path, k times slower: velocities / k, accelerations / k^2
         s = traj.sample(_times(k * duration) / k)
         s = s._replace(velocities=s.velocities / k, accelerations=s.accelerations / (k * k),
