@@ -35,7 +35,9 @@ ARC_SPEED_FRACTION = 0.95  # [-] of a stretch's top constant speed, leaving room
 
 class Bounds(Protocol):
     """The robot's bounds on groups of path coordinates (a joint; a translation or a
-    rotation): ``|q̇_g| <= velocity[g]``, ``|q̈_g| <= acceleration[g]``."""
+    rotation): ``|q̇_g| <= velocity[g]``, ``|q̈_g| <= acceleration[g]``. Bounds that vary
+    along lines too also have ``stretches(k, piece) -> (lengths, V, A)``: piece ``k`` in
+    stretches of constant bounds (the profile then asks them for every piece)."""
 
     velocity: Array
     acceleration: Array
