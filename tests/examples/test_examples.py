@@ -168,11 +168,13 @@ def test_13_two_arms_move_together_and_mirror(tmp_path: Path) -> None:
     left = number(r"left y -?[\d.]+ to ([\d.]+) cm", out)
     right = number(r"right y -?[\d.]+ to ([\d.]+) cm", out)
     assert 3.5 < left < 6.0 and 3.5 < right < 6.0  # the 5 cm sines, both arms
-    # the 99th percentile: on this 2-core VM, two simulators, two control loops and the
-    # script's own 1 kHz loop share the cores, and one hiccup of either simulator sets the
-    # maximum (6-16 mm, once 25 mm); an arm not mirroring is off by centimetres throughout
-    assert number(r"within ([\d.]+) mm in 99 % of the ticks", out) < 15.0
-    assert number(r"mirror error at most ([\d.]+) mm", out) < 60.0
+    # mirrored: the median error 0.6-1.1 mm (an arm not mirroring is off by centimetres
+    # throughout); its tail is this 2-core VM's: two simulators, two control loops and the
+    # script's own 1 kHz loop share the cores, and one stall of either simulator sets the
+    # 99th percentile (3.5-16.3 mm in one evening's runs, 31.8 mm once beside another test)
+    assert number(r"mirror error ([\d.]+) mm \(median\)", out) < 3.0
+    assert number(r"within ([\d.]+) mm in 99 % of the ticks", out) < 40.0
+    assert number(r"at most ([\d.]+) mm", out) < 60.0
 
 
 def test_15_a_move_is_replaced_half_way_without_a_velocity_step(tmp_path: Path) -> None:
