@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import time as _time
-from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol, overload
 
 import numpy as np
@@ -93,21 +92,30 @@ JOINT_STEP = 2.5e-3
 JOINT_SPEED_FRACTION = math.sqrt(0.5)
 
 
+def joint_grid(piece: Piece) -> tuple[int, int]:
+    """The joints' stretches on a piece and the points' intervals in each: (count, per);
+    the points are ``linspace(0, length, count * per + 1)``."""
+    count = math.ceil(piece.length / JOINT_STRETCH)
+    if piece.is_arc:
+        count = max(count, math.ceil(piece.angle / ARC_STRETCH_ANGLE))
+    count = max(count, 1)
+    return count, max(2, math.ceil(piece.length / count / JOINT_STEP))
+
+
 class CartesianBounds:
     """Norm bounds on translation and rotation (groups 0 and 1 of the 6-D path), and,
-    given ``joints`` and the poses and twists of path points (``pose_of(piece index,
-    points (N, 6), tangents (N, 6)) -> poses (N, 4, 4), twists (N, 6) per unit path
-    length``), the joints' own bounds along the path (seven more groups)."""
+    given ``joints`` and their rates along each piece (``rates[k]``: the points' arc
+    lengths (:func:`joint_grid`) and the joint rates ``q'`` per unit path length there),
+    the joints' own bounds along the path (seven more groups)."""
 
     def __init__(
         self, v_t: float, a_t: float, v_r: float, a_r: float,
-        joints: JointMap | None = None,
-        pose_of: Callable[[int, Array, Array], tuple[Array, Array]] | None = None,
+        joints: JointMap | None = None, rates: list[tuple[Array, Array]] | None = None,
     ) -> None:  # fmt: skip
         self.velocity = np.array([v_t, v_r])
         self.acceleration = np.array([a_t, a_r])
         self.joints = joints
-        self.pose_of = pose_of
+        self.rates = rates
 
     def line(self, direction: Array) -> tuple[float, float]:
         mag = self.line_coefficients(direction)
@@ -131,15 +139,12 @@ class CartesianBounds:
         rates ``q'`` (by path length) at points of each stretch and their change ``q''``
         bound ``q̇ = q' ṡ`` and ``q̈ = q' s̈ + q'' ṡ²`` (an estimate between the points).
         Without joints: one stretch a line, a blend's own (:func:`arc_stretches`)."""
-        if self.joints is None or self.pose_of is None:
+        if self.joints is None or self.rates is None:
             if piece.is_arc:
                 return arc_stretches(self, piece)
             v, a = self.line(piece.x)
             return np.array([piece.length]), np.array([v]), np.array([a])
-        count = math.ceil(piece.length / JOINT_STRETCH)
-        if piece.is_arc:
-            count = max(count, math.ceil(piece.angle / ARC_STRETCH_ANGLE))
-        count = max(count, 1)
+        count, per = joint_grid(piece)
         edges = np.linspace(0.0, piece.length, count + 1)
         if piece.is_arc:
             m1, m2 = self.arc_coefficients(piece, edges[:-1] / piece.radius,
@@ -149,10 +154,7 @@ class CartesianBounds:
             m2 = np.zeros((count, 2))
         # the joints' rates q' (per path length) at points along the piece, and their
         # change q'': q̇ = q' ṡ and q̈ = q' s̈ + q'' ṡ²
-        per = max(2, math.ceil(piece.length / count / JOINT_STEP))
-        sigma = np.linspace(0.0, piece.length, count * per + 1)
-        poses, twists = self.pose_of(k, piece_points(piece, sigma), piece_tangents(piece, sigma))
-        rate = self.joints.rates(poses, twists)
+        sigma, rate = self.rates[k]
         change = np.gradient(rate, sigma, axis=0)
         rate, change = np.nan_to_num(np.abs(rate)), np.nan_to_num(np.abs(change))
         # each stretch: its points, both ends included
@@ -265,24 +267,36 @@ class CartesianTrajectory:
             self.max_rotation_velocity,
             self.max_rotation_acceleration,
             joints,
-            self._poses_on,
+            None if joints is None else self._joint_rates(path.pieces, joints),
         )
         self._profile = Profile(path, bounds, points[0], points[-1], deadline, plan_timeout)
         self._duration = self._profile.duration
         self._q_first = quats[0].copy()
         self._q_last = quats[-1].copy()
 
-    def _poses_on(self, k: int, points: Array, tangents: Array) -> tuple[Array, Array]:
-        """The poses (N, 4, 4) of path ``points`` (N, 6) on piece ``k`` (its chart's) and
-        the twists (N, 6, base frame) of the path's ``tangents`` there."""
-        x = points[:, 3:] - self._chart_phi[k]
-        quat = rot.exp_many(x) @ self._chart_L[k].T
-        poses = np.zeros((len(points), 4, 4))
+    def _joint_rates(self, pieces: list[Piece], joints: JointMap) -> list[tuple[Array, Array]]:
+        """Per piece: the arc lengths of its points (:func:`joint_grid`) and the joints'
+        rates there (``joints.rates`` of the poses and the twists of the path's unit
+        tangents, base frame), all pieces in one call."""
+        sigmas, points, tangents, chart = [], [], [], []
+        for k, piece in enumerate(pieces):
+            count, per = joint_grid(piece)
+            sigma = np.linspace(0.0, piece.length, count * per + 1)
+            sigmas.append(sigma)
+            points.append(piece_points(piece, sigma))
+            tangents.append(piece_tangents(piece, sigma))
+            chart.append(np.full(len(sigma), k))
+        pts, tan, kk = np.vstack(points), np.vstack(tangents), np.concatenate(chart)
+        x = pts[:, 3:] - self._chart_phi[kk]
+        quat = np.einsum("nij,nj->ni", self._chart_L[kk], rot.exp_many(x))
+        poses = np.zeros((len(pts), 4, 4))
         poses[:, :3, :3] = rot.to_matrix_many(quat)
-        poses[:, :3, 3] = points[:, :3]
+        poses[:, :3, 3] = pts[:, :3]
         poses[:, 3, 3] = 1.0
-        omega = rot.rotate_many(quat, rot.right_jacobian_times(x, tangents[:, 3:]))
-        return poses, np.hstack([tangents[:, :3], omega])
+        omega = rot.rotate_many(quat, rot.right_jacobian_times(x, tan[:, 3:]))
+        rates = joints.rates(poses, np.hstack([tan[:, :3], omega]))
+        bounds = np.cumsum([len(sg) for sg in sigmas])[:-1]
+        return list(zip(sigmas, np.split(rates, bounds), strict=True))
 
     def get_duration(self) -> float:
         """Duration of the motion [s]."""
