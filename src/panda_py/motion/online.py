@@ -37,6 +37,7 @@ from ruckig import (
     Ruckig,
     RuckigError,
     Synchronization,
+    Trajectory,
 )
 
 from panda_py.fci import PERIOD
@@ -255,6 +256,35 @@ class OnlineGenerator:
         inp.target_acceleration = [0.0] * self.n
         self.finished = False
 
+    def peaks(self) -> tuple[FloatArray, FloatArray] | None:
+        """The largest speed and the largest acceleration magnitude (each (n,)) each
+        coordinate reaches from the current state to the target: exact, from ruckig's
+        profiles of the whole trajectory, computed without stepping (the generator's state
+        is unchanged); None where ruckig cannot."""
+        traj = Trajectory(self.n)
+        try:
+            result = self._otg.calculate(self._inp, traj)
+        except RuckigError:
+            return None
+        if result != Result.Working:
+            return None
+        v_peak, a_peak = np.zeros(self.n), np.zeros(self.n)
+        for section in traj.profiles:
+            for parts in ([p.brake for p in section], section):
+                acc = np.array([p.a for p in parts])  # (n, knots) at each phase's start
+                vel = np.array([p.v for p in parts])
+                jerk = np.array([p.j for p in parts])[:, : acc.shape[1] - 1]
+                a0, a1 = acc[:, : jerk.shape[1]], acc[:, 1 : jerk.shape[1] + 1]
+                # where the acceleration crosses 0 inside a phase the speed peaks there
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    inner = np.where((a0 * a1 < 0.0) & (jerk != 0.0),
+                                     np.abs(vel[:, : jerk.shape[1]] - a0 * a0 / (2.0 * jerk)),
+                                     0.0)  # fmt: skip
+                v_peak = np.maximum(v_peak, np.abs(vel).max(axis=1))
+                v_peak = np.maximum(v_peak, inner.max(axis=1, initial=0.0))
+                a_peak = np.maximum(a_peak, np.abs(acc).max(axis=1))
+        return v_peak, a_peak
+
     def step(self) -> bool:
         """Advance one period; True once the target (or rest) is reached."""
         out, inp = self._out, self._inp
@@ -313,6 +343,12 @@ class OnlinePose:
         """The frames (columns) of the translation's and the rotation vector's
         coordinates: their first axes get the whole limit, the others LATERAL of it."""
         return self._Ft, self._Fr
+
+    def axes(self) -> tuple[FloatArray, FloatArray]:
+        """The generator's six coordinates' axes in the base frame (columns): the
+        translation's, and the rotation's (about the anchor, where the rotation vector
+        stays small)."""
+        return self._Ft, self._R0 @ self._Fr
 
     def reset(self, position: FloatArray, orientation: FloatArray, twist: FloatArray,
               accel: FloatArray) -> None:  # fmt: skip
