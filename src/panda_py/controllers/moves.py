@@ -122,6 +122,10 @@ def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
     peak at once, with the worst signs: a bound, as joint_capped's. The start is the arm's
     own: where it asks for more already, the rest is judged against it. Falls back to
     joint_capped where three tries do not settle. The limits are left set in ``gen``."""
+    worst = joint_capped(limits, J, spec, gen.frames)
+    if worst is limits:  # not even every axis at its limit at once asks too much
+        gen.set_limits(limits)
+        return limits
     joints = spec.joints
     pinv = laws.damped_pinv(J)
     At, Ar = gen.axes()
@@ -140,7 +144,6 @@ def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
         if over_v <= 1.0 and over_a <= 1.0:
             return capped
         capped = capped.scaled(min(1.0, 0.98 / over_v), min(1.0, 0.98 / over_a))
-    worst = joint_capped(limits, J, spec, gen.frames)
     gen.set_limits(worst)
     return worst
 

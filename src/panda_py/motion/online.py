@@ -268,22 +268,24 @@ class OnlineGenerator:
             return None
         if result != Result.Working:
             return None
-        v_peak, a_peak = np.zeros(self.n), np.zeros(self.n)
+        # in scalars: numpy's per-call cost on these short lists was most of the time
+        v_peak, a_peak = [0.0] * self.n, [0.0] * self.n
         for section in traj.profiles:
-            for parts in ([p.brake for p in section], section):
-                acc = np.array([p.a for p in parts])  # (n, knots) at each phase's start
-                vel = np.array([p.v for p in parts])
-                jerk = np.array([p.j for p in parts])[:, : acc.shape[1] - 1]
-                a0, a1 = acc[:, : jerk.shape[1]], acc[:, 1 : jerk.shape[1] + 1]
-                # where the acceleration crosses 0 inside a phase the speed peaks there
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    inner = np.where((a0 * a1 < 0.0) & (jerk != 0.0),
-                                     np.abs(vel[:, : jerk.shape[1]] - a0 * a0 / (2.0 * jerk)),
-                                     0.0)  # fmt: skip
-                v_peak = np.maximum(v_peak, np.abs(vel).max(axis=1))
-                v_peak = np.maximum(v_peak, inner.max(axis=1, initial=0.0))
-                a_peak = np.maximum(a_peak, np.abs(acc).max(axis=1))
-        return v_peak, a_peak
+            for i, profile in enumerate(section):
+                vp, ap = v_peak[i], a_peak[i]
+                for part in (profile.brake, profile):
+                    acc, vel, jerk = part.a, part.v, part.j
+                    for x in vel:
+                        vp = max(vp, abs(x))
+                    for x in acc:
+                        ap = max(ap, abs(x))
+                    for k in range(min(len(acc) - 1, len(jerk))):
+                        a0, jk = acc[k], jerk[k]
+                        # the acceleration crosses 0 inside a phase: the speed peaks there
+                        if a0 * acc[k + 1] < 0.0 and jk != 0.0:
+                            vp = max(vp, abs(vel[k] - a0 * a0 / (2.0 * jk)))
+                v_peak[i], a_peak[i] = vp, ap
+        return np.array(v_peak), np.array(a_peak)
 
     def step(self) -> bool:
         """Advance one period; True once the target (or rest) is reached."""
