@@ -187,7 +187,7 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     limits = OnlineLimits.cartesian(FER, 0.2)
     gen = OnlinePose(limits)
     twist = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
-    gen.reset_toward(p, quat, twist, np.zeros(6), p + [-0.15, 0.15, 0.0], quat)
+    gen.reset_toward(p, quat, twist, np.zeros(6), p + np.array([-0.15, 0.15, 0.0]), quat)
     worst = joint_capped(limits, J, FER, gen.frames)
     capped = joint_capped_peaks(gen, limits, J, FER)
     assert capped.acceleration[0] > 1.1 * worst.acceleration[0]
@@ -198,7 +198,7 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     while not gen.step():
         peak = max(peak, float((np.abs(pinv @ gen.accel) / ddq_max).max()))
     assert 0.5 < peak <= 1.0 + 1e-3  # (pinv: undamped; the cap's is damped by 0.01)
-    np.testing.assert_allclose(gen.position, p + [-0.15, 0.15, 0.0], atol=1e-9)
+    np.testing.assert_allclose(gen.position, p + np.array([-0.15, 0.15, 0.0]), atol=1e-9)
 
 
 @dataclass(frozen=True)
