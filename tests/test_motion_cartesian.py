@@ -310,3 +310,17 @@ def _poses(s: object) -> list[np.ndarray]:
 def test_a_joint_map_must_be_one() -> None:
     with pytest.raises(ValueError, match="joints: expected a JointMap"):
         CartesianTrajectory([P0, P0 + 0.1], [Q0, Q0], joints=object())
+
+    class Short(ArmAtStart):
+        def rates(self, poses: np.ndarray, twists: np.ndarray) -> np.ndarray:
+            return super().rates(poses, twists)[:, :6]
+
+    arm = Short()
+    with pytest.raises(ValueError, match=r"joints: expected rates of shape \(\d+, 7\)"):
+        CartesianTrajectory(np.stack([arm.start, arm.start @ _shifted(0.05)]), joints=arm)
+
+
+def _shifted(dx: float) -> np.ndarray:
+    T = np.eye(4)
+    T[0, 3] = dx
+    return T

@@ -294,7 +294,14 @@ class CartesianTrajectory:
         poses[:, :3, 3] = pts[:, :3]
         poses[:, 3, 3] = 1.0
         omega = rot.rotate_many(quat, rot.right_jacobian_times(x, tan[:, 3:]))
-        rates = joints.rates(poses, np.hstack([tan[:, :3], omega]))
+        rates = np.asarray(joints.rates(poses, np.hstack([tan[:, :3], omega])), dtype=float)
+        width = len(joints.velocity)
+        if rates.shape != (len(pts), width) or len(joints.acceleration) != width:
+            raise ValueError(
+                f"joints: expected rates of shape ({len(pts)}, {width}) (one row per pose, "
+                f"one column per joint of velocity and acceleration), got shape {rates.shape} "
+                f"and {len(joints.acceleration)} accelerations"
+            )
         bounds = np.cumsum([len(sg) for sg in sigmas])[:-1]
         return list(zip(sigmas, np.split(rates, bounds), strict=True))
 
