@@ -285,7 +285,8 @@ def test_a_joint_map_bounds_the_joints_at_every_sample_as_well() -> None:
         sf = float(rng.uniform(0.1, 1.0))
         traj = CartesianTrajectory(np.stack(poses), sf, 0.02, joints=arm)
         s = traj.sample(np.arange(0.0, traj.get_duration() + DT, DT))
-        dq = arm.rates(np.array(_poses(s)), np.hstack([s.velocities, s.angular_velocities]))
+        poses = rot.transforms(s.positions, s.orientations)
+        dq = arm.rates(poses, np.hstack([s.velocities, s.angular_velocities]))
         assert np.isfinite(dq).all()
         assert (np.abs(dq) / arm.velocity).max() <= 1.0 + 1e-3
         assert (np.abs(np.diff(dq, axis=0)) / DT / arm.acceleration).max() <= 1.0 + 1e-3
@@ -295,16 +296,6 @@ def test_a_joint_map_bounds_the_joints_at_every_sample_as_well() -> None:
         free = CartesianTrajectory(np.stack(poses), sf, 0.02).get_duration()
         slower += traj.get_duration() > free * 1.01
     assert slower >= 3  # at half their limits the joints held most of these paths back
-
-
-def _poses(s: object) -> list[np.ndarray]:
-    out = []
-    for p, q in zip(s.positions, s.orientations, strict=True):  # type: ignore[attr-defined]
-        pose = np.eye(4)
-        pose[:3, :3] = rot.to_matrix(q)
-        pose[:3, 3] = p
-        out.append(pose)
-    return out
 
 
 def test_a_joint_map_must_be_one() -> None:

@@ -87,10 +87,11 @@ def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
 def _planned_joint_accelerations(plan: object, q0: np.ndarray) -> np.ndarray:
     """The plan's joint accelerations [rad/s^2] (N-1, 7) as the Cartesian law moves the
     joints (``J^+`` of the planned twist, planning.ArmJoints)."""
+    from panda_py.motion.rotation import transforms
     from panda_py.panda import planning
     from panda_py.robots.params import get_robot
 
-    poses = planning._poses(plan.position, plan.orientation)  # type: ignore[attr-defined]
+    poses = transforms(plan.position, plan.orientation)  # type: ignore[attr-defined]
     dq = planning.ArmJoints(get_robot("fer"), q0).rates(poses, plan.twist)  # type: ignore[attr-defined]
     assert np.isfinite(dq).all()
     return np.diff(dq, axis=0) / 1e-3

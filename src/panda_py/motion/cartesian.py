@@ -289,10 +289,7 @@ class CartesianTrajectory:
         pts, tan, kk = np.vstack(points), np.vstack(tangents), np.concatenate(chart)
         x = pts[:, 3:] - self._chart_phi[kk]
         quat = np.einsum("nij,nj->ni", self._chart_L[kk], rot.exp_many(x))
-        poses = np.zeros((len(pts), 4, 4))
-        poses[:, :3, :3] = rot.to_matrix_many(quat)
-        poses[:, :3, 3] = pts[:, :3]
-        poses[:, 3, 3] = 1.0
+        poses = rot.transforms(pts[:, :3], quat)
         omega = rot.rotate_many(quat, rot.right_jacobian_times(x, tan[:, 3:]))
         rates = np.asarray(joints.rates(poses, np.hstack([tan[:, :3], omega])), dtype=float)
         width = len(joints.velocity)

@@ -92,6 +92,16 @@ def to_matrix_many(q: Array) -> Array:
     return m
 
 
+def transforms(positions: Array, quats: Array) -> Array:
+    """4x4 homogeneous transforms (N, 4, 4) of positions (N, 3) and unit quaternions
+    (N, 4)."""
+    poses = np.zeros((len(positions), 4, 4))
+    poses[:, :3, :3] = to_matrix_many(quats)
+    poses[:, :3, 3] = positions
+    poses[:, 3, 3] = 1.0
+    return poses
+
+
 def from_matrix(m: Array) -> Array:
     """Unit quaternion of rotation matrix ``m`` (Shepperd's method: divide by the
     largest of the four candidate terms, so it is well conditioned everywhere)."""

@@ -23,6 +23,7 @@ from panda_py.fci import PERIOD
 from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import CartesianSamples, parse_poses, stack_rows
 from panda_py.motion.online import OnlineLimits
+from panda_py.motion.rotation import transforms
 from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter, smooth_quaternions
 from panda_py.robots.params import RobotSpec
 
@@ -462,17 +463,6 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
 PLAN_JOINT_SHARE = 0.85
 
 
-def _poses(positions: FloatArray, orientations: FloatArray) -> FloatArray:
-    """4x4 transforms (N, 4, 4) of positions (N, 3) and unit quaternions (N, 4)."""
-    from panda_py.motion.rotation import to_matrix_many
-
-    poses = np.zeros((len(positions), 4, 4))
-    poses[:, :3, :3] = to_matrix_many(orientations)
-    poses[:, :3, 3] = positions
-    poses[:, 3, 3] = 1.0
-    return poses
-
-
 class ArmJoints:
     """The arm's joints along a Cartesian plan (a :class:`~panda_py.motion.JointMap`), as
     the Cartesian law moves them: ``q̇ = J^+ v`` (its feed-forward's damped pseudo-inverse)
@@ -506,7 +496,7 @@ def joint_time_scale(s: CartesianSamples, joints: ArmJoints) -> float:
     to stay within their bounds: the check of every sample after the profile (which bounds
     them from points a few millimetres apart). Samples the arm cannot reach are left out."""
     twists = np.hstack([s.velocities, s.angular_velocities])
-    dq = joints.rates(_poses(s.positions, s.orientations), twists)
+    dq = joints.rates(transforms(s.positions, s.orientations), twists)
     ddq = np.diff(dq, axis=0) / PERIOD
     with np.errstate(invalid="ignore"):
         v = np.abs(dq) / joints.velocity
@@ -526,7 +516,7 @@ def pose_move_in_joint_space(
     pose by the caller: the joint success threshold is infinite)."""
     from panda_py.kinematics import get_kinematics
 
-    poses = _poses(plan.position, plan.orientation)
+    poses = transforms(plan.position, plan.orientation)
     q = get_kinematics(spec, F_T_EE).ik(poses, q_now, float(q_now[6]))
     bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
     if bad.size:
@@ -564,8 +554,9 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     nullspace resting at ``q_nullspace`` (the arm's configuration now); None if already
     there (``at_rest``: then a plan that rests there). The Cartesian limits alone can ask a
     joint for more than its own (near the start pose, 2.6 m/s^2 at speed factor 0.2 is all
-    of joint 2's): the plan runs slower where its joints need it (:func:`joint_time_scale`,
-    ``F_T_EE`` the end effector's, None: the robot's hand)."""
+    of joint 2's): the plan is time-optimal under the joints' limits too (:class:`ArmJoints`,
+    ``F_T_EE`` the end effector's, None: the robot's hand), and every sample is checked
+    (:func:`joint_time_scale`)."""
     joints = ArmJoints(spec, q_nullspace, F_T_EE)
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
