@@ -79,9 +79,10 @@ def tracker_for(plan: JointPlan | PosePlan) -> JointMove | PoseMove:
 
 
 def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
-                 frames: tuple[FloatArray, FloatArray] | None = None) -> OnlineLimits:  # fmt: skip
+                 frames: tuple[FloatArray, FloatArray] | None = None,
+                 share: float = JOINT_SHARE) -> OnlineLimits:  # fmt: skip
     """Cartesian online ``limits`` (norms) scaled down where, at the Jacobian ``J``, they
-    could ask a joint for more than JOINT_SHARE of its velocity or acceleration limit.
+    could ask a joint for more than ``share`` of its velocity or acceleration limit.
     The joint motion is ``J^+ (v, w)``; with the generator's ``frames`` (translation,
     rotation; columns) its coordinates are bounded one by one (the whole limit along the
     first axis, LATERAL of it across), so joint i's bound is the sum over the six axes of
@@ -92,7 +93,8 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
         sv, sa = kernels.joint_scales(
             np.ascontiguousarray(J, dtype=np.float64), frames[0], frames[1], LATERAL,
             limits.velocity[0], limits.velocity[3], limits.acceleration[0],
-            limits.acceleration[3], _shares(joints.dq_max), _shares(joints.ddq_max),
+            limits.acceleration[3], _shares(joints.dq_max, share),
+            _shares(joints.ddq_max, share),
         )  # fmt: skip
         return limits if sv == 1.0 and sa == 1.0 else limits.scaled(sv, sa)
     pinv = laws.damped_pinv(J)
@@ -106,8 +108,8 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
         r = np.abs(pinv[:, 3:] @ frames[1]) @ spread
     v = t * limits.velocity[0] + r * limits.velocity[3]
     a = t * limits.acceleration[0] + r * limits.acceleration[3]
-    sv = min(1.0, float(np.min(_shares(joints.dq_max) / np.maximum(v, 1e-12))))
-    sa = min(1.0, float(np.min(_shares(joints.ddq_max) / np.maximum(a, 1e-12))))
+    sv = min(1.0, float(np.min(_shares(joints.dq_max, share) / np.maximum(v, 1e-12))))
+    sa = min(1.0, float(np.min(_shares(joints.ddq_max, share) / np.maximum(a, 1e-12))))
     return limits if sv == 1.0 and sa == 1.0 else limits.scaled(sv, sa)
 
 
@@ -130,7 +132,7 @@ def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
     pinv = laws.damped_pinv(J)
     At, Ar = gen.axes()
     mix = np.abs(np.hstack([pinv[:, :3] @ At, pinv[:, 3:] @ Ar]))  # (7, 6)
-    v_share, a_share = _shares(joints.dq_max), _shares(joints.ddq_max)
+    v_share, a_share = _shares(joints.dq_max, JOINT_SHARE), _shares(joints.ddq_max, JOINT_SHARE)
     start_v = max(1.0, float((mix @ np.abs(gen.gen.velocity) / v_share).max()))
     start_a = max(1.0, float((mix @ np.abs(gen.gen.acceleration) / a_share).max()))
     capped = limits
@@ -149,9 +151,9 @@ def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
 
 
 @functools.lru_cache(maxsize=16)
-def _shares(limits: tuple[float, ...]) -> FloatArray:
-    """JOINT_SHARE of each joint's ``limits`` (read-only by use: cached and shared)."""
-    return JOINT_SHARE * np.asarray(limits, dtype=np.float64)
+def _shares(limits: tuple[float, ...], share: float) -> FloatArray:
+    """``share`` of each joint's ``limits`` (read-only by use: cached and shared)."""
+    return share * np.asarray(limits, dtype=np.float64)
 
 
 class Tracker(ControlLaw):

@@ -45,6 +45,10 @@ SPEED_FACTOR = 0.2  # default, as the moves'
 # a stop asks for at least this share of the limits (as a cancelled move's stop)
 STOP_SPEED_FACTOR = 0.5
 # move_to_pose's defaults (panda.planning.POSE_MOVE_DEFAULTS; a test holds them equal)
+# of the joints' limits a streamed Cartesian target's generator may ask for (moves'
+# lead-ins take moves.JOINT_SHARE, 0.6: their hand-overs overshoot more; a stream's
+# targets, 50 ms apart, were measured within the limits at this)
+STREAM_JOINT_SHARE = 0.7
 POSE_IMPEDANCE = np.diag([800.0, 800.0, 800.0, 40.0, 40.0, 40.0])  # [N/m, Nm/rad]
 POSE_DAMPING_RATIO = 1.0
 POSE_NULLSPACE_STIFFNESS = 15.0  # [Nm/rad]
@@ -291,7 +295,7 @@ class CartesianTarget(_Streamed):
         p, quat = T[12:15].copy(), laws.quat_from_matrix(T)
         gen = self._gen = OnlinePose(self._follow)
         gen.reset(p, quat, J @ state.dq, np.zeros(6))
-        gen.set_limits(joint_capped(self._follow, J, spec, gen.frames))
+        gen.set_limits(joint_capped(self._follow, J, spec, gen.frames, STREAM_JOINT_SHARE))
         self._law = PoseImpedance(self.impedance, self.damping_ratio, state.q.copy(),
                                   self.nullspace_stiffness)  # fmt: skip
         self.initial_signals(position=p, orientation=quat)
@@ -332,7 +336,8 @@ class CartesianTarget(_Streamed):
                 limits = self._stop
             # within the joints' limits where the arm is (a Cartesian bound can ask a
             # joint for more)
-            gen.set_limits(joint_capped(limits, model.ee_jacobian(state), model.spec, gen.frames))
+            gen.set_limits(joint_capped(limits, model.ee_jacobian(state), model.spec, gen.frames,
+                                        STREAM_JOINT_SHARE))  # fmt: skip
         if not gen.finished:
             gen.step()
         tau = self._law.torque(state, model, self.dt, gen.position, gen.orientation, gen.twist,
