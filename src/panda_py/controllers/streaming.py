@@ -44,11 +44,11 @@ TIMEOUT = 0.5  # [s] default: no new target within this, and the arm comes to re
 SPEED_FACTOR = 0.2  # default, as the moves'
 # a stop asks for at least this share of the limits (as a cancelled move's stop)
 STOP_SPEED_FACTOR = 0.5
-# move_to_pose's defaults (panda.planning.POSE_MOVE_DEFAULTS; a test holds them equal)
 # of the joints' limits a streamed Cartesian target's generator may ask for (moves'
 # lead-ins take moves.JOINT_SHARE, 0.6: their hand-overs overshoot more; a stream's
 # targets, 50 ms apart, were measured within the limits at this)
 STREAM_JOINT_SHARE = 0.7
+# move_to_pose's defaults (panda.planning.POSE_MOVE_DEFAULTS; a test holds them equal)
 POSE_IMPEDANCE = np.diag([800.0, 800.0, 800.0, 40.0, 40.0, 40.0])  # [N/m, Nm/rad]
 POSE_DAMPING_RATIO = 1.0
 POSE_NULLSPACE_STIFFNESS = 15.0  # [Nm/rad]
