@@ -360,7 +360,8 @@ class ControlServer:
             if current is None or not isinstance(current[0], Tracker):
                 raise InvalidOperationException("move: not while a controller runs (stop it first)")
             if self.replacement is not None:  # two in one tick: the newer wins
-                self._answer_replaced(self.replacement[0], self.replacement[1], None)
+                self._answer_replaced(self.replacement[0], self.replacement[1], None,
+                                      time.monotonic())  # fmt: skip
             self.replacement = (law, self._current_rid)
         else:
             self._schedule(law, self._current_rid)
@@ -552,20 +553,24 @@ class ControlServer:
         new, rid = self.replacement
         self.replacement = None
         new.handover(law, state, self.model)
+        handed_over = time.monotonic()  # the new move's reference is the one in effect
         if move_rid is not None:
-            self._answer_replaced(law, move_rid, state)
+            self._answer_replaced(law, move_rid, state, handed_over)
         self.current = (new, rid)
         return new, rid
 
-    def _answer_replaced(self, law: Tracker, rid: int, state: RobotState | None) -> None:
-        """Answer a move that another replaced (judged on this tick's state)."""
+    def _answer_replaced(
+        self, law: Tracker, rid: int, state: RobotState | None, end_time: float
+    ) -> None:
+        """Answer a move that another replaced at ``end_time`` (judged on this tick's
+        state)."""
         if state is not None:
             result = law.result(state)
         else:
             result = MoveResult(False, "", elapsed=law.t)
         result.success, result.cancelled = False, True
         result.reason = f"replaced by a new move after {law.t:.3f} s"
-        result.end_time = time.monotonic()
+        result.end_time = end_time
         self.reply(rid, True, result)
 
     def _finish_move(self, law: Tracker, rid: int, error: BaseException | None) -> None:
