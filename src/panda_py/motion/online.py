@@ -273,17 +273,15 @@ class OnlineGenerator:
         for section in traj.profiles:
             for i, profile in enumerate(section):
                 vp, ap = v_peak[i], a_peak[i]
-                for part in (profile.brake, profile):
-                    acc, vel, jerk = part.a, part.v, part.j
-                    for x in vel:
-                        vp = max(vp, abs(x))
-                    for x in acc:
-                        ap = max(ap, abs(x))
-                    for k in range(min(len(acc) - 1, len(jerk))):
-                        a0, jk = acc[k], jerk[k]
+                brake = profile.brake
+                for part in (profile,) if brake.duration <= 0.0 else (brake, profile):
+                    acc, vel = part.a, part.v
+                    vp = max(vp, max(vel), -min(vel))
+                    ap = max(ap, max(acc), -min(acc))
+                    for a0, a1, v0, jk in zip(acc, acc[1:], vel, part.j, strict=False):
                         # the acceleration crosses 0 inside a phase: the speed peaks there
-                        if a0 * acc[k + 1] < 0.0 and jk != 0.0:
-                            vp = max(vp, abs(vel[k] - a0 * a0 / (2.0 * jk)))
+                        if a0 * a1 < 0.0 and jk != 0.0:
+                            vp = max(vp, abs(v0 - a0 * a0 / (2.0 * jk)))
                 v_peak[i], a_peak[i] = vp, ap
         return np.array(v_peak), np.array(a_peak)
 

@@ -201,7 +201,9 @@ def parse_pose_targets(
     position = kwargs.pop("positions", kwargs.pop("position", None))
     orientation = kwargs.pop("orientations", kwargs.pop("orientation", None))
     if pose is None and position is None and rest:
-        first = np.asarray(rest[0], dtype=object)
+        first = rest[0]
+        if type(first) is not np.ndarray or first.dtype != np.float64:  # (else: as it is)
+            first = np.asarray(first, dtype=object)
         is_pose = np.shape(first)[-2:] == (4, 4) if np.ndim(first) >= 2 else False
         if is_pose:
             pose = rest.pop(0)
@@ -218,7 +220,9 @@ def parse_pose_targets(
             raise TypeError(f"move_to_pose() got multiple values for {name!r}")
         kwargs[name] = value
     if pose is not None:
-        arr = np.array(pose, dtype=np.float64) if _numeric(pose) else pose
+        # a float array as it is (parse_poses copies it), else converted where it can be
+        numeric = type(pose) is np.ndarray and pose.dtype == np.float64
+        arr = pose if numeric else (np.array(pose, dtype=np.float64) if _numeric(pose) else pose)
         if isinstance(arr, np.ndarray) and arr.shape == (4, 4):
             arr = arr.reshape(1, 4, 4)
         positions, quats = parse_poses(arr)
