@@ -1,11 +1,17 @@
-"""Fixtures shared across the test tree."""
+"""Fixtures shared across the test tree; the ``exclusive`` marker's lock (exclusive.py)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
+from exclusive import (  # noqa: F401 (the hooks, used by pytest)
+    pytest_configure,
+    pytest_runtest_protocol,
+    pytest_unconfigure,
+)
 
 from panda_py.robots import robot_for_protocol
 from panda_py.sim import Simulator, free_loopback_host
@@ -31,3 +37,31 @@ def sim_for_version() -> Iterator[Callable[..., Simulator]]:
     finally:
         for sim in started.values():
             sim.stop()
+
+
+# The modules with the suite's longest tests (10-35 s each here), started first: run in
+# parallel, a long test started last keeps one process busy after the others are done.
+FIRST = (
+    "panda/test_grasp_hold.py",
+    "examples/test_demo.py",
+    "test_kinematics.py",
+    "learning/test_learning_sim.py",
+    "learning/test_rollouts.py",
+    "panda/test_paper.py",
+    "examples/test_examples.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Modules of FIRST first, in its order; the rest as collected (each module's tests
+    stay together, in their order)."""
+    root = Path(__file__).resolve().parent
+
+    def rank(item: pytest.Item) -> int:
+        try:
+            where = item.path.resolve().relative_to(root).as_posix()
+        except ValueError:
+            return len(FIRST)
+        return FIRST.index(where) if where in FIRST else len(FIRST)
+
+    items.sort(key=rank)  # (stable)

@@ -15,7 +15,7 @@ from panda_py import doctor
 from panda_py.doctor import Status
 from panda_py.sim import Simulator, free_loopback_host
 
-pytestmark = pytest.mark.timeout(120)
+pytestmark = [pytest.mark.timeout(120), pytest.mark.exclusive]
 
 
 def _run(*args: str, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProcess[str]:

@@ -161,6 +161,7 @@ def test_no_robot_at_host_is_a_clear_error(tmp_path: Path) -> None:
     assert "No robot answers at 127.0.0.1" in done.stderr
 
 
+@pytest.mark.exclusive  # its 1 kHz loop is this script's, on the wall clock
 def test_13_two_arms_move_together_and_mirror(tmp_path: Path) -> None:
     out = run_example("13", "--runtime", "3.2", cwd=tmp_path)
     assert "both at the start pose: True" in out
