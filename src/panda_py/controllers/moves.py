@@ -427,7 +427,7 @@ class PoseMove(Tracker):
         self.stop_limits = plan.stop_limits or plan.limits
         self.spec: Any = None  # the robot's (the model's), known from the first tick
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
-        # a lead-in's joint cap to raise to its peaks' after the first tick (handover)
+        # (Jacobian, robot) of a lead-in's peaks cap, due after its first tick (handover)
         self._refine: tuple[FloatArray, Any] | None = None
 
     def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
