@@ -201,41 +201,6 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     np.testing.assert_allclose(gen.position, p + np.array([-0.15, 0.15, 0.0]), atol=1e-9)
 
 
-def test_a_pose_lead_in_starts_under_the_worst_case_cap_and_is_raised_after_its_first_tick() -> (
-    None
-):
-    """The hand-over itself caps the lead-in by the bound that counts every coordinate at
-    its limit (cheap: the hand-over's latency); once the first tick's command has left
-    (published) the cap becomes the peaks' (more acceleration here), and the lead-in stays
-    within JOINT_SHARE of the joints' limits all along."""
-    from panda_py.controllers.moves import JOINT_SHARE, joint_capped
-
-    first = pose_law(Q0, np.array([0.2, 0.0, 0.0]))
-    state = STATE0
-    for _ in range(300):  # 0.3 s into a 20 cm move along x: moving
-        first.tick(PERIOD)
-        first.step(state, MODEL)
-    law = pose_law(Q0, np.array([-0.05, 0.15, 0.0]))  # back and to the side
-    law.handover(first, state, MODEL)
-    J = MODEL.ee_jacobian(state)
-    worst = joint_capped(law.limits, J, FER, law.gen.frames)
-    assert worst is not law.limits  # the worst case binds here (else nothing to raise)
-    assert law.gen.limits == worst
-    pinv = np.linalg.pinv(J)
-    ddq_max = JOINT_SHARE * np.array(FER.joints.ddq_max)
-    peak, raised = 0.0, None
-    for _ in range(5000):
-        law.tick(PERIOD)
-        law.step(state, MODEL)
-        peak = max(peak, float((np.abs(pinv @ law.ref[3]) / ddq_max).max()))
-        law.published()
-        raised = raised or law.gen.limits
-        if not law.leading:
-            break
-    assert raised is not None and raised.acceleration[0] > 1.1 * worst.acceleration[0]
-    assert 0.5 < peak <= 1.0 + 1e-3  # (pinv: undamped; the cap's is damped by 0.01)
-
-
 @dataclass(frozen=True)
 class AfterTime:
     seconds: float

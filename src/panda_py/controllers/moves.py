@@ -427,8 +427,6 @@ class PoseMove(Tracker):
         self.stop_limits = plan.stop_limits or plan.limits
         self.spec: Any = None  # the robot's (the model's), known from the first tick
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
-        # (Jacobian, robot) of a lead-in's peaks cap, due after its first tick (handover)
-        self._refine: tuple[FloatArray, Any] | None = None
 
     def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
         """As :meth:`JointMove.handover`, in Cartesian space."""
@@ -442,14 +440,8 @@ class PoseMove(Tracker):
         g = self.gen
         g.reset_toward(p, quat, v, a, self.p[j], self.quat[j], self.v[j], self.a[j])
         self.ref = (g.position.copy(), g.orientation.copy(), g.twist.copy(), g.accel.copy())
-        # within the joints' limits here (a Cartesian bound can ask a joint for more): at
-        # once by the bound that counts every coordinate at its limit, then, once the next
-        # tick's command has left (published), by the peaks the lead-in reaches, which
-        # allows more where the bound was too strict (the hand-over's latency stays short)
-        J = model.ee_jacobian(state)
-        worst = joint_capped(self.limits, J, model.spec, g.frames)
-        g.set_limits(worst)
-        self._refine = None if worst is self.limits else (J, model.spec)
+        # within the joints' limits here (a Cartesian bound can ask a joint for more)
+        joint_capped_peaks(self.gen, self.limits, model.ee_jacobian(state), model.spec)
         self.k0, self.leading = j, True
         self.t_end = self.duration = math.inf
         self._blend_from(prev)
@@ -479,13 +471,7 @@ class PoseMove(Tracker):
         return self.law.torque(state, model, self.dt, T[12:15] + dx[:3], quat_d, J @ dq_d,
                                J @ ddq_d)  # fmt: skip
 
-    def published(self) -> None:
-        refine, self._refine = self._refine, None
-        if refine is not None and self.leading and not self.gen.finished:
-            joint_capped_peaks(self.gen, self.limits, *refine)  # (sets the generator's)
-
     def _begin_rest(self) -> None:
-        self._refine = None
         p, quat, v, a = (r.copy() for r in self.ref)
         self.gen.reset(p, quat, v, a)
         self.gen.set_rest()
