@@ -214,6 +214,46 @@ def test_the_pose_generators_frames_are_rotations_along_the_motion() -> None:
     np.testing.assert_array_equal(online._frame(np.zeros(3), np.zeros(3)), np.eye(3))
 
 
+def test_the_compiled_restart_toward_a_pose_equals_the_python_reference(monkeypatch) -> None:
+    """OnlinePose's restart toward a new target (a hand-over's reset_toward, a streamed
+    target's set_target: frames, start state and goal) is the same compiled as in NumPy,
+    from random states to random targets, rotations small and large, also from rest
+    toward where it is (the frames' fallbacks)."""
+    from panda_py.motion import online
+
+    kernels = online._compiled()
+    assert kernels is not None  # numba comes with the package here
+    limits = OnlineLimits.cartesian(get_robot("fr3"), 1.0)
+    rng = np.random.default_rng(11)
+
+    def restart(compiled: bool, *args: np.ndarray) -> tuple[np.ndarray, ...]:
+        monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+        gen = OnlinePose(limits)
+        gen.reset_toward(*args)
+        inp = gen.gen._inp
+        return (gen._Ft, gen._Fr, np.array(inp.current_position),
+                np.array(inp.current_velocity), np.array(inp.current_acceleration),
+                np.array(inp.target_position))  # fmt: skip
+
+    for i in range(300):
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        p = rng.uniform(-0.5, 0.5, 3)
+        # a rotation of 1e-9 rad has a direction only to ~1e-7 (its quaternion's vector
+        # part is a difference of O(1) products): the rotation's frame to 1e-6 there
+        tol = 1e-12
+        if i % 10 == 0:  # at rest, toward where it is: both frames fall back
+            args = (p, quat, np.zeros(6), np.zeros(6), p.copy(), quat.copy())
+        else:
+            tol = 1e-6 if i % 7 == 0 else 1e-12
+            small = rng.normal(0.0, 1e-9 if i % 7 == 0 else 0.5, 3)
+            target_q = rotation.multiply(quat, rotation.exp(small))
+            args = (p, quat, rng.normal(0.0, 0.3, 6), rng.normal(0.0, 1.0, 6),
+                    p + rng.normal(0.0, 0.2, 3), target_q * rng.choice([-1.0, 1.0]))  # fmt: skip
+        for want, got in zip(restart(False, *args), restart(True, *args), strict=True):
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=tol)
+
+
 def test_the_compiled_pose_output_equals_the_python_reference() -> None:
     """OnlinePose's per-tick output (base-frame position, orientation, twist, acceleration
     from the aligned generator) is the same compiled as in scalar Python, along moves to

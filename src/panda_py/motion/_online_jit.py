@@ -16,7 +16,7 @@ import numpy as np
 
 from panda_py import jitcache
 
-__all__ = ["publish_pose"]
+__all__ = ["aim", "publish_pose"]
 
 # the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
 KEY = jitcache.source_key([Path(__file__)])
@@ -86,3 +86,71 @@ def _rates(src, dst, Ft, Fr, R0, xs, scratch):  # type: ignore[no-untyped-def,un
     _mv(Fr, src, 3, rates, 0)
     _left_jacobian_times(xs, rates, world)
     _mv(R0, world, 0, dst, 3)
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _frame(dx, dy, dz, fx, fy, fz, F):  # type: ignore[no-untyped-def,unused-ignore]
+    """``OnlinePose``'s ``_frame`` into ``F`` (3x3, columns): first axis along ``d`` (or,
+    where that is ~0, ``f``; the identity where both are)."""
+    x, y, z = dx, dy, dz
+    n = math.sqrt(x * x + y * y + z * z)
+    if n < 1e-9:
+        x, y, z = fx, fy, fz
+        n = math.sqrt(x * x + y * y + z * z)
+        if n < 1e-9:
+            for r in range(3):
+                for c in range(3):
+                    F[r, c] = 1.0 if r == c else 0.0
+            return
+    x, y, z = x / n, y / n, z / n
+    ax, ay, az = abs(x), abs(y), abs(z)
+    if ax <= ay and ax <= az:
+        u, v, w = 0.0, z, -y
+    elif ay <= az:
+        u, v, w = -z, 0.0, x
+    else:
+        u, v, w = y, -x, 0.0
+    m = math.sqrt(u * u + v * v + w * w)
+    u, v, w = u / m, v / m, w / m
+    F[0, 0], F[0, 1], F[0, 2] = x, u, y * w - z * v
+    F[1, 0], F[1, 1], F[1, 2] = y, v, z * u - x * w
+    F[2, 0], F[2, 1], F[2, 2] = z, w, x * v - y * u
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _mtv(A, x, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
+    """``out[o0:o0+3] = A^T x`` for a 3x3 ``A``."""
+    x0, x1, x2 = x[0], x[1], x[2]
+    for c in range(3):
+        out[o0 + c] = A[0, c] * x0 + A[1, c] * x1 + A[2, c] * x2
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def aim(p, v, a, x, xd, xdd, q0, target, quat, Ft, Fr, start_p, start_v, start_a, goal):  # type: ignore[no-untyped-def,unused-ignore]
+    """``OnlinePose._aim``'s arithmetic: from the translation's state ``p, v, a`` (base
+    frame) and the rotation vector's ``x, xd, xdd`` (about the anchor ``q0``), toward the
+    pose ``target`` (3,), ``quat`` (4, x y z w, any norm): the frames ``Ft``, ``Fr`` of
+    the way there and the generator's start state and goal in them (each (6,)), in place."""
+    nq = math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
+    bx, by, bz, bw = quat[0] / nq, quat[1] / nq, quat[2] / nq, quat[3] / nq
+    ax, ay, az, aw = -q0[0], -q0[1], -q0[2], q0[3]  # the anchor's conjugate
+    rx = aw * bx + ax * bw + ay * bz - az * by
+    ry = aw * by - ax * bz + ay * bw + az * bx
+    rz = aw * bz + ax * by - ay * bx + az * bw
+    rw = aw * bw - ax * bx - ay * by - az * bz
+    if rw < 0.0:  # the shortest way round
+        rx, ry, rz, rw = -rx, -ry, -rz, -rw
+    s = math.sqrt(rx * rx + ry * ry + rz * rz)
+    k = 2.0 / rw if s < 1e-8 else 2.0 * math.atan2(s, rw) / s
+    xt = np.empty(3)
+    xt[0], xt[1], xt[2] = k * rx, k * ry, k * rz
+    _frame(target[0] - p[0], target[1] - p[1], target[2] - p[2], v[0], v[1], v[2], Ft)
+    _frame(xt[0], xt[1], xt[2], xd[0], xd[1], xd[2], Fr)
+    _mtv(Ft, p, start_p, 0)
+    _mtv(Fr, x, start_p, 3)
+    _mtv(Ft, v, start_v, 0)
+    _mtv(Fr, xd, start_v, 3)
+    _mtv(Ft, a, start_a, 0)
+    _mtv(Fr, xdd, start_a, 3)
+    _mtv(Ft, target, goal, 0)
+    _mtv(Fr, xt, goal, 3)

@@ -450,19 +450,43 @@ class OnlinePose:
     ) -> None:  # fmt: skip
         """Restart from this state (as :meth:`_restart`'s) toward the target pose, in the
         frames of the way there."""
-        quat = np.asarray(orientation, dtype=np.float64)
-        rel = rotation.multiply(rotation.conjugate(self._q0), quat / np.linalg.norm(quat))
-        x_t = rotation.log(rel)  # the shortest way round
-        target = np.asarray(position, dtype=np.float64)
-        Ft, Fr = _frame(target - p, v), _frame(x_t, xd)
-        self._restart(p, v, a, x, xd, xdd, Ft, Fr)
+        kernels = _compiled()
+        if kernels is not None:  # the same, compiled (a new target's or hand-over's path)
+            # (fresh writable copies: the kernel's one signature)
+            target, quat = (
+                np.array(position, dtype=np.float64),
+                np.array(orientation, dtype=np.float64),
+            )
+            Ft, Fr = np.empty((3, 3)), np.empty((3, 3))
+            sp, sv, sa, goal = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+            kernels.aim(p, v, a, x, xd, xdd, self._q0, target, quat, Ft, Fr, sp, sv, sa, goal)
+            self._Ft, self._Fr = Ft, Fr
+            self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
+            self.gen._start_from(sp, sv, sa)
+        else:
+            goal = self._aim_python(p, v, a, x, xd, xdd, position, orientation)
+            Ft, Fr = self._Ft, self._Fr
         R0t = self._R0.T
         vel = acc = None
         if twist is not None:
             vel = np.concatenate([Ft.T @ twist[:3], Fr.T @ (R0t @ twist[3:])])
         if accel is not None:
             acc = np.concatenate([Ft.T @ accel[:3], Fr.T @ (R0t @ accel[3:])])
-        self.gen.set_target(np.concatenate([Ft.T @ target, Fr.T @ x_t]), vel, acc)
+        self.gen.set_target(goal, vel, acc)
+
+    def _aim_python(
+        self, p: FloatArray, v: FloatArray, a: FloatArray, x: FloatArray, xd: FloatArray,
+        xdd: FloatArray, position: FloatArray, orientation: FloatArray,
+    ) -> FloatArray:  # fmt: skip
+        """:meth:`_aim`'s restart in NumPy (the reference the compiled ``aim`` equals):
+        the generator restarted in the new frames; returns the goal in them."""
+        quat = np.asarray(orientation, dtype=np.float64)
+        rel = rotation.multiply(rotation.conjugate(self._q0), quat / np.linalg.norm(quat))
+        x_t = rotation.log(rel)  # the shortest way round
+        target = np.asarray(position, dtype=np.float64)
+        Ft, Fr = _frame(target - p, v), _frame(x_t, xd)
+        self._restart(p, v, a, x, xd, xdd, Ft, Fr)
+        return np.concatenate([Ft.T @ target, Fr.T @ x_t])
 
     def set_rest(self) -> None:
         """Come to rest as fast as the limits allow (braking along the motion)."""
