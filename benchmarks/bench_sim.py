@@ -318,6 +318,7 @@ def profile_tick(robot: str, n: int = 3000) -> None:
     sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
     tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     tx.bind((host, 0))
+    tx.setblocking(False)  # as the server's: its realtime tick reads it (nothing queued)
     conn = RobotConnection(socket.socket(), (host, 0))
     conn.dialect = d
     conn.state_wire, conn.command_wire = StateWire(d, core), CommandWire(d)
