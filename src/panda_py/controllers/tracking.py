@@ -98,14 +98,9 @@ class PoseImpedance:
                  nullspace_stiffness: float) -> None:  # fmt: skip
         self.K = np.array(impedance, dtype=np.float64)
         self.zeta = float(damping_ratio)
-        # until the first tick knows the arm's inertia: panda-py's (a unit mass); a
-        # diagonal K's (the defaults') without an eigh on a hand-over's path
-        K = self.K
-        if not (K - np.diag(np.diag(K))).any():
-            self.D = np.diag(2.0 * self.zeta * np.sqrt(np.maximum(np.diag(K), 0.0)))
-        else:
-            w, v = np.linalg.eigh(K)
-            self.D = 2.0 * self.zeta * (v * np.sqrt(np.maximum(w, 0.0))) @ v.T
+        # the damping's buffer: every path of torque() sets it on its first call (from
+        # the arm's inertia, _damping_due 0) before it reads it
+        self.D = np.zeros((6, 6))
         self.qn = np.array(q_nullspace, dtype=np.float64)  # its own: one kernel signature
         self.kn = float(nullspace_stiffness)
         self.err = np.empty(6)

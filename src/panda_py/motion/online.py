@@ -403,15 +403,19 @@ class OnlinePose:
         vector about the anchor) in the frames ``Ft``, ``Fr``; ``checked``: a state from
         the caller (checked, and at rest on it as the target), else the generator's own
         (the caller sets the target)."""
-        self._Ft = np.ascontiguousarray(Ft, dtype=np.float64)
-        self._Fr = np.ascontiguousarray(Fr, dtype=np.float64)
-        self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
+        self._use_frames(np.ascontiguousarray(Ft, dtype=np.float64),
+                         np.ascontiguousarray(Fr, dtype=np.float64))  # fmt: skip
         start = self.gen.reset if checked else self.gen._start_from
         start(
             np.concatenate([Ft.T @ p, Fr.T @ x]),
             np.concatenate([Ft.T @ v, Fr.T @ xd]),
             np.concatenate([Ft.T @ a, Fr.T @ xdd]),
         )
+
+    def _use_frames(self, Ft: FloatArray, Fr: FloatArray) -> None:
+        """The coordinates' frames from now on (C-contiguous float64, columns)."""
+        self._Ft, self._Fr = Ft, Fr
+        self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
 
     def _world(self) -> tuple[FloatArray, ...]:
         """The translation (base frame) and the rotation vector's state (anchor frame):
@@ -460,8 +464,7 @@ class OnlinePose:
             Ft, Fr = np.empty((3, 3)), np.empty((3, 3))
             sp, sv, sa, goal = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
             kernels.aim(p, v, a, x, xd, xdd, self._q0, target, quat, Ft, Fr, sp, sv, sa, goal)
-            self._Ft, self._Fr = Ft, Fr
-            self._Ft_rows, self._Fr_rows = Ft.tolist(), Fr.tolist()
+            self._use_frames(Ft, Fr)
             self.gen._start_from(sp, sv, sa)
         else:
             goal = self._aim_python(p, v, a, x, xd, xdd, position, orientation)
