@@ -23,8 +23,10 @@ Cases (run one after another, never side by side):
 Targets (from the issue): realtime 1.00x with <= 0.1 % late ticks, the simulator's CPU share
 at most 0.5x franky-sim's in the same run (under 50 % of one core where franky-sim is not
 measured); lockstep >= 10x real time with our own client. ``--profile`` adds an in-process
-breakdown of panda-sim's tick (no network) and a cProfile of it. franky-sim is installed on
-first use into its own venv (``tests/peer_envs.py``) and is only ever bound to a loopback address.
+breakdown of panda-sim's tick (no network) and a cProfile of it. ``--cpus 0`` runs every
+process of the run on CPU 0: a lockstep pair then takes its turns on one core. franky-sim
+is installed on first use into its own venv (``tests/peer_envs.py``) and is only ever bound
+to a loopback address.
 """
 
 from __future__ import annotations
@@ -416,7 +418,17 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="add the tick profile")
     parser.add_argument("--profile-only", action="store_true", help="only the tick profile")
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
+    parser.add_argument("--cpus", default=None,
+                        help="run every process of the run on these CPUs (e.g. 0: a lockstep "
+                             "simulator and its client on one core)")  # fmt: skip
     args = parser.parse_args()
+    if args.cpus is not None:
+        try:
+            cpus = {int(c) for c in args.cpus.split(",")}
+            os.sched_setaffinity(0, cpus)  # inherited by every process started from here
+        except (ValueError, OSError, AttributeError) as exc:
+            parser.error(f"--cpus: expected CPU numbers of this machine like 0 or 0,1, "
+                         f"got {args.cpus!r} ({exc})")  # fmt: skip
     duration = args.duration or (10.0 if args.quick else 60.0)
     lock_duration = args.lockstep_duration or (5.0 if args.quick else 20.0)
     if duration <= 0 or lock_duration <= 0:
@@ -435,7 +447,8 @@ def main() -> None:
         f"bench_sim: panda-sim at {rev or '?'}; {platform.node()}, {os.cpu_count()} CPUs, "
         f"load average "
         f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, Python {platform.python_version()}; "
-        f"realtime {duration:g} s, lockstep {lock_duration:g} s, panda-sim robot {args.robot}"
+        f"realtime {duration:g} s, lockstep {lock_duration:g} s, panda-sim robot {args.robot}; "
+        f"on CPUs {','.join(map(str, sorted(os.sched_getaffinity(0))))}"
     )
     clients = ["fci-v10"]
     if not args.no_pylibfranka:
