@@ -447,8 +447,12 @@ def main() -> None:
         f"bench_sim: panda-sim at {rev or '?'}; {platform.node()}, {os.cpu_count()} CPUs, "
         f"load average "
         f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, Python {platform.python_version()}; "
-        f"realtime {duration:g} s, lockstep {lock_duration:g} s, panda-sim robot {args.robot}; "
-        f"on CPUs {','.join(map(str, sorted(os.sched_getaffinity(0))))}"
+        f"realtime {duration:g} s, lockstep {lock_duration:g} s, panda-sim robot {args.robot}"
+        + (
+            f"; on CPUs {','.join(map(str, sorted(os.sched_getaffinity(0))))}"
+            if hasattr(os, "sched_getaffinity")
+            else ""
+        )  # (Linux only)
     )
     clients = ["fci-v10"]
     if not args.no_pylibfranka:
