@@ -13,6 +13,7 @@ from panda_py import controllers
 from panda_py.robots.mjcf import build_model
 
 RATE = 100  # [Hz] mirror and predict this often
+FRAME_EVERY = 0.5  # [s] of the loop's time between recorded frames (the first at once)
 
 
 def options(parser):
@@ -50,7 +51,7 @@ if __name__ == "__main__":
                 # mirror: the scene takes the measured joint positions
                 mirror.qpos[qpos] = state.q
                 mujoco.mj_forward(model, mirror)
-                if renderer is not None and ctx.num_ticks % 50 == 0:
+                if renderer is not None and ctx.time >= len(frames) * FRAME_EVERY:
                     renderer.update_scene(mirror, camera)
                     frames.append(renderer.render())
                 # predict: from the last measured q, dq and commanded torques, step the model
