@@ -214,12 +214,8 @@ class StateAssembly:
         s["joint_contact"][:] = np.abs(tau) > t.lower_torque_nom
         s["joint_collision"][:] = np.abs(tau) > t.upper_torque_nom
         # Wrench at K that explains tau_ext: least squares on tau = J_K^T F.
-        J = self.physics.flange_jacobian()
         O_T_K = O_T_EE @ self.EE_T_K
-        r = O_T_K[:3, 3] - self.physics.flange_pose()[:3, 3]
-        J_K = J.copy()
-        J_K[:3] = J[:3] + np.cross(J[3:].T, r).T  # v_K = v_F + w x r
-        F, *_ = np.linalg.lstsq(J_K.T, tau, rcond=None)
+        F = self.physics.wrench_explaining(tau, O_T_K[:3, 3])
         s["O_F_ext_hat_K"][:] = F
         R = O_T_K[:3, :3]
         s["K_F_ext_hat_K"][:3] = R.T @ F[:3]
