@@ -135,8 +135,9 @@ def test_a_move_from_the_start_pose_keeps_its_time_whatever_the_arms_noise() -> 
     joints 1 and 3 align and the inverse kinematics splits their angle anew at every
     sample: judged between neighbouring samples' configurations, 0.1 mrad of noise on
     the arm's joints once slowed the move 5x (12 s instead of 1.5 in the demo). Judged
-    along the arm's own motion the plan keeps its time, and an arm that follows it
-    (integrating the Cartesian law's J^+ v) stays within its joints' limits."""
+    on the configurations the arm passes through, the plan keeps its time, and an arm that
+    follows it (integrating the Cartesian law's J^+ v) stays within its joints' limits all
+    the way, past q2 = 0 too (where the start pose's case of the inverse kinematics ends)."""
     from panda_py import fk
     from panda_py.controllers import laws
     from panda_py.panda import planning
@@ -169,7 +170,5 @@ def test_a_move_from_the_start_pose_keeps_its_time_whatever_the_arms_noise() -> 
         assert (peak_a <= np.array(fer.joints.ddq_max)).all(), peak_a / fer.joints.ddq_max
         reached = fk(q)
         assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 2e-3
-    # (the profile's own joint bounds, from rates at points a few mm apart, still vary
-    # by a few per cent with the noise there)
-    assert max(durations) <= 1.05 * min(durations), durations
+    assert max(durations) <= 1.01 * min(durations), durations
     assert max(durations) < 1.4

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py.kinematics import _fk, _ik
+from panda_py.kinematics import _fk, _follow, _ik
 
 # _UNSET until the first call that could use the JIT, then the :mod:`._numba` module, or
 # None (numba missing, or PANDA_PY_NO_JIT=1). Tests set it.
@@ -141,6 +141,23 @@ def ik(
             _ik.ik_range(A.tolist(), T, QI, q7, full, qout, stout, 0, T.shape[0])
     else:
         _run(j.ik_batch, j.ik_batch_par, T.shape[0], A, T, QI, q7, full, qout, stout)
+
+
+def follow(
+    P: NDArray[np.float64],
+    C: NDArray[np.float64],
+    q0: NDArray[np.float64],
+    damping: float,
+    iterations: int,
+    out: NDArray[np.float64],
+) -> None:
+    """``_follow.follow_range`` over all poses of P (N, 4, 4) from q0 (7,) into out (N, 7)."""
+    j = jit()
+    if j is None:
+        with _plain_errstate():
+            _follow.follow_range(P, C.tolist(), q0, damping, iterations, out, 0, P.shape[0])
+    else:
+        j.follow_batch(P, C, q0, float(damping), int(iterations), out)
 
 
 def rigid_errors(T: NDArray[np.float64]) -> NDArray[np.float64]:

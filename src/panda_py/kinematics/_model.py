@@ -195,6 +195,29 @@ class Kinematics:
         batch (N, 7). libfranka's ``zeroJacobian(Frame::kEndEffector)``."""
         return self._jacobians(q, body=False)
 
+    def follow(
+        self, poses: object, q_start: object, *, damping: float = 0.0, iterations: int = 2
+    ) -> FloatArray:
+        """Configurations (N, 7) that follow the poses (N, 4, 4), in order, from
+        ``q_start`` (7,) [rad] the way a Cartesian law's ``J^+`` moves the arm: each the
+        one before moved by ``iterations`` damped least-squares steps (``damping`` [-],
+        the pseudo-inverse's) toward its pose. Continuous where :meth:`ik`'s case ends or
+        splits joints 1 and 3 anew (q2 = 0), and q7 moves as the arm's would."""
+        T = _input.transforms("poses", poses)
+        q = _input.joints("q_start", q_start)
+        if T.ndim != 3 or q.ndim != 1:
+            raise ValueError(
+                f"poses, q_start: expected a batch of poses (N, 4, 4) and one configuration "
+                f"(7,), got shapes {T.shape} and {q.shape}"
+            )
+        damping = _input.nonnegative("damping", damping, "-")
+        if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+            raise ValueError(f"iterations: expected an int >= 1, got {iterations!r}")
+        out = np.empty((T.shape[0], 7))
+        Tb = np.ascontiguousarray(T, dtype=np.float64)
+        _backend.follow(Tb, self._CF, np.ascontiguousarray(q), damping, iterations, out)
+        return out
+
     def body_jacobian(self, q: object) -> FloatArray:
         """Geometric Jacobian of the EE expressed in the EE frame, (6, 7) or (N, 6, 7).
         libfranka's ``bodyJacobian(Frame::kEndEffector)``."""

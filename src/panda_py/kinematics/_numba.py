@@ -27,7 +27,7 @@ import numpy as np
 from numba.extending import overload, register_jitable
 
 from panda_py import jitcache, progress
-from panda_py.kinematics import _fk, _ik, _nbmath, _scalar
+from panda_py.kinematics import _fk, _follow, _ik, _nbmath, _scalar
 
 _OPTS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
 # The arithmetic helpers may fuse a * b + c into one multiply-add (fastmath "contract":
@@ -56,7 +56,10 @@ for _fn in (
     _ik.rigid_error, _ik.case_row, _ik.pose_part, _ik.arm_part, _ik.branch, _ik.solve,
 ):  # fmt: skip
     register_jitable(**_ARITH)(_fn)
-for _fn in (_fk.fk_range, _fk.frames_range, _fk.jacobian_range, _ik.ik_range, _ik.rigid_range):
+for _fn in (
+    _fk.fk_range, _fk.frames_range, _fk.jacobian_range, _ik.ik_range, _ik.rigid_range,
+    _follow._step, _follow.follow_range,
+):  # fmt: skip
     register_jitable(**_OPTS)(_fn)
 
 
@@ -181,6 +184,12 @@ def ik_batch_par(A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout:
 
 
 @_jit(**_OPTS)
+def follow_batch(P: Any, C: Any, q0: Any, damping: float, iterations: int, out: Any) -> None:
+    """``_follow.follow_range`` over all poses of P (N, 4, 4)."""
+    _follow.follow_range(P, C, q0, damping, iterations, out, 0, P.shape[0])
+
+
+@_jit(**_OPTS)
 def rigid_batch(T: Any, err: Any) -> None:
     """``_ik.rigid_error`` of each pose of T (N, 4, 4) into err (N,)."""
     _ik.rigid_range(T, err, 0, T.shape[0])
@@ -209,6 +218,7 @@ _BATCH: dict[str, list[Any]] = {
     "ik_batch": [(_V, _M3, _M, _V, _b1, _M, _i1[::1])],
     "ik_batch_par": [(_V, _M3, _M, _V, _b1, _M, _i1[::1])],
     "rigid_batch": [(_M3, _V)],
+    "follow_batch": [(_M3, _V, _V, _f8, numba.int64, _M)],
 }
 _READY: set[str] = set()
 

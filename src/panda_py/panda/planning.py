@@ -465,13 +465,16 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
 # the arm tracks a plan with its feed-forward closely (measured within 1-2 % of the
 # planned joint accelerations), unlike a lead-in from a running move (moves.JOINT_SHARE)
 PLAN_JOINT_SHARE = 0.85
+# damped least-squares steps per pose when the arm's configurations follow a path (poses
+# 1 ms or a few millimetres apart: the second step leaves micrometres)
+FOLLOW_ITERATIONS = 2
 
 
 class ArmJoints:
     """The arm's joints along a Cartesian plan (a :class:`~panda_py.motion.JointMap`), as
     the Cartesian law moves them: ``q̇ = J^+ v`` (its feed-forward's damped pseudo-inverse)
-    at a configuration that reaches the pose (inverse kinematics in the current one's case,
-    with its q7), bounded by PLAN_JOINT_SHARE of the joints' limits."""
+    at the configurations it passes through (:meth:`configurations`), bounded by
+    PLAN_JOINT_SHARE of the joints' limits."""
 
     def __init__(self, spec: RobotSpec, q_now: FloatArray,
                  F_T_EE: FloatArray | None = None) -> None:  # fmt: skip
@@ -483,27 +486,13 @@ class ArmJoints:
         self.acceleration = PLAN_JOINT_SHARE * np.asarray(spec.joints.ddq_max, dtype=np.float64)
 
     def configurations(self, poses: FloatArray) -> FloatArray:
-        """A configuration reaching each pose (N, 4, 4) in order along a path: (N, 7), NaN
-        rows where none. The current configuration's case (the signs of q2 and q5) while
-        it reaches; past that, as where q2 crosses 0 on a move down in front of the robot,
-        the branch nearest the last configuration that did."""
-        q7 = float(self.q_now[6])
-        q = np.array(self.kinematics.ik(poses, self.q_now, q7))
-        lost = np.flatnonzero(~np.isfinite(q).all(axis=1))
-        if lost.size == 0:
-            return q
-        branches = np.asarray(self.kinematics.ik_full(poses[lost], self.q_now, q7))
-        # the last sample before each lost one that its case reached (or q_now)
-        reached = np.where(np.isfinite(q).all(axis=1), np.arange(len(q)), -1)
-        last = np.maximum.accumulate(reached)[lost]
-        ref = np.where((last >= 0)[:, None], q[np.maximum(last, 0)], self.q_now)
-        with np.errstate(invalid="ignore"):
-            gap = np.abs(branches - ref[:, None, :]).max(axis=2)  # (M, 4)
-        gap[~np.isfinite(gap)] = np.inf
-        best = np.argmin(gap, axis=1)
-        found = np.isfinite(gap[np.arange(lost.size), best])
-        q[lost[found]] = branches[np.flatnonzero(found), best[found]]
-        return q
+        """The arm's configurations at the poses (N, 4, 4) of a path from where it is, as
+        the law moves it (:meth:`~panda_py.kinematics.Kinematics.follow`: ``J^+`` with the
+        law's damping, q7 free, continuous where the analytical inverse kinematics jumps);
+        the law's pull of the nullspace toward the start is left out."""
+        return self.kinematics.follow(
+            poses, self.q_now, damping=laws.PINV_DAMPING, iterations=FOLLOW_ITERATIONS
+        )
 
     def rates(self, poses: FloatArray, twists: FloatArray) -> FloatArray:
         return self.rates_at(self.configurations(poses), twists)
@@ -530,10 +519,9 @@ def joint_time_scale(s: CartesianSamples, joints: ArmJoints) -> float:
     q = joints.configurations(transforms(s.positions, s.orientations))
     dq = joints.rates_at(q, twists)
     # The accelerations along the arm's own motion: the rates one tick on at where these
-    # rates take the arm, not at the next sample's configuration. Near joints 1 and 3
-    # aligned (q2 = 0) the inverse kinematics splits their angle anew at every sample:
-    # configurations a tick apart could lie 0.2 rad apart, which no arm moving at dq
-    # reaches, and their rates' difference slowed a 15 cm move from the start pose 5x.
+    # rates take the arm (configurations taken from the inverse kinematics instead, which
+    # split joints 1 and 3 anew at every sample near q2 = 0, lay up to 0.2 rad apart a
+    # tick, and their rates' difference slowed a 15 cm move from the start pose 5x).
     ddq = (joints.rates_at(q[:-1] + dq[:-1] * PERIOD, twists[1:]) - dq[:-1]) / PERIOD
     with np.errstate(invalid="ignore"):
         v = np.abs(dq) / joints.velocity
