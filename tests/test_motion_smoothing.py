@@ -172,3 +172,55 @@ def test_a_move_from_the_start_pose_keeps_its_time_whatever_the_arms_noise() -> 
         assert np.linalg.norm(reached[:3, 3] - target[:3, 3]) < 2e-3
     assert max(durations) <= 1.01 * min(durations), durations
     assert max(durations) < 1.4
+
+
+def _joint_space_plan(q0: np.ndarray, goal: tuple[float, float, float]) -> object:
+    """panda-py < 1.0's form of move_to_pose (joint stiffness and damping given): the
+    straight path to ``goal`` (the start orientation kept) from ``q0``, as joint samples."""
+    from panda_py import fk
+    from panda_py.controllers import laws
+    from panda_py.kinematics import Kinematics
+    from panda_py.panda import planning
+    from panda_py.robots.params import START_POSE, get_robot
+
+    fer = get_robot("fer")
+    target = fk(np.array(START_POSE))
+    target[:3, 3] = goal
+    T = fk(q0)
+    p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
+    kwargs = {"stiffness": [600.0] * 7, "damping": [50.0] * 7}
+    positions, quats, opts = planning.parse_pose_targets((target,), kwargs)
+    plan = planning.pose_move(p0, quat, positions, quats, opts, q0, fer)
+    hand = Kinematics("fer").F_T_EE  # the robot's default end effector
+    return planning.pose_move_in_joint_space(plan, opts, q0, fer, hand)
+
+
+def test_the_joint_space_form_keeps_q7_where_its_inverse_kinematics_can() -> None:
+    from panda_py.robots.params import START_POSE
+
+    start = np.array(START_POSE)
+    plan = _joint_space_plan(start, (0.35, 0.1, 0.55))
+    q = plan.q  # type: ignore[attr-defined]
+    np.testing.assert_allclose(q[:, 6], start[6])  # panda-py's: the current q7 held
+
+
+def test_the_joint_space_form_crosses_q2_0_continuously() -> None:
+    """Where the inverse kinematics' case ends (q2 = 0, down in front of the robot) the
+    plan takes the configurations the arm passes through: once refused as out of reach."""
+    from panda_py import fk
+    from panda_py.robots.params import START_POSE, get_robot
+
+    fer = get_robot("fer")
+    q0 = np.array(START_POSE) + np.random.default_rng(3).normal(scale=1e-4, size=7)
+    plan = _joint_space_plan(q0, (0.5, 0.0, 0.17))
+    q = plan.q  # type: ignore[attr-defined]
+    assert q[0, 1] < 0.0 < q[-1, 1]
+    assert (np.abs(np.diff(q, axis=0)) / 1e-3 <= np.array(fer.joints.dq_max)).all()
+    np.testing.assert_allclose(fk(q[-1])[:3, 3], (0.5, 0.0, 0.17), atol=1e-4)
+
+
+def test_the_joint_space_form_refuses_a_path_out_of_reach() -> None:
+    from panda_py.robots.params import START_POSE
+
+    with pytest.raises(ValueError, match=r"leaves the fer's reach [\d.]+ s into the motion"):
+        _joint_space_plan(np.array(START_POSE), (1.2, 0.0, 0.5))

@@ -468,6 +468,9 @@ PLAN_JOINT_SHARE = 0.85
 # damped least-squares steps per pose when the arm's configurations follow a path (poses
 # 1 ms or a few millimetres apart: the second step leaves micrometres)
 FOLLOW_ITERATIONS = 2
+# [m] how far configurations following a path may be from it before it counts as out of
+# reach (where the arm can follow, they are within micrometres)
+REACH_TOLERANCE = 1e-3
 
 
 class ArmJoints:
@@ -536,20 +539,28 @@ def pose_move_in_joint_space(
     F_T_EE: FloatArray,
 ) -> JointPlan:  # fmt: skip
     """The sampled Cartesian plan as joint positions, velocities and accelerations: the
-    IK of every sample, in the current configuration's case and with the current q7,
-    tracked with the joint stiffness and damping of the plan's options (judged on the
-    pose by the caller: the joint success threshold is infinite)."""
+    IK of every sample, in the current configuration's case and with the current q7, as
+    panda-py's; where that path leaves its case or outruns the joints (across q2 = 0 it
+    splits joints 1 and 3 anew at every sample), the configurations the arm passes
+    through instead (:meth:`ArmJoints.configurations`: q7 moves), on which the plan's
+    timing was judged. Tracked with the joint stiffness and damping of the plan's options
+    (judged on the pose by the caller: the joint success threshold is infinite)."""
     from panda_py.kinematics import get_kinematics
 
+    kinematics = get_kinematics(spec, F_T_EE)
     poses = transforms(plan.position, plan.orientation)
-    q = get_kinematics(spec, F_T_EE).ik(poses, q_now, float(q_now[6]))
-    bad = np.flatnonzero(~np.isfinite(q).all(axis=1))
-    if bad.size:
-        t = bad[0] * PERIOD
-        raise ValueError(
-            f"pose: the straight path leaves the {spec.name}'s reach (no inverse kinematics "
-            f"solution with q7 = {q_now[6]:.3f} rad) {t:.3f} s into the motion"
-        )
+    q = kinematics.ik(poses, q_now, float(q_now[6]))
+    step = np.abs(np.diff(q, axis=0)) / PERIOD
+    if not (np.isfinite(q).all() and (step <= np.asarray(spec.joints.dq_max)).all()):
+        q = ArmJoints(spec, q_now, F_T_EE).configurations(poses)
+        off = np.linalg.norm(kinematics.fk(q)[:, :3, 3] - plan.position, axis=1)
+        bad = np.flatnonzero(~(off <= REACH_TOLERANCE))
+        if bad.size:
+            t = bad[0] * PERIOD
+            raise ValueError(
+                f"pose: the straight path leaves the {spec.name}'s reach {t:.3f} s into the "
+                f"motion (the arm following it ends up {off[bad[0]] * 1000:.1f} mm from it)"
+            )
     dq = np.gradient(q, PERIOD, axis=0)
     dq[0] = dq[-1] = 0.0
     ddq = np.gradient(dq, PERIOD, axis=0)
