@@ -517,14 +517,13 @@ class ArmJoints:
 def joint_time_scale(s: CartesianSamples, joints: ArmJoints) -> float:
     """How many times slower (>= 1) the samples (every PERIOD) must be run for the joints
     to stay within their bounds: the check of every sample after the profile (which bounds
-    them from points a few millimetres apart). Samples the arm cannot reach are left out."""
+    them from points a few millimetres apart), on the configurations the arm passes
+    through (:meth:`ArmJoints.configurations`)."""
     twists = np.hstack([s.velocities, s.angular_velocities])
     q = joints.configurations(transforms(s.positions, s.orientations))
     dq = joints.rates_at(q, twists)
-    # The accelerations along the arm's own motion: the rates one tick on at where these
-    # rates take the arm (configurations taken from the inverse kinematics instead, which
-    # split joints 1 and 3 anew at every sample near q2 = 0, lay up to 0.2 rad apart a
-    # tick, and their rates' difference slowed a 15 cm move from the start pose 5x).
+    # the accelerations along the arm's own motion: the rates one tick on, at where these
+    # rates take the arm
     ddq = (joints.rates_at(q[:-1] + dq[:-1] * PERIOD, twists[1:]) - dq[:-1]) / PERIOD
     with np.errstate(invalid="ignore"):
         v = np.abs(dq) / joints.velocity
