@@ -173,6 +173,33 @@ def test_across_spaces_the_blend_pulls_both_laws_toward_the_new_reference() -> N
     assert pose_push[0] > 0.7 * np.linalg.norm(pose_push[:3])
 
 
+def test_a_move_replaced_during_its_blend_carries_the_blend_on() -> None:
+    """A Cartesian move replaced by the same move 10 ms into its blend from a joint move
+    (90 % of its torque still the joint law's) goes on as if it had not been: the blend
+    carries on. Dropping the joint law's share at once stepped the torque and took joint
+    5 to 0.97 of its acceleration limit in the random preemptions."""
+    first = joint_law(Q0, Q0 + OFFSET)
+    follow(first, 300)
+    q, dq = first.ref[0].copy(), first.ref[1].copy()
+    # an arm a little off its reference, where the two spaces' laws push differently
+    state = make_state(q + 0.01 * np.sign(OFFSET), dq)
+    moves = []
+    for _ in range(2):
+        pose = pose_law(q, np.array([0.1, 0.0, -0.1]))
+        pose.handover(first, state, MODEL)
+        for _ in range(10):
+            pose.tick(PERIOD)
+            pose.step(state, MODEL)
+        moves.append(pose)
+    kept, replaced = moves
+    again = pose_law(q, np.array([0.1, 0.0, -0.1]))
+    again.handover(replaced, state, MODEL)
+    for law in (kept, again):
+        law.tick(PERIOD)
+    went_on, taken_over = kept.step(state, MODEL), again.step(state, MODEL)
+    np.testing.assert_allclose(taken_over, went_on, atol=0.05 * np.abs(went_on).max())
+
+
 def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     """A Cartesian lead-in that brakes a 0.5 m/s motion and turns toward a new goal, the
     orientation held: counted at the peaks its coordinates reach (the rotation: none), its

@@ -78,6 +78,17 @@ def tracker_for(plan: JointPlan | PosePlan) -> JointMove | PoseMove:
     raise TypeError(f"plan: expected a JointPlan or a PosePlan, got {type(plan).__name__}")
 
 
+def _smoothstep(x: float) -> float:
+    """3 x^2 - 2 x^3 on [0, 1]: from 0 to 1 with no step in the rate at either end."""
+    x = min(1.0, max(0.0, x))
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _smoothstep_inverse(y: float) -> float:
+    """The x in [0, 1] where :func:`_smoothstep` is y (in [0, 1])."""
+    return 0.5 - math.sin(math.asin(1.0 - 2.0 * min(1.0, max(0.0, y))) / 3.0)
+
+
 def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
                  frames: tuple[FloatArray, FloatArray] | None = None,
                  share: float = JOINT_SHARE) -> OnlineLimits:  # fmt: skip
@@ -180,6 +191,7 @@ class Tracker(ControlLaw):
         self.condition_time = math.nan
         self.successor: Tracker | None = None  # set when the condition hands over
         self.previous: Tracker | None = None  # the law it blends from (see _blend_from)
+        self.blend_start = 0.0  # [s] where in BLEND_TIME its blend began (see _blend_from)
         self.ref: tuple[FloatArray, ...] = ()  # this tick's reference (the subclass's space)
 
     def sample(self) -> int:
@@ -208,22 +220,37 @@ class Tracker(ControlLaw):
         even on one reference: blend from the previous law's torques to this one's over
         BLEND_TIME, so the torque (and the arm's acceleration) changes smoothly. Both laws
         track this move's reference (the previous one's own plan would pull the arm off it
-        and the new law catch up after the blend: up to 1.4x the planned accelerations)."""
-        same = prev is None or type(prev) is type(self)
-        self.previous = None if same else prev
-        if prev is not None:
-            prev.previous = None  # a chain of blends ends here
+        and the new law catch up after the blend: up to 1.4x the planned accelerations).
+        A blend that ``prev`` had not finished goes on from where it stood, so the torque
+        does not step when a move is replaced within BLEND_TIME of its own hand-over (a
+        Cartesian move 10 ms into its blend from a joint move, replaced by another, dropped
+        the joint law's 90 % share at once: joint 5 reached 0.97 of its acceleration
+        limit)."""
+        self.previous, self.blend_start = None, 0.0
+        if prev is None:
+            return
+        other = prev.previous
+        if other is not None and prev.t + prev.blend_start < BLEND_TIME:
+            share = _smoothstep((prev.t + prev.blend_start) / BLEND_TIME)  # prev's own
+            if type(prev) is type(self):  # on with prev's blend from the other space
+                self.previous, other_share = other, 1.0 - share
+            else:  # back toward the other space: blend from prev's part of the torque
+                self.previous, other_share = prev, share
+            self.blend_start = BLEND_TIME * _smoothstep_inverse(1.0 - other_share)
+        elif type(prev) is not type(self):
+            self.previous = prev
+        prev.previous = None  # a chain of blends ends here
 
     def _blended(self, tau: FloatArray, state: Any, model: Any) -> FloatArray:
         prev = self.previous
         if prev is None:
             return tau
-        if self.t >= BLEND_TIME:
+        x = (self.t + self.blend_start) / BLEND_TIME
+        if x >= 1.0:
             self.previous = None
             return tau
         prev.tick(self.dt)
-        s = self.t / BLEND_TIME
-        s = s * s * (3.0 - 2.0 * s)  # smoothstep: no step in the rate either
+        s = _smoothstep(x)  # no step in the rate either
         return s * tau + (1.0 - s) * prev.torque_toward(self.ref, state, model)
 
     def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
