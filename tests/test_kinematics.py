@@ -642,16 +642,18 @@ def test_the_jit_cache_is_invalidated_by_any_edit_to_what_it_compiles(
         ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"),
     )
     env = {"PYTHONPATH": str(src), "PANDA_PY_CACHE": str(tmp_path / "cache")}
+    # (a batch of one pose: the batch kernel compiles for that one call's types, the
+    # single-pose one for both of its signatures, twice the time)
     probe = (
         "import numpy as np, panda_py.kinematics as k\n"
         "from panda_py.kinematics import _numba\n"
         "T = np.eye(4); T[:3, :3] *= 1.01; T[:3, 3] = (0.5, 0.0, 0.4)\n"  # 1 % off rigid
         "try:\n"
-        "    k.ik(T); print('solved', end=' ')\n"
+        "    k.ik(T[None]); print('solved', end=' ')\n"
         "except ValueError:\n"
         "    print('refused', end=' ')\n"
-        "print(_numba.ik_one.stats.cache_hits.most_common(1)[0][1] "
-        "if _numba.ik_one.stats.cache_hits else 0)"
+        "print(_numba.ik_batch.stats.cache_hits.most_common(1)[0][1] "
+        "if _numba.ik_batch.stats.cache_hits else 0)"
     )
     assert _python(probe, **env) == "refused 0"  # compiled and cached
     assert _python(probe, **env) == "refused 1"  # loaded from the cache
