@@ -62,6 +62,16 @@ def test_a_random_smooth_joint_path_is_followed_pose_for_pose() -> None:
     assert np.abs(q[:, 6] - q_path[:, 6]).max() > 1e-3
 
 
+def test_from_the_stretched_out_arm_without_damping_the_steps_stay_finite() -> None:
+    kin = Kinematics("fer")
+    q0 = np.zeros(7)  # singular: joints 1, 3, 5 and 7 aligned
+    poses = np.tile(kin.fk(q0), (20, 1, 1))
+    poses[:, 0, 3] -= np.linspace(0.0, 0.05, 20)  # 5 cm back toward the base
+    q = kin.follow(poses, q0)
+    assert np.isfinite(q).all()
+    np.testing.assert_allclose(kin.fk(q)[:, :3, 3], poses[:, :3, 3], atol=1e-6)
+
+
 def test_the_backends_agree(backend: str) -> None:
     if backend == "pure":
         pytest.skip("compares both backends itself")

@@ -18,6 +18,15 @@ import numpy as np
 
 from panda_py.kinematics import _fk
 
+# the smallest square of a pivot of the Cholesky factor: without damping, a singular arm
+# leaves a step finite (in directions the error has next to nothing of)
+MIN_PIVOT = 1e-12
+
+
+def _rrt(T: Any, P: Any, a: int, b: int) -> float:
+    """Element (a, b) of R_T R_P^T: T a 4x4 pose, P a 3x4 row-major one."""
+    return T[a, 0] * P[4 * b] + T[a, 1] * P[4 * b + 1] + T[a, 2] * P[4 * b + 2]
+
 
 def _step(c: Any, T: Any, q: Any, damping: float, A: Any, e: Any) -> None:
     """One damped least-squares step of q (7,) toward the pose T (4, 4), in place."""
@@ -26,13 +35,9 @@ def _step(c: Any, T: Any, q: Any, damping: float, A: Any, e: Any) -> None:
     e[1] = T[1, 3] - P[7]
     e[2] = T[2, 3] - P[11]
     # the rotation error's small-angle vector: vee of R_d R^T's antisymmetric part
-    r = np.empty((3, 3))
-    for a in range(3):
-        for b in range(3):
-            r[a, b] = T[a, 0] * P[4 * b] + T[a, 1] * P[4 * b + 1] + T[a, 2] * P[4 * b + 2]
-    e[3] = 0.5 * (r[2, 1] - r[1, 2])
-    e[4] = 0.5 * (r[0, 2] - r[2, 0])
-    e[5] = 0.5 * (r[1, 0] - r[0, 1])
+    e[3] = 0.5 * (_rrt(T, P, 2, 1) - _rrt(T, P, 1, 2))
+    e[4] = 0.5 * (_rrt(T, P, 0, 2) - _rrt(T, P, 2, 0))
+    e[5] = 0.5 * (_rrt(T, P, 1, 0) - _rrt(T, P, 0, 1))
     cols = _fk.jacobian_columns(c, q, False)
     # A = J J^T + λ² I, then its Cholesky factor in the lower triangle
     for i in range(6):
@@ -47,7 +52,7 @@ def _step(c: Any, T: Any, q: Any, damping: float, A: Any, e: Any) -> None:
             s = A[i, j]
             for k in range(j):
                 s -= A[i, k] * A[j, k]
-            A[i, j] = math.sqrt(s) if i == j else s / A[j, j]
+            A[i, j] = math.sqrt(max(s, MIN_PIVOT)) if i == j else s / A[j, j]
     for i in range(6):  # L y = e
         s = e[i]
         for k in range(i):

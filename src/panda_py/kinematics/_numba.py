@@ -58,7 +58,7 @@ for _fn in (
     register_jitable(**_ARITH)(_fn)
 for _fn in (
     _fk.fk_range, _fk.frames_range, _fk.jacobian_range, _ik.ik_range, _ik.rigid_range,
-    _follow._step, _follow.follow_range,
+    _follow._rrt, _follow._step, _follow.follow_range,
 ):  # fmt: skip
     register_jitable(**_OPTS)(_fn)
 
