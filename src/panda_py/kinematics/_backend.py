@@ -151,11 +151,11 @@ def follow(
     iterations: int,
     out: NDArray[np.float64],
 ) -> None:
-    """``_follow.follow_range`` over all poses of P (N, 4, 4) from q0 (7,) into out (N, 7)."""
+    """``_follow.follow_path``: from q0 (7,) along the poses of P (N, 4, 4) into out (N, 7)."""
     j = jit()
     if j is None:
         with _plain_errstate():
-            _follow.follow_range(P, C.tolist(), q0, damping, iterations, out, 0, P.shape[0])
+            _follow.follow_path(P, C.tolist(), q0, damping, iterations, out)
     else:
         j.follow_batch(P, C, q0, float(damping), int(iterations), out)
 

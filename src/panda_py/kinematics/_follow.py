@@ -75,19 +75,16 @@ def _step(c: Any, T: Any, q: Any, damping: float, A: Any, e: Any) -> None:
         )
 
 
-def follow_range(
-    P: Any, C: Any, q0: Any, damping: float, iterations: int, out: Any, k0: int, k1: int
-) -> None:
-    """Rows k0..k1-1 of out (N, 7): for each pose of P (N, 4, 4) in order, the
-    configuration before it (``out[k0 - 1]``, or ``q0`` for row 0) moved by
-    ``iterations`` steps toward it; C the packed chain."""
+def follow_path(P: Any, C: Any, q0: Any, damping: float, iterations: int, out: Any) -> None:
+    """For each pose of P (N, 4, 4) in order, the configuration before it (``q0`` for the
+    first) moved by ``iterations`` steps toward it, into out (N, 7); C the packed chain."""
     c = _fk.unpack_chain(C)
     A = np.empty((6, 6))
     e = np.empty(6)
     q = np.empty(7)
     for i in range(7):
-        q[i] = q0[i] if k0 == 0 else out[k0 - 1, i]
-    for k in range(k0, k1):
+        q[i] = q0[i]
+    for k in range(P.shape[0]):
         T = P[k]
         for _ in range(iterations):
             _step(c, T, q, damping, A, e)

@@ -58,7 +58,7 @@ for _fn in (
     register_jitable(**_ARITH)(_fn)
 for _fn in (
     _fk.fk_range, _fk.frames_range, _fk.jacobian_range, _ik.ik_range, _ik.rigid_range,
-    _follow._rrt, _follow._step, _follow.follow_range,
+    _follow._rrt, _follow._step, _follow.follow_path,
 ):  # fmt: skip
     register_jitable(**_OPTS)(_fn)
 
@@ -185,8 +185,8 @@ def ik_batch_par(A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout:
 
 @_jit(**_OPTS)
 def follow_batch(P: Any, C: Any, q0: Any, damping: float, iterations: int, out: Any) -> None:
-    """``_follow.follow_range`` over all poses of P (N, 4, 4)."""
-    _follow.follow_range(P, C, q0, damping, iterations, out, 0, P.shape[0])
+    """``_follow.follow_path`` (compiled)."""
+    _follow.follow_path(P, C, q0, damping, iterations, out)
 
 
 @_jit(**_OPTS)

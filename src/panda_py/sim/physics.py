@@ -67,6 +67,7 @@ class Physics:
             raise RuntimeError("arm joints must be consecutive in the model")
         self.q0, self.v0 = int(self.qadr[0]), int(self.vadr[0])
         self.flange_site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "flange")
+        self._hand_body = int(m.site_bodyid[self.flange_site])  # what the flange is fixed to
         # The hand's fingers (-1 with the pump: no fingers, no finger motor).
         self.finger_q = self.finger_q2 = self.finger_v = self.finger_act = -1
         if self.end_effector is EndEffector.HAND:
@@ -94,8 +95,7 @@ class Physics:
         self._jacr = np.zeros((3, m.nv))
         self._M = np.zeros((m.nv, m.nv))
         self._qfrc = np.zeros(m.nv)  # the contacts' torques on every dof
-        self._JK, self._skew = np.zeros((6, 7)), np.zeros((3, 3))  # the wrench fit's
-        self._JJt, self._wrench = np.zeros((6, 6)), np.zeros(6)
+        self._JK, self._JJt, self._wrench = np.zeros((6, 7)), np.zeros((6, 6)), np.zeros(6)
         self.tau_applied = np.zeros(7)  # last gravity-free torque applied [Nm]
         self._coulomb = np.array(spec.drives.coulomb)  # [Nm] the plant's dry friction
         # Views onto MjData's arrays (MuJoCo never reallocates them).
@@ -233,17 +233,10 @@ class Physics:
         ``J_point^T F`` come closest to ``tau`` [Nm]: least squares, through the normal
         equations (a singular arm gives a finite wrench rather than an error); a buffer
         reused by the next call."""
-        m, d = self.model, self.data
-        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self.flange_site)
         sl = slice(self.v0, self.v0 + 7)
-        J, S = self._JK, self._skew
-        J[3:] = self._jacr[:, sl]
-        # at the point, v = v_F + w x r = v_F - [r]x w
-        r = point - d.site_xpos[self.flange_site]
-        S[0, 1], S[0, 2], S[1, 2] = -r[2], r[1], -r[0]
-        S[1, 0], S[2, 0], S[2, 1] = r[2], -r[1], r[0]
-        np.matmul(S, J[3:], out=J[:3])
-        np.subtract(self._jacp[:, sl], J[:3], out=J[:3])
+        mujoco.mj_jac(self.model, self.data, self._jacp, self._jacr, point, self._hand_body)
+        J = self._JK
+        J[:3], J[3:] = self._jacp[:, sl], self._jacr[:, sl]
         A = np.matmul(J, J.T, out=self._JJt)
         mujoco.mju_cholFactor(A, _WRENCH_MIN_PIVOT)
         mujoco.mju_cholSolve(self._wrench, A, J @ tau)

@@ -215,7 +215,7 @@ class StateAssembly:
         s["joint_collision"][:] = np.abs(tau) > t.upper_torque_nom
         # Wrench at K that explains tau_ext: least squares on tau = J_K^T F.
         O_T_K = O_T_EE @ self.EE_T_K
-        F = self.physics.wrench_explaining(tau, O_T_K[:3, 3])
+        F = self.physics.wrench_explaining(tau, np.ascontiguousarray(O_T_K[:3, 3]))
         s["O_F_ext_hat_K"][:] = F
         R = O_T_K[:3, :3]
         s["K_F_ext_hat_K"][:3] = R.T @ F[:3]
