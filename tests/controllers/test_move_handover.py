@@ -187,9 +187,10 @@ def test_a_move_replaced_during_its_blend_carries_the_blend_on() -> None:
     for _ in range(2):
         pose = pose_law(q, np.array([0.1, 0.0, -0.1]))
         pose.handover(first, state, MODEL)
-        for _ in range(10):
+        for _ in range(10):  # as the loop runs it
             pose.tick(PERIOD)
             pose.step(state, MODEL)
+            pose.published()
         moves.append(pose)
     kept, replaced = moves
     again = pose_law(q, np.array([0.1, 0.0, -0.1]))
@@ -226,6 +227,39 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
         peak = max(peak, float((np.abs(pinv @ gen.accel) / ddq_max).max()))
     assert 0.5 < peak <= 1.0 + 1e-3  # (pinv: undamped; the cap's is damped by 0.01)
     np.testing.assert_allclose(gen.position, p + np.array([-0.15, 0.15, 0.0]), atol=1e-9)
+
+
+def test_a_hand_over_caps_at_the_peaks_once_its_first_command_has_left() -> None:
+    """A Cartesian move taking over from one at 0.5 m/s starts its lead-in at the worst
+    case's limits (every axis at its limit at once: cheap, the hand-over's time is the
+    latency a replacement waits for), and once its first command has left (``published``,
+    as the loop calls it) at the peaks' higher ones; along the whole lead-in no joint is
+    asked for more than JOINT_SHARE of its acceleration limit."""
+    from panda_py.controllers.moves import JOINT_SHARE, joint_capped
+
+    J = MODEL.ee_jacobian(STATE0)
+    T = STATE0.O_T_EE
+    prev = pose_law(Q0, np.array([0.1, 0.0, 0.0]))
+    prev.ref = (T[12:15].copy(), laws.quat_from_matrix(T), np.array([0.5, 0, 0, 0, 0, 0.0]),
+                np.zeros(6))  # fmt: skip
+    law = pose_law(Q0, np.array([-0.15, 0.15, 0.0]))
+    law.handover(prev, STATE0, MODEL)
+    worst = joint_capped(law.limits, J, FER, law.gen.frames)
+    assert law.gen.limits.acceleration == worst.acceleration
+    assert worst.acceleration[0] < law.limits.acceleration[0]
+    pinv = np.linalg.pinv(J)
+    ddq_max = JOINT_SHARE * np.array(FER.joints.ddq_max)
+    peak = 0.0
+    for k in range(5000):
+        law.tick(PERIOD)
+        law.step(STATE0, MODEL)
+        law.published()
+        if k == 0:
+            assert law.gen.limits.acceleration[0] > 1.1 * worst.acceleration[0]
+        peak = max(peak, float((np.abs(pinv @ law.ref[3]) / ddq_max).max()))
+        if law.gen.finished:
+            break
+    assert law.gen.finished and 0.5 < peak <= 1.0 + 1e-3  # (pinv: undamped; the cap's: 0.01)
 
 
 @dataclass(frozen=True)

@@ -453,6 +453,7 @@ class PoseMove(Tracker):
         self.limits = plan.limits
         self.stop_limits = plan.stop_limits or plan.limits
         self.spec: Any = None  # the robot's (the model's), known from the first tick
+        self.refine = False  # the lead-in's limits are the worst case's (see published)
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
 
     def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
@@ -467,11 +468,31 @@ class PoseMove(Tracker):
         g = self.gen
         g.reset_toward(p, quat, v, a, self.p[j], self.quat[j], self.v[j], self.a[j])
         self.ref = (g.position.copy(), g.orientation.copy(), g.twist.copy(), g.accel.copy())
-        # within the joints' limits here (a Cartesian bound can ask a joint for more)
-        joint_capped_peaks(self.gen, self.limits, model.ee_jacobian(state), model.spec)
+        # within the joints' limits here (a Cartesian bound can ask a joint for more): at
+        # once every axis counted at its limit, then, after the first tick's command has
+        # left, at the peaks its trajectory reaches (see published)
+        worst = joint_capped(self.limits, model.ee_jacobian(state), model.spec, g.frames)
+        g.set_limits(worst)
+        self.refine = worst is not self.limits
         self.k0, self.leading = j, True
         self.t_end = self.duration = math.inf
         self._blend_from(prev)
+
+    def published(self) -> None:
+        """After a hand-over's first command: the lead-in's limits counted at the peaks its
+        coordinates reach (:func:`joint_capped_peaks`, up to three of ruckig's whole
+        trajectories: 0.2 ms, most of a hand-over's time, which it no longer delays), from
+        the generator's state and this tick's Jacobian. Until then the lead-in ran at the
+        worst case's limits, lower or equal: the generator goes on from its state, within
+        the new limits, with no step in its acceleration."""
+        if not self.refine:
+            return
+        J = self.law.J_prev  # (this tick's, once the law has stepped)
+        if J is None or self.spec is None:
+            return
+        self.refine = False
+        if self.leading and not self.stopping:
+            joint_capped_peaks(self.gen, self.limits, J, self.spec)
 
     def off_start(self, state: Any) -> bool:
         pos = float(np.linalg.norm(state.O_T_EE[12:15] - self.p[0]))
