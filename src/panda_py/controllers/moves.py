@@ -483,8 +483,10 @@ class PoseMove(Tracker):
         coordinates reach (:func:`joint_capped_peaks`, up to three of ruckig's whole
         trajectories: 0.2 ms, most of a hand-over's time, which it no longer delays), from
         the generator's state and this tick's Jacobian. Until then the lead-in ran at the
-        worst case's limits, lower or equal: the generator goes on from its state, within
-        the new limits, with no step in its acceleration."""
+        worst case's limits (the peaks' cap is mostly higher; it is lower where the arm's
+        own motion at the hand-over already asks a joint for more): the generator goes on
+        from its state under the new limits, jerk-limited, with no step in its
+        acceleration."""
         if not self.refine:
             return
         J = self.law.J_prev  # (this tick's, once the law has stepped)
