@@ -40,6 +40,13 @@ def test_import_pulls_in_no_simulator_mujoco_or_numba(module: str) -> None:
         assert not [m for m in loaded if m.startswith("panda_py.sim")]
 
 
-def test_the_simulator_loads_mujoco_when_asked_for() -> None:
-    loaded = _modules_after("from panda_py.sim import Simulator")
-    assert {"mujoco", "panda_py.sim.api"} <= loaded
+def test_the_simulator_loads_mujoco_in_its_own_process_only() -> None:
+    """``Simulator`` starts the simulated robot in a child process: the caller's process
+    loads its API, not MuJoCo or the server (a fifth of a second of every script's start);
+    the server, run in process (``panda-sim``), loads MuJoCo."""
+    loaded = _modules_after("from panda_py.sim import Simulator, SimConfig")
+    assert "panda_py.sim.api" in loaded
+    assert not {"mujoco", "numba", "panda_py.sim.server", "panda_py.sim.physics"} & loaded
+    assert {"mujoco", "panda_py.sim.physics"} <= _modules_after(
+        "from panda_py.sim.server import SimServer"
+    )

@@ -3,10 +3,11 @@
 Use :class:`Simulator` from Python, ``panda-sim`` from the shell, or the ``panda_sim``
 pytest fixture (``panda_py.sim.testing``).
 
-Importing this package is cheap: MuJoCo and the simulator's modules load on first use of
-one of the names below (PEP 562), so the pytest plugin, which lives in this package and
-is imported into every pytest session of the environment, costs nothing until a test
-asks for a simulator.
+Importing this package is cheap: the names below load on first use (PEP 562), so the
+pytest plugin, which lives in this package and is imported into every pytest session of
+the environment, costs nothing until a test asks for a simulator. Even then the caller's
+process loads neither MuJoCo nor the simulator's server: :class:`Simulator` runs them in
+a process of its own.
 """
 
 from __future__ import annotations
@@ -16,11 +17,11 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from panda_py.sim.api import Simulator, SimulatorError, free_loopback_host
-    from panda_py.sim.server import SimConfig
+    from panda_py.sim.config import SimConfig
 
 # public name -> submodule that defines it
 _LAZY: dict[str, str] = {
-    "SimConfig": "panda_py.sim.server",
+    "SimConfig": "panda_py.sim.config",
     "Simulator": "panda_py.sim.api",
     "SimulatorError": "panda_py.sim.api",
     "free_loopback_host": "panda_py.sim.api",

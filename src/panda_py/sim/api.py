@@ -28,9 +28,9 @@ from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.camera import Camera, check_camera_size
 from panda_py.sim.children import start_child, stop_child
+from panda_py.sim.config import SimConfig
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
 from panda_py.sim.drawing import DrawingError, DrawingProcess, start_drawing, stop_drawing
-from panda_py.sim.server import SimConfig
 from panda_py.sim.video import DEFAULT_FPS, check_record
 
 log = logging.getLogger("panda_py.sim")
