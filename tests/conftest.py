@@ -22,7 +22,8 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     """``--numprocesses=auto``: a worker per core and one more (pyproject's addopts cap it
     at 4). Much of the suite waits (robot time, the peer clients' sleeps, a grasp held): a
     worker per core left 103-109 of 620 core-seconds idle on a 2-core VM and ran in
-    311-314 s; with three workers 25 were idle and it ran in 281-297 s. The tests that judge
+    311-314 s; with three workers 25 were idle and it ran in 281-297 s
+    (315-320 s in an hour when the machine ran 1.4x slower). The tests that judge
     wall-clock timing run alone whatever the count (``exclusive``)."""
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return (cores or 1) + 1
