@@ -493,7 +493,7 @@ class PoseMove(Tracker):
         if J is None or self.spec is None:
             return
         self.refine = False
-        if self.leading and not self.stopping:
+        if self.leading and not self.stopping and not self.gen.finished:
             joint_capped_peaks(self.gen, self.limits, J, self.spec)
 
     def off_start(self, state: Any) -> bool:
