@@ -279,3 +279,67 @@ def test_the_compiled_pose_output_equals_the_python_reference() -> None:
                 np.testing.assert_allclose(getattr(gen, n), want, rtol=1e-12, atol=1e-12)
             checked += 1
     assert checked == 900
+
+
+def test_the_compiled_steps_sample_exactly_what_ruckig_steps_to(monkeypatch) -> None:
+    """Compiled, ruckig steps once after each change of the generator's input, and the
+    steps after it sample the trajectory it calculated (``_online_jit.sample``); ruckig's
+    ``update`` alone steps to the same states, bit for bit, with the same ``finished`` and
+    durations: from states beyond the limits (ruckig brakes first), toward new targets
+    mid-motion, after new limits, and to rest. The pose generator's outputs likewise."""
+    from panda_py.motion import _online_jit, online
+
+    kernels = online._compiled()
+    assert kernels is not None  # numba comes with the package here
+    assert online._ROW == _online_jit.ROW
+    rng = np.random.default_rng(4)
+
+    def both(gens: list, method: str, *args: object) -> list:  # type: ignore[type-arg]
+        """``gens[0].method(*args)`` through ruckig's update, ``gens[1]``'s compiled."""
+        out = []
+        for compiled, gen in zip((False, True), gens, strict=True):
+            monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+            out.append(getattr(gen, method)(*args))
+        return out
+
+    slow, fast = OnlineLimits.joints(FER, 0.3), OnlineLimits.joints(FER, 1.0)
+    names = ("position", "velocity", "acceleration")
+    steps = 0
+    for _ in range(25):
+        q = rng.uniform(-1.0, 1.0, 7)
+        v = rng.normal(0.0, 1.5, 7) * np.array(slow.velocity)  # some beyond the limits
+        a = rng.normal(0.0, 0.5, 7) * np.array(slow.acceleration)
+        gens = [OnlineGenerator(slow), OnlineGenerator(slow)]
+        both(gens, "reset", q, v, a)
+        for change in range(5):
+            if change == 2:
+                both(gens, "set_limits", fast)
+            if change == 4:
+                both(gens, "set_rest")
+            else:
+                both(gens, "set_target", q + rng.uniform(-0.5, 0.5, 7))
+            for _ in range(int(rng.integers(1, 300))):
+                want, got = both(gens, "step")
+                assert got == want
+                assert gens[1].duration == gens[0].duration
+                for name in names:
+                    np.testing.assert_array_equal(getattr(gens[1], name), getattr(gens[0], name))
+                steps += 1
+    assert steps > 2_000
+
+    limits = OnlineLimits.cartesian(FER, 0.5)
+    poses = [OnlinePose(limits), OnlinePose(limits)]
+    both(poses, "reset", np.array([0.3, 0.0, 0.5]), np.array([1.0, 0.0, 0.0, 0.0]),
+         rng.normal(0.0, 0.1, 6), np.zeros(6))  # fmt: skip
+    for change in range(4):
+        if change == 3:
+            both(poses, "set_rest")
+        else:
+            quat = rng.normal(size=4)
+            both(poses, "set_target", poses[0].position + rng.normal(0.0, 0.2, 3), quat)
+        for _ in range(200):
+            want, got = both(poses, "step")
+            assert got == want
+            for name in ("position", "orientation", "twist", "accel"):
+                np.testing.assert_allclose(getattr(poses[1], name), getattr(poses[0], name),
+                                           rtol=1e-12, atol=1e-12)  # fmt: skip

@@ -1,7 +1,14 @@
-""":class:`panda_py.motion.online.OnlinePose`'s per-tick output, compiled by numba: the
-generator's aligned coordinates turned into the base frame's position, orientation, twist
-and acceleration in one call of about a microsecond, where the same scalar Python
-(``OnlinePose._publish_python``, the reference: tests hold them together) takes 8-10 us.
+""":mod:`panda_py.motion.online`'s per-tick work, compiled by numba:
+
+* :func:`sample`: the state of a trajectory ruckig calculated, at a time, from its
+  profiles packed once (:func:`~panda_py.motion.online.pack`): ruckig's own sampling
+  (``Trajectory::at_time``, in its arithmetic: tests hold the two equal, bit for bit),
+  without a call into ruckig and the conversion of its outputs each tick;
+* :func:`publish_pose`: :class:`~panda_py.motion.online.OnlinePose`'s generator's aligned
+  coordinates turned into the base frame's position, orientation, twist and acceleration
+  in one call of about a microsecond, where the same scalar Python
+  (``OnlinePose._publish_python``, the reference) takes 8-10 us; :func:`sample_pose`, both
+  in one call.
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
 per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
@@ -16,10 +23,69 @@ import numpy as np
 
 from panda_py import jitcache
 
-__all__ = ["aim", "publish_pose"]
+__all__ = ["ROW", "aim", "publish_pose", "sample", "sample_pose"]
 
 # the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
 KEY = jitcache.source_key([Path(__file__)])
+
+# a packed profile's row (one coordinate): the brake's duration, its two phases' times,
+# jerks, accelerations, velocities and positions; the profile's phase durations (7),
+# jerks (7), and accelerations, velocities and positions at the phases' starts and its
+# end (8 each) (online.pack writes it, sample reads it)
+BRAKE_T, BRAKE_J, BRAKE_A, BRAKE_V, BRAKE_P = 1, 3, 5, 7, 9
+T, J, A, V, P = 11, 18, 25, 33, 41
+ROW = 49
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore[no-untyped-def,unused-ignore]
+    """The state at time ``t`` [s] of a one-section trajectory of ``duration`` [s] packed
+    in ``traj`` (n, ROW) into ``position``, ``velocity``, ``acceleration`` (each (n,)):
+    ruckig's ``Trajectory::at_time`` (its brake pre-trajectory, the profile's phase at
+    ``t``, and the last phase's acceleration kept after the end), in its arithmetic."""
+    ends = np.empty(7)
+    for d in range(traj.shape[0]):
+        r = traj[d]
+        brake = r[0]
+        total = 0.0  # the phases' ends, summed in order as ruckig sums them
+        for i in range(7):
+            total += r[T + i]
+            ends[i] = total
+        j = 0.0
+        if t >= duration:  # after the end: keep the acceleration
+            tt = t - (brake + ends[6])
+            p0, v0, a0 = r[P + 7], r[V + 7], r[A + 7]
+        else:
+            tt = t
+            if brake > 0.0 and tt < brake:  # braking first
+                i = 0 if tt < r[BRAKE_T] else 1
+                if i > 0:
+                    tt -= r[BRAKE_T]
+                p0, v0, a0, j = r[BRAKE_P + i], r[BRAKE_V + i], r[BRAKE_A + i], r[BRAKE_J + i]
+            else:
+                if brake > 0.0:
+                    tt -= brake
+                if tt >= ends[6]:  # this coordinate ended before the others
+                    tt -= ends[6]
+                    p0, v0, a0 = r[P + 7], r[V + 7], r[A + 7]
+                else:
+                    i = 0  # the first phase that ends after tt (upper bound)
+                    while ends[i] <= tt:
+                        i += 1
+                    if i > 0:
+                        tt -= ends[i - 1]
+                    p0, v0, a0, j = r[P + i], r[V + i], r[A + i], r[J + i]
+        position[d] = p0 + tt * (v0 + tt * (a0 / 2 + tt * j / 6))
+        velocity[d] = v0 + tt * (a0 + tt * j / 2)
+        acceleration[d] = a0 + tt * j
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def sample_pose(traj, duration, t, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel):  # type: ignore[no-untyped-def,unused-ignore]
+    """:func:`sample` into the generator's ``p``, ``v``, ``a`` (6,), then
+    :func:`publish_pose` from them: an OnlinePose's compiled step in one call."""
+    sample(traj, duration, t, p, v, a)
+    publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel)
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")

@@ -5,10 +5,11 @@ gentle stop, targets streamed by a policy).
 :class:`OnlineGenerator` advances one robot period per :meth:`~OnlineGenerator.step`
 from the current position, velocity and acceleration toward a target state (or to rest),
 under per-coordinate velocity, acceleration and jerk limits. It runs on ruckig (Berscheid
-& Kröger, RSS 2021), a library made for exactly this: with this wrapper, a step on 7
-joints costs 1.6 us toward an unchanged target and 5 us toward a new one
-(``benchmarks/bench_online.py``), well under the 20 us budget and what a generator of our
-own in Python would cost.
+& Kröger, RSS 2021), a library made for exactly this: ruckig calculates the trajectory at
+each new target, and the steps after it sample that trajectory compiled (numba; ruckig's
+own sampling, in its arithmetic). A step on 7 joints costs 0.8 us toward an unchanged
+target and 8.5 us toward a new one (``benchmarks/bench_online.py``, 2026-11-27; 2.7 us
+toward an unchanged target through ruckig's ``update``), well under the 20 us budget.
 Inputs and outputs are allocated once.
 
 :class:`OnlinePose` runs one for a Cartesian pose: the position and the orientation as a
@@ -152,6 +153,30 @@ def _factor(value: float) -> float:
     return v
 
 
+_ROW = 49  # _online_jit.ROW (a test holds them equal): importing it would load numba
+
+
+def pack(traj: Trajectory, out: FloatArray) -> None:
+    """A one-section trajectory's profiles into ``out`` (n, _ROW), a row per coordinate,
+    as ``_online_jit.sample`` reads them: the brake's duration, and its two phases'
+    times, jerks, accelerations, velocities, positions; the profile's phase durations and
+    jerks (7 each), accelerations, velocities and positions (8 each)."""
+    flat: list[float] = []
+    for profile in traj.profiles[0]:
+        brake = profile.brake
+        duration = brake.duration
+        flat.append(duration)
+        if duration > 0.0:
+            flat += [*brake.t, *brake.j, *brake.a, *brake.v, *brake.p]
+        else:
+            flat += _NO_BRAKE
+        flat += [*profile.t, *profile.j, *profile.a, *profile.v, *profile.p]
+    out.reshape(-1)[:] = flat
+
+
+_NO_BRAKE = [0.0] * 10
+
+
 class OnlineGenerator:
     """A jerk-limited, time-optimal trajectory in ``n`` coordinates, advanced one robot
     period at a time; ``position``, ``velocity``, ``acceleration`` are its state after the
@@ -164,6 +189,15 @@ class OnlineGenerator:
         self._inp = InputParameter(n)
         self._out = OutputParameter(n)
         self._inp.synchronization = Synchronization.Phase  # straight lines where it can
+        # compiled (see step): the trajectory ruckig calculated at the last change of its
+        # input, packed here and sampled each tick at _time [s] since; _changed: the input
+        # changed since; _fresh: ruckig's step calculated it, not packed yet; _moved: the
+        # state advanced since the input last had it
+        self._packed = np.zeros((n, _ROW))
+        self._time = 0.0
+        self._changed = True
+        self._fresh = False
+        self._moved = False
         self.set_limits(limits)
         self.position = np.zeros(n)
         self.velocity = np.zeros(n)
@@ -178,7 +212,7 @@ class OnlineGenerator:
         self.limits = limits
         self._vmax = np.array(limits.velocity)
         self._amax = np.array(limits.acceleration)
-        inp = self._inp
+        inp = self._input()
         inp.max_velocity = list(limits.velocity)
         inp.max_acceleration = list(limits.acceleration)
         inp.max_jerk = list(limits.jerk)
@@ -213,6 +247,7 @@ class OnlineGenerator:
         self.position[:] = position
         self.velocity[:] = velocity
         self.acceleration[:] = acceleration
+        self._changed, self._moved = True, False
 
     def set_target(
         self,
@@ -222,7 +257,7 @@ class OnlineGenerator:
     ) -> None:
         """Go to ``position`` and arrive with ``velocity`` and ``acceleration`` (default
         at rest), each clipped to the limits (a target state beyond them is unreachable)."""
-        inp = self._inp
+        inp = self._input()
         inp.control_interface = ControlInterface.Position
         inp.target_position = list(map(float, position))
         v = np.zeros(self.n) if velocity is None else np.clip(velocity, -self._vmax, self._vmax)
@@ -250,7 +285,7 @@ class OnlineGenerator:
 
     def set_rest(self) -> None:
         """Come to rest as fast as the limits allow, wherever that is."""
-        inp = self._inp
+        inp = self._input()
         inp.control_interface = ControlInterface.Velocity
         inp.target_velocity = [0.0] * self.n
         inp.target_acceleration = [0.0] * self.n
@@ -263,7 +298,7 @@ class OnlineGenerator:
         is unchanged); None where ruckig cannot."""
         traj = Trajectory(self.n)
         try:
-            result = self._otg.calculate(self._inp, traj)
+            result = self._otg.calculate(self._input(change=False), traj)
         except RuckigError:
             return None
         if result != Result.Working:
@@ -285,9 +320,57 @@ class OnlineGenerator:
                 v_peak[i], a_peak[i] = vp, ap
         return np.array(v_peak), np.array(a_peak)
 
+    def _input(self, change: bool = True) -> InputParameter:
+        """ruckig's input, its current state made the generator's where the compiled steps
+        advanced past it (ruckig's own steps keep it so); ``change``: about to be changed
+        (the next compiled step calculates anew)."""
+        inp = self._inp
+        if self._moved:
+            inp.current_position = self.position.tolist()
+            inp.current_velocity = self.velocity.tolist()
+            inp.current_acceleration = self.acceleration.tolist()
+            self._moved = False
+        if change:
+            self._changed = True
+        return inp
+
     def step(self) -> bool:
-        """Advance one period; True once the target (or rest) is reached."""
+        """Advance one period; True once the target (or rest) is reached.
+
+        Compiled (numba), ruckig steps once after each change of its input (it calculates
+        the trajectory), and the steps after it sample that trajectory
+        (``_online_jit.sample``: ruckig's own sampling, in its arithmetic), where ruckig's
+        ``update`` cost a call and the conversion of its outputs each tick (packing the
+        trajectory costs about as much as a dozen of those: a target changed every tick is
+        never packed)."""
+        kernels = _compiled()
+        if kernels is None or self._changed:
+            return self._step_ruckig()
+        t = self._advance()
+        kernels.sample(self._packed, self.duration, t, self.position, self.velocity,
+                       self.acceleration)  # fmt: skip
+        return self.finished
+
+    def _advance(self) -> float:
+        """A compiled step's bookkeeping (the input unchanged since ruckig's step): the
+        trajectory packed if ruckig's step just calculated it, the time advanced one period
+        (returned: when to sample), ``finished`` (as ruckig's: once the time passed the
+        duration)."""
+        if self._fresh:
+            out = self._out
+            pack(out.trajectory, self._packed)
+            self._time = out.time
+            self._fresh = False
+        self._time += PERIOD
+        self._moved = True
+        self.finished = self._time > self.duration
+        return self._time
+
+    def _step_ruckig(self) -> bool:
+        """:meth:`step` by ruckig's ``update``."""
         out, inp = self._out, self._inp
+        if self._changed:  # its own copy of the input may be stale (compiled steps): anew
+            self._otg.reset()
         try:
             result = self._otg.update(inp, out)
         except RuckigError:  # a numerical corner of one synchronization: try the next
@@ -301,6 +384,8 @@ class OnlineGenerator:
         self.acceleration[:] = out.new_acceleration
         out.pass_to_input(self._inp)
         self.finished = result == Result.Finished
+        self._fresh = out.new_calculation or self._fresh
+        self._changed = False
         return self.finished
 
 
@@ -506,9 +591,21 @@ class OnlinePose:
 
     def step(self) -> bool:
         """Advance one period; True once the target (or rest) is reached."""
-        done = self.gen.step()
-        self._publish()
-        return done
+        kernels = _compiled()
+        if kernels is None:
+            done = self.gen.step()
+            self._publish_python()
+            return done
+        g = self.gen
+        if g._changed:  # ruckig's step (it calculates), then the output
+            done = g.step()
+            self._publish()
+            return done
+        t = g._advance()  # the generator's compiled step and the output in one call
+        kernels.sample_pose(g._packed, g.duration, t, g.position, g.velocity, g.acceleration,
+                            self._Ft, self._Fr, self._R0, self._q0, self.position,
+                            self.orientation, self.twist, self.accel)  # fmt: skip
+        return g.finished
 
     def _publish(self) -> None:
         kernels = _compiled()
