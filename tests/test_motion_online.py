@@ -343,3 +343,52 @@ def test_the_compiled_steps_sample_exactly_what_ruckig_steps_to(monkeypatch) -> 
             for name in ("position", "orientation", "twist", "accel"):
                 np.testing.assert_allclose(getattr(poses[1], name), getattr(poses[0], name),
                                            rtol=1e-12, atol=1e-12)  # fmt: skip
+
+
+def test_the_compiled_new_target_equals_the_python_reference(monkeypatch) -> None:
+    """OnlinePose.set_target mid-motion (the anchor moved to the current orientation, the
+    rotation vector's rates turned by its right Jacobian, then the restart toward the
+    target) is the same compiled (``_online_jit.retarget``) as in NumPy: anchors, frames,
+    the generator's start and goal, with and without a rotation under way, and with the
+    arrival twist and acceleration given."""
+    from panda_py.motion import _online_jit, online
+
+    kernels = online._compiled()
+    assert kernels is not None  # numba comes with the package here
+    assert _online_jit.SMALL_ANGLE == rotation.SMALL_ANGLE
+    limits = OnlineLimits.cartesian(get_robot("fr3"), 1.0)
+    rng = np.random.default_rng(12)
+
+    def moving(seed: int) -> OnlinePose:
+        """A pose generator some ticks into a move (the same for the same seed)."""
+        r = np.random.default_rng(seed)
+        gen = OnlinePose(limits)
+        quat = r.normal(size=4)
+        gen.reset(r.uniform(-0.5, 0.5, 3), quat / np.linalg.norm(quat), r.normal(0.0, 0.2, 6),
+                  np.zeros(6))  # fmt: skip
+        if seed % 5:  # else at rest where it started: no rotation under way
+            gen.set_target(
+                gen.position + r.normal(0.0, 0.2, 3),
+                rotation.multiply(gen.orientation, rotation.exp(r.normal(0, 0.5, 3))),
+            )
+            for _ in range(int(r.integers(2, 200))):
+                gen.step()
+        return gen
+
+    for seed in range(60):
+        target = rng.uniform(-0.5, 0.5, 3)
+        quat = rng.normal(size=4) * rng.uniform(0.5, 2.0)  # any norm
+        arrive = (rng.normal(0.0, 0.1, 6), rng.normal(0.0, 0.5, 6)) if seed % 3 == 0 else ()
+        got = []
+        for compiled in (False, True):
+            gen = moving(seed)
+            monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+            gen.set_target(target, quat, *arrive)
+            inp = gen.gen._inp
+            got.append([gen._q0, gen._R0, gen._Ft, gen._Fr, np.array(inp.current_position),
+                        np.array(inp.current_velocity), np.array(inp.current_acceleration),
+                        np.array(inp.target_position), np.array(inp.target_velocity),
+                        np.array(inp.target_acceleration)])  # fmt: skip
+            monkeypatch.setattr(online, "_KERNELS", kernels)
+        for want, have in zip(*got, strict=True):
+            np.testing.assert_allclose(have, want, rtol=1e-12, atol=1e-12)

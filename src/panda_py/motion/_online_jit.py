@@ -23,7 +23,7 @@ import numpy as np
 
 from panda_py import jitcache
 
-__all__ = ["ROW", "aim", "publish_pose", "sample", "sample_pose"]
+__all__ = ["ROW", "aim", "publish_pose", "retarget", "sample", "sample_pose"]
 
 # the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
 KEY = jitcache.source_key([Path(__file__)])
@@ -35,6 +35,8 @@ KEY = jitcache.source_key([Path(__file__)])
 BRAKE_T, BRAKE_J, BRAKE_A, BRAKE_V, BRAKE_P = 1, 3, 5, 7, 9
 T, J, A, V, P = 11, 18, 25, 33, 41
 ROW = 49
+# rotation.SMALL_ANGLE (a test holds them equal; the key covers this file only)
+SMALL_ANGLE = 1e-8
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -97,9 +99,10 @@ def _mv(A, x, i0, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignore]
-    """``J_l(x) y``: ``y + a (x × y) + b x × (x × y)`` (the rotation vector's left
-    Jacobian, series expansions near 0 as the Python reference)."""
+def _jacobian_times(x, y, sign, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``J(x) y`` for SO(3)'s left (``sign`` 1) or right (-1) Jacobian of the rotation
+    vector ``x``: ``y + sign a (x × y) + b x × (x × y)`` (series expansions near 0, as the
+    Python reference ``online._jacobian_times``)."""
     x0, x1, x2 = x[0], x[1], x[2]
     y0, y1, y2 = y[0], y[1], y[2]
     th2 = x0 * x0 + x1 * x1 + x2 * x2
@@ -108,11 +111,18 @@ def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignor
     else:
         th = math.sqrt(th2)
         a, b = (1.0 - math.cos(th)) / th2, (th - math.sin(th)) / (th2 * th)
+    a *= sign
     c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
     d0, d1, d2 = x1 * c2 - x2 * c1, x2 * c0 - x0 * c2, x0 * c1 - x1 * c0
     out[0] = y0 + a * c0 + b * d0
     out[1] = y1 + a * c1 + b * d1
     out[2] = y2 + a * c2 + b * d2
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``J_l(x) y`` (:func:`_jacobian_times` with ``sign`` 1)."""
+    _jacobian_times(x, y, 1.0, out)
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -220,3 +230,50 @@ def aim(p, v, a, x, xd, xdd, q0, target, quat, Ft, Fr, start_p, start_v, start_a
     _mtv(Fr, xdd, start_a, 3)
     _mtv(Ft, target, goal, 0)
     _mtv(Fr, xt, goal, 3)
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def retarget(gp, gv, ga, Ft, Fr, q0, target, quat, anchor, R0, Ft2, Fr2, sp, sv, sa, goal):  # type: ignore[no-untyped-def,unused-ignore]
+    """``OnlinePose.set_target``'s arithmetic in one call: the generator's state ``gp``,
+    ``gv``, ``ga`` (6,: the translation in frame ``Ft``, the rotation vector about the
+    anchor ``q0`` in frame ``Fr``) in the base frame, the anchor moved to the current
+    orientation (into ``anchor`` (4,) and ``R0`` (3, 3); the rotation vector becomes 0,
+    its rates turned by its right Jacobian), then :func:`aim` toward ``target`` (3,),
+    ``quat`` (4, x y z w, any norm): the new frames ``Ft2``, ``Fr2``, the generator's
+    start state ``sp``, ``sv``, ``sa`` and goal in them, in place."""
+    p, v, a = np.empty(3), np.empty(3), np.empty(3)
+    x, xd, xdd = np.empty(3), np.empty(3), np.empty(3)
+    _mv(Ft, gp, 0, p, 0)
+    _mv(Ft, gv, 0, v, 0)
+    _mv(Ft, ga, 0, a, 0)
+    _mv(Fr, gp, 3, x, 0)
+    _mv(Fr, gv, 3, xd, 0)
+    _mv(Fr, ga, 3, xdd, 0)
+    qx, qy, qz, qw = q0[0], q0[1], q0[2], q0[3]
+    if x[0] != 0.0 or x[1] != 0.0 or x[2] != 0.0:
+        th = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        k = 0.5 - th * th / 48.0 if th < SMALL_ANGLE else math.sin(0.5 * th) / th
+        ex, ey, ez, ew = k * x[0], k * x[1], k * x[2], math.cos(0.5 * th)
+        anchor[0] = qw * ex + qx * ew + qy * ez - qz * ey
+        anchor[1] = qw * ey - qx * ez + qy * ew + qz * ex
+        anchor[2] = qw * ez + qx * ey - qy * ex + qz * ew
+        anchor[3] = qw * ew - qx * ex - qy * ey - qz * ez
+        rates = np.empty(3)
+        _jacobian_times(x, xd, -1.0, rates)
+        xd[:] = rates
+        _jacobian_times(x, xdd, -1.0, rates)
+        xdd[:] = rates
+        x[:] = 0.0
+    else:
+        anchor[0], anchor[1], anchor[2], anchor[3] = qx, qy, qz, qw
+    x_, y, z, w = anchor[0], anchor[1], anchor[2], anchor[3]
+    R0[0, 0] = 1 - 2 * (y * y + z * z)
+    R0[0, 1] = 2 * (x_ * y - z * w)
+    R0[0, 2] = 2 * (x_ * z + y * w)
+    R0[1, 0] = 2 * (x_ * y + z * w)
+    R0[1, 1] = 1 - 2 * (x_ * x_ + z * z)
+    R0[1, 2] = 2 * (y * z - x_ * w)
+    R0[2, 0] = 2 * (x_ * z - y * w)
+    R0[2, 1] = 2 * (y * z + x_ * w)
+    R0[2, 2] = 1 - 2 * (x_ * x_ + y * y)
+    aim(p, v, a, x, xd, xdd, anchor, target, quat, Ft2, Fr2, sp, sv, sa, goal)

@@ -529,8 +529,25 @@ class OnlinePose:
     ) -> None:
         """Go to this pose (arriving at rest, or with ``twist`` and ``accel`` in the
         base frame)."""
-        p, v, a, x, xd, xdd = self._state_at_new_anchor()
-        self._aim(p, v, a, x, xd, xdd, position, orientation, twist, accel)
+        kernels = _compiled()
+        if kernels is None:
+            p, v, a, x, xd, xdd = self._state_at_new_anchor()
+            self._aim(p, v, a, x, xd, xdd, position, orientation, twist, accel)
+            return
+        # the same, compiled in one call (a streamed target's path: 45 us in NumPy and
+        # Python, most of it the re-anchoring); fresh writable copies: one signature
+        g = self.gen
+        anchor, R0 = np.empty(4), np.empty((3, 3))
+        Ft, Fr = np.empty((3, 3)), np.empty((3, 3))
+        sp, sv, sa, goal = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+        kernels.retarget(g.position, g.velocity, g.acceleration, self._Ft, self._Fr, self._q0,
+                         np.array(position, dtype=np.float64),
+                         np.array(orientation, dtype=np.float64), anchor, R0, Ft, Fr, sp, sv,
+                         sa, goal)  # fmt: skip
+        self._q0, self._R0, self._R0_rows = anchor, R0, R0.tolist()
+        self._use_frames(Ft, Fr)
+        g._start_from(sp, sv, sa)
+        self._set_goal(goal, twist, accel)
 
     def _aim(
         self, p: FloatArray, v: FloatArray, a: FloatArray, x: FloatArray, xd: FloatArray,
@@ -553,8 +570,13 @@ class OnlinePose:
             self.gen._start_from(sp, sv, sa)
         else:
             goal = self._aim_python(p, v, a, x, xd, xdd, position, orientation)
-            Ft, Fr = self._Ft, self._Fr
-        R0t = self._R0.T
+        self._set_goal(goal, twist, accel)
+
+    def _set_goal(self, goal: FloatArray, twist: FloatArray | None,
+                  accel: FloatArray | None) -> None:  # fmt: skip
+        """The generator's target: ``goal`` (6,, in its frames), arriving at rest or with
+        ``twist`` and ``accel`` (base frame)."""
+        Ft, Fr, R0t = self._Ft, self._Fr, self._R0.T
         vel = acc = None
         if twist is not None:
             vel = np.concatenate([Ft.T @ twist[:3], Fr.T @ (R0t @ twist[3:])])
