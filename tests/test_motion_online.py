@@ -392,3 +392,17 @@ def test_the_compiled_new_target_equals_the_python_reference(monkeypatch) -> Non
             monkeypatch.setattr(online, "_KERNELS", kernels)
         for want, have in zip(*got, strict=True):
             np.testing.assert_allclose(have, want, rtol=1e-12, atol=1e-12)
+
+
+def test_the_warmup_loads_every_compiled_step() -> None:
+    """``online.warmup()`` (the control process runs it before its loop) compiles or loads
+    every kernel the generators call, so none compiles in a tick."""
+    from panda_py.motion import _online_jit, online
+
+    assert online._compiled() is not None  # numba comes with the package here
+    online.warmup()
+    called = ("sample", "sample_pose", "publish_pose", "retarget", "restart_toward")
+    assert set(called) | {"ROW", "aim"} == set(_online_jit.__all__)  # (aim: inside two)
+    for name in called:
+        kernel = getattr(_online_jit, name)
+        assert kernel.signatures, f"{name} was not compiled or loaded by the warm-up"

@@ -23,7 +23,7 @@ import numpy as np
 
 from panda_py import jitcache
 
-__all__ = ["ROW", "aim", "publish_pose", "retarget", "sample", "sample_pose"]
+__all__ = ["ROW", "aim", "publish_pose", "restart_toward", "retarget", "sample", "sample_pose"]
 
 # the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
 KEY = jitcache.source_key([Path(__file__)])
@@ -266,14 +266,42 @@ def retarget(gp, gv, ga, Ft, Fr, q0, target, quat, anchor, R0, Ft2, Fr2, sp, sv,
         x[:] = 0.0
     else:
         anchor[0], anchor[1], anchor[2], anchor[3] = qx, qy, qz, qw
-    x_, y, z, w = anchor[0], anchor[1], anchor[2], anchor[3]
-    R0[0, 0] = 1 - 2 * (y * y + z * z)
-    R0[0, 1] = 2 * (x_ * y - z * w)
-    R0[0, 2] = 2 * (x_ * z + y * w)
-    R0[1, 0] = 2 * (x_ * y + z * w)
-    R0[1, 1] = 1 - 2 * (x_ * x_ + z * z)
-    R0[1, 2] = 2 * (y * z - x_ * w)
-    R0[2, 0] = 2 * (x_ * z - y * w)
-    R0[2, 1] = 2 * (y * z + x_ * w)
-    R0[2, 2] = 1 - 2 * (x_ * x_ + y * y)
+    _to_matrix(anchor, R0)
     aim(p, v, a, x, xd, xdd, anchor, target, quat, Ft2, Fr2, sp, sv, sa, goal)
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def restart_toward(p, quat, twist, accel, target, tquat, anchor, R0, Ft, Fr, sp, sv, sa, goal):  # type: ignore[no-untyped-def,unused-ignore]
+    """``OnlinePose.reset_toward``'s arithmetic in one call (a Cartesian move's hand-over):
+    the anchor at the orientation ``quat`` (4, x y z w, any norm; into ``anchor`` and
+    ``R0``), the rotation vector 0 with its rates the angular ``twist`` and ``accel``
+    (6,, base frame) in the anchor's frame, then :func:`aim` from the position ``p`` toward
+    ``target`` (3,), ``tquat`` (4): the frames ``Ft``, ``Fr``, the generator's start state
+    ``sp``, ``sv``, ``sa`` and goal in them, in place."""
+    n = math.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
+    for i in range(4):
+        anchor[i] = quat[i] / n
+    _to_matrix(anchor, R0)
+    v, a = np.empty(3), np.empty(3)
+    x, xd, xdd = np.zeros(3), np.empty(3), np.empty(3)
+    for i in range(3):
+        v[i], a[i] = twist[i], accel[i]
+    _mtv(R0, twist[3:], xd, 0)
+    _mtv(R0, accel[3:], xdd, 0)
+    aim(p, v, a, x, xd, xdd, anchor, target, tquat, Ft, Fr, sp, sv, sa, goal)
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _to_matrix(q, R):  # type: ignore[no-untyped-def,unused-ignore]
+    """The rotation matrix of the unit quaternion ``q`` into ``R`` (3, 3) (as
+    ``rotation.to_matrix``)."""
+    x, y, z, w = q[0], q[1], q[2], q[3]
+    R[0, 0] = 1 - 2 * (y * y + z * z)
+    R[0, 1] = 2 * (x * y - z * w)
+    R[0, 2] = 2 * (x * z + y * w)
+    R[1, 0] = 2 * (x * y + z * w)
+    R[1, 1] = 1 - 2 * (x * x + z * z)
+    R[1, 2] = 2 * (y * z - x * w)
+    R[2, 0] = 2 * (x * z - y * w)
+    R[2, 1] = 2 * (y * z + x * w)
+    R[2, 2] = 1 - 2 * (x * x + y * y)

@@ -46,7 +46,7 @@ from panda_py.motion import rotation
 from panda_py.motion.errors import TrajectoryError
 from panda_py.robots.params import RobotSpec
 
-__all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose"]
+__all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose", "warmup"]
 
 FloatArray = NDArray[np.float64]
 _UNSET = object()
@@ -458,7 +458,7 @@ class OnlinePose:
     ) -> None:  # fmt: skip
         """:meth:`reset` to this state, then :meth:`set_target`, in one restart of the
         generator (a move's hand-over: the two restarts were a third of it)."""
-        quat = np.asarray(orientation, dtype=np.float64)
+        quat = np.array(orientation, dtype=np.float64)  # (a fresh copy: one kernel signature)
         if quat.shape != (4,) or not np.isfinite(quat).all() or np.linalg.norm(quat) == 0.0:
             raise ValueError(f"orientation: expected a unit quaternion, got {orientation!r}")
         p = np.array(position, dtype=np.float64)
@@ -468,10 +468,24 @@ class OnlinePose:
                                     ("accel", ac, 6, accel)):  # fmt: skip
             if arr.shape != (n,) or not np.isfinite(arr).all():
                 raise ValueError(f"{name}: expected {n} finite values, got {given!r}")
-        self._anchor(quat / np.linalg.norm(quat))
-        R0t = self._R0.T
-        self._aim(p, tw[:3].copy(), ac[:3].copy(), np.zeros(3), R0t @ tw[3:], R0t @ ac[3:],
-                  target_position, target_orientation, target_twist, target_accel)  # fmt: skip
+        kernels = _compiled()
+        if kernels is not None:  # the same, compiled in one call (a hand-over's path)
+            anchor, R0 = np.empty(4), np.empty((3, 3))
+            Ft, Fr = np.empty((3, 3)), np.empty((3, 3))
+            sp, sv, sa, goal = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
+            kernels.restart_toward(p, quat, tw, ac, np.array(target_position, dtype=np.float64),
+                                   np.array(target_orientation, dtype=np.float64), anchor, R0,
+                                   Ft, Fr, sp, sv, sa, goal)  # fmt: skip
+            self._q0, self._R0, self._R0_rows = anchor, R0, R0.tolist()
+            self._use_frames(Ft, Fr)
+            self.gen._start_from(sp, sv, sa)
+            self._set_goal(goal, target_twist, target_accel)
+        else:
+            self._anchor(quat / np.linalg.norm(quat))
+            R0t = self._R0.T
+            self._aim(p, tw[:3].copy(), ac[:3].copy(), np.zeros(3), R0t @ tw[3:],
+                      R0t @ ac[3:], target_position, target_orientation, target_twist,
+                      target_accel)  # fmt: skip
         self._publish()
 
     def _anchor(self, quat: FloatArray) -> None:
@@ -555,21 +569,9 @@ class OnlinePose:
         twist: FloatArray | None, accel: FloatArray | None,
     ) -> None:  # fmt: skip
         """Restart from this state (as :meth:`_restart`'s) toward the target pose, in the
-        frames of the way there."""
-        kernels = _compiled()
-        if kernels is not None:  # the same, compiled (a new target's or hand-over's path)
-            # (fresh writable copies: the kernel's one signature)
-            target, quat = (
-                np.array(position, dtype=np.float64),
-                np.array(orientation, dtype=np.float64),
-            )
-            Ft, Fr = np.empty((3, 3)), np.empty((3, 3))
-            sp, sv, sa, goal = np.empty(6), np.empty(6), np.empty(6), np.empty(6)
-            kernels.aim(p, v, a, x, xd, xdd, self._q0, target, quat, Ft, Fr, sp, sv, sa, goal)
-            self._use_frames(Ft, Fr)
-            self.gen._start_from(sp, sv, sa)
-        else:
-            goal = self._aim_python(p, v, a, x, xd, xdd, position, orientation)
+        frames of the way there (in NumPy: compiled, :meth:`set_target` and
+        :meth:`reset_toward` call ``_online_jit.retarget`` and ``restart_toward``)."""
+        goal = self._aim_python(p, v, a, x, xd, xdd, position, orientation)
         self._set_goal(goal, twist, accel)
 
     def _set_goal(self, goal: FloatArray, twist: FloatArray | None,
@@ -736,3 +738,24 @@ def _jacobian_times(x: list[float], y: list[float], sign: float) -> list[float]:
     c0, c1, c2 = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0
     d0, d1, d2 = x1 * c2 - x2 * c1, x2 * c0 - x0 * c2, x0 * c1 - x1 * c0
     return [y0 + a * c0 + b * d0, y1 + a * c1 + b * d1, y2 + a * c2 + b * d2]
+
+
+def warmup() -> None:
+    """Compile (or load from numba's cache) the generators' compiled steps now: a loop
+    calls this before its first tick, which must not wait for a compiler."""
+    if _compiled() is None:
+        return
+    one = (1.0,) * 6
+    pose = OnlinePose(OnlineLimits(one, one, one))
+    z3, z6, quat = np.zeros(3), np.zeros(6), np.array([0.0, 0.0, 0.0, 1.0])
+    pose.reset(z3, quat, z6, z6)  # (publish_pose)
+    pose.set_target(z3 + 0.1, quat)  # (retarget)
+    pose.step()  # ruckig's step
+    pose.step()  # (sample_pose)
+    pose.reset_toward(z3, quat, z6, z6, z3 + 0.1, quat)  # (restart_toward)
+    seven = (1.0,) * 7
+    joints = OnlineGenerator(OnlineLimits(seven, seven, seven))
+    joints.reset(np.zeros(7), np.zeros(7), np.zeros(7))
+    joints.set_target(np.full(7, 0.1))
+    joints.step()
+    joints.step()  # (sample)

@@ -51,6 +51,7 @@ from panda_py.libfranka.limits import MAX_CUTOFF_FREQUENCY
 from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
+from panda_py.motion import online
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import RobotSpec, get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
@@ -137,6 +138,7 @@ def warm_up(state: RobotState, model: ControlModel, limits: RobotSpec, finalize:
     nothing compiles or loads mid-loop: after connecting, and in the server control
     processes are forked from (:mod:`panda_py.rt.warm`), so they find it all loaded."""
     kinematics.warmup()
+    online.warmup()  # the online generators' compiled steps (lead-ins, stops, streams)
     from panda_py import controllers as c
 
     for cls in (
