@@ -8,7 +8,7 @@ under per-coordinate velocity, acceleration and jerk limits. It runs on ruckig (
 & Kröger, RSS 2021), a library made for exactly this: ruckig calculates the trajectory at
 each new target, and the steps after it sample that trajectory compiled (numba; ruckig's
 own sampling, in its arithmetic). A step on 7 joints costs 0.8 us toward an unchanged
-target and 8.5 us toward a new one (``benchmarks/bench_online.py``, 2026-11-27; 2.7 us
+target and 9 us toward a new one (``benchmarks/bench_online.py``, 2026-11-27; 2.6 us
 toward an unchanged target through ruckig's ``update``), well under the 20 us budget.
 Inputs and outputs are allocated once.
 
