@@ -1,14 +1,17 @@
 """:mod:`panda_py.motion.online`'s per-tick work, compiled by numba:
 
 * :func:`sample`: the state of a trajectory ruckig calculated, at a time, from its
-  profiles packed once (:func:`~panda_py.motion.online.pack`): ruckig's own sampling
+  profiles packed once (``online._pack``): ruckig's own sampling
   (``Trajectory::at_time``, in its arithmetic: tests hold the two equal, bit for bit),
   without a call into ruckig and the conversion of its outputs each tick;
 * :func:`publish_pose`: :class:`~panda_py.motion.online.OnlinePose`'s generator's aligned
   coordinates turned into the base frame's position, orientation, twist and acceleration
   in one call of about a microsecond, where the same scalar Python
   (``OnlinePose._publish_python``, the reference) takes 8-10 us; :func:`sample_pose`, both
-  in one call.
+  in one call;
+* :func:`retarget` and :func:`restart_toward`: ``OnlinePose.set_target``'s and
+  ``reset_toward``'s arithmetic (the anchor, the frames, the start and the goal, through
+  :func:`aim`), each in one call (the NumPy reference: ``OnlinePose._aim``).
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
 per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
@@ -31,7 +34,7 @@ KEY = jitcache.source_key([Path(__file__)])
 # a packed profile's row (one coordinate): the brake's duration, its two phases' times,
 # jerks, accelerations, velocities and positions; the profile's phase durations (7),
 # jerks (7), and accelerations, velocities and positions at the phases' starts and its
-# end (8 each) (online.pack writes it, sample reads it)
+# end (8 each) (online._pack writes it, sample reads it)
 BRAKE_T, BRAKE_J, BRAKE_A, BRAKE_V, BRAKE_P = 1, 3, 5, 7, 9
 T, J, A, V, P = 11, 18, 25, 33, 41
 ROW = 49
@@ -120,12 +123,6 @@ def _jacobian_times(x, y, sign, out):  # type: ignore[no-untyped-def,unused-igno
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _left_jacobian_times(x, y, out):  # type: ignore[no-untyped-def,unused-ignore]
-    """``J_l(x) y`` (:func:`_jacobian_times` with ``sign`` 1)."""
-    _jacobian_times(x, y, 1.0, out)
-
-
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel):  # type: ignore[no-untyped-def,unused-ignore]
     """From the generator's position ``p``, velocity ``v`` and acceleration ``a`` (6,
     translation in frame ``Ft``, rotation vector about the anchor ``q0``/``R0`` in frame
@@ -160,7 +157,7 @@ def _rates(src, dst, Ft, Fr, R0, xs, scratch):  # type: ignore[no-untyped-def,un
     _mv(Ft, src, 0, dst, 0)
     rates, world = scratch[:3], scratch[3:]
     _mv(Fr, src, 3, rates, 0)
-    _left_jacobian_times(xs, rates, world)
+    _jacobian_times(xs, rates, 1.0, world)
     _mv(R0, world, 0, dst, 3)
 
 

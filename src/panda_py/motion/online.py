@@ -156,7 +156,7 @@ def _factor(value: float) -> float:
 _ROW = 49  # _online_jit.ROW (a test holds them equal): importing it would load numba
 
 
-def pack(traj: Trajectory, out: FloatArray) -> None:
+def _pack(traj: Trajectory, out: FloatArray) -> None:
     """A one-section trajectory's profiles into ``out`` (n, _ROW), a row per coordinate,
     as ``_online_jit.sample`` reads them: the brake's duration, and its two phases'
     times, jerks, accelerations, velocities, positions; the profile's phase durations and
@@ -358,7 +358,7 @@ class OnlineGenerator:
         duration)."""
         if self._fresh:
             out = self._out
-            pack(out.trajectory, self._packed)
+            _pack(out.trajectory, self._packed)
             self._time = out.time
             self._fresh = False
         self._time += PERIOD
