@@ -18,7 +18,7 @@ Run: ``python benchmarks/bench_online.py [--quick]``.
   ``CartesianTarget`` follows targets streamed at 20 Hz round a circle, against
   ``CartesianImpedance`` fed the same targets, alternating in the same run (each round
   both, ``--rounds``, 4 by default; each round's ratio and the ratio of the medians are
-  printed: a round's ratio swings 1.0-1.5x here); and each law's tick plus step in this
+  printed: a round's ratio swung 0.3-1.9x here); and each law's tick plus step in this
   process on states made here (a new one each tick, as the loop has), a new target every
   50 ticks: the steadier figure on a shared machine. Target: <= 1.2x
   CartesianImpedance's CPU.
