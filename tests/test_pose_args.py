@@ -192,3 +192,36 @@ def test_rigid_errors_of_a_few_matrices_equal_the_vectorised_ones() -> None:
     np.testing.assert_allclose(fours, batch, rtol=1e-12, atol=1e-15)
     assert batch[3] > checks.RIGID_TOL and batch[7] > 1.0 and batch[12] >= 0.1
     assert max(batch[i] for i in range(20) if i not in (3, 7, 12)) < 1e-12
+
+
+def test_a_single_pose_is_parsed_in_scalars_to_its_position_and_quaternion() -> None:
+    """One 4x4 float64 target (``move_to_pose``'s, a policy's) is parsed in scalars: the
+    quaternion is the rotation's in each of Shepperd's four branches and at their ties
+    (half turns), the same as the general path's (a list); what it cannot take goes the
+    general way and is refused with its words."""
+    from panda_py.motion import rotation
+    from panda_py.motion.cartesian import parse_poses
+
+    rng = np.random.default_rng(2)
+    rotations = [np.eye(3), START, np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0]),
+                 _rot_x(math.pi), _rot_x(2.0), START @ _rot_x(-2.5)]  # fmt: skip
+    for q in rng.normal(size=(50, 4)):
+        rotations.append(rotation.to_matrix(q / np.linalg.norm(q)))
+    for R in rotations:
+        T = _pose(R)
+        T[:3, 3] = rng.normal(size=3)
+        positions, quats = parse_poses(T.reshape(1, 4, 4))
+        assert positions.shape == (1, 3) and quats.shape == (1, 4)
+        np.testing.assert_array_equal(positions[0], T[:3, 3])
+        np.testing.assert_allclose(rotation.to_matrix(quats[0]), R, atol=2e-15)
+        assert abs(np.linalg.norm(quats[0]) - 1.0) < 1e-15
+        general = parse_poses(T.reshape(1, 4, 4).tolist())
+        np.testing.assert_array_equal(positions, general[0])
+        np.testing.assert_allclose(quats, general[1], atol=1e-15)
+    for bad, words in ((np.nan, r"poses\[0\]\[1\]\[3\]: expected a finite number"),
+                       (np.inf, r"poses\[0\]\[1\]\[3\]: expected a finite number")):  # fmt: skip
+        T = _pose()
+        T[1, 3] = bad
+        for given in (T.reshape(1, 4, 4), T.reshape(1, 4, 4).tolist()):
+            with pytest.raises(ValueError, match=words):
+                parse_poses(given)

@@ -197,7 +197,7 @@ def rigid_errors(T: Any) -> NDArray[np.float64]:
         raise ValueError(f"T: expected shape (4, 4) or (N, 4, 4), got shape {a.shape}")
     m = a.reshape(-1, 4, 4)
     if len(m) <= 8:  # a move's few targets: in scalars, a tenth of the vectorised cost
-        err = np.array([_rigid_error(rows) for rows in m.tolist()])
+        err = np.array([rigid_error(rows) for rows in m.tolist()])
         return err if a.ndim == 3 else err.reshape(())
     x, y, z = m[:, :3, 0], m[:, :3, 1], m[:, :3, 2]
     err = np.stack(
@@ -213,7 +213,7 @@ def rigid_errors(T: Any) -> NDArray[np.float64]:
     return err if a.ndim == 3 else err.reshape(())
 
 
-def _rigid_error(rows: list[list[float]]) -> float:
+def rigid_error(rows: list[list[float]]) -> float:
     """:func:`rigid_errors` of one 4x4 given as rows of floats (the same six terms)."""
     (x0, y0, z0, _), (x1, y1, z1, _), (x2, y2, z2, _), last = rows
     cx, cy, cz = x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0  # x cross y

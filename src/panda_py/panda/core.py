@@ -408,11 +408,11 @@ class Panda:
                           self._plan_then(then, plan))  # fmt: skip
 
     def _check_in_limits(self, waypoints: FloatArray) -> None:
-        lower, upper = self.get_joint_limits_lower(), self.get_joint_limits_upper()
-        for i, q in enumerate(waypoints):
-            bad = np.flatnonzero((q < lower) | (q > upper))
-            if bad.size:
-                j = int(bad[0])
+        lower, upper = self._limits.joints.q_min, self._limits.joints.q_max
+        for i, q in enumerate(waypoints.tolist()):  # (in scalars: few waypoints, cold caches)
+            bad = [j for j in range(7) if not lower[j] <= q[j] <= upper[j]]
+            if bad:
+                j = bad[0]
                 raise ValueError(
                     f"waypoints[{i}]: joint {j + 1} at {q[j]:.4f} rad is outside the "
                     f"{self._limits.name} joint limits [{lower[j]}, {upper[j]}] rad"
