@@ -145,8 +145,13 @@ def test_reset_toward_is_reset_then_set_target_in_one(seed: int) -> None:
     assert done_a
     with pytest.raises(ValueError, match="twist: expected 6 finite values"):
         b.reset_toward(start[0], q0, np.full(6, np.nan), np.zeros(6), *target[:2])
-    with pytest.raises(ValueError, match="orientation: expected a unit quaternion"):
-        b.reset_toward(start[0], np.zeros(4), np.zeros(6), np.zeros(6), *target[:2])
+    for bad in (np.zeros(4), [0.0, np.nan, 0.0, 1.0], [0.0, 0.0, 1.0], [np.inf, 0, 0, 1]):
+        with pytest.raises(ValueError, match="orientation: expected a unit quaternion"):
+            b.reset_toward(start[0], bad, np.zeros(6), np.zeros(6), *target[:2])
+    with pytest.raises(ValueError, match="position: expected 3 finite values"):
+        b.reset_toward([0.3, np.inf, 0.5], q0, np.zeros(6), np.zeros(6), *target[:2])
+    with pytest.raises(ValueError, match="accel: expected 6 finite values"):
+        b.reset_toward(start[0], q0, np.zeros(6), np.zeros(7), *target[:2])
 
 
 def test_scaled_limits_refuse_factors_that_are_not_positive() -> None:

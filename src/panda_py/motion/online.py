@@ -177,6 +177,30 @@ def _pack(traj: Trajectory, out: FloatArray) -> None:
 _NO_BRAKE = [0.0] * 10
 
 
+# The checks and tests of a hand-over's inputs are in scalars: each NumPy call costs 20-30
+# us on the cold caches the hand-overs of a caller that slept in between (a policy's) meet.
+def _finite(name: str, value: Any, n: int) -> FloatArray:
+    """``value`` as a new float64 array (n,), all finite, else a ValueError naming it."""
+    arr = np.array(value, dtype=np.float64)
+    if arr.shape != (n,) or (total := sum(arr.tolist())) - total != 0.0:  # (NaN if not)
+        raise ValueError(f"{name}: expected {n} finite values, got {value!r}")
+    return arr
+
+
+def _quaternion(value: Any) -> FloatArray:
+    """``value`` as a new float64 array (4,), finite and not 0, else a ValueError."""
+    quat = np.array(value, dtype=np.float64)
+    values = quat.tolist() if quat.shape == (4,) else [math.nan]
+    if (total := sum(values)) - total != 0.0 or not any(values):
+        raise ValueError(f"orientation: expected a unit quaternion, got {value!r}")
+    return quat
+
+
+def _zero(value: FloatArray | None) -> bool:
+    """Whether ``value`` is None or all zeros."""
+    return value is None or not any(np.asarray(value).tolist())
+
+
 class OnlineGenerator:
     """A jerk-limited, time-optimal trajectory in ``n`` coordinates, advanced one robot
     period at a time; ``position``, ``velocity``, ``acceleration`` are its state after the
@@ -219,34 +243,31 @@ class OnlineGenerator:
 
     def reset(self, position: FloatArray, velocity: FloatArray, acceleration: FloatArray) -> None:
         """Start from this state (each (n,)); the target becomes this position at rest."""
-        for name, value in (("position", position), ("velocity", velocity),
-                            ("acceleration", acceleration)):  # fmt: skip
-            arr = np.asarray(value, dtype=np.float64)
-            if arr.shape != (self.n,) or not np.isfinite(arr).all():
-                raise ValueError(f"{name}: expected {self.n} finite values, got {value!r}")
-        self._start_from(
-            np.asarray(position, dtype=np.float64),
-            np.array(velocity, dtype=np.float64),
-            np.array(acceleration, dtype=np.float64),
-        )
+        n = self.n
+        self._start_from(_finite("position", position, n), _finite("velocity", velocity, n),
+                         _finite("acceleration", acceleration, n))  # fmt: skip
         self.set_target(self.position)
 
     def _start_from(
         self, position: FloatArray, velocity: FloatArray, acceleration: FloatArray
     ) -> None:
         """:meth:`reset` for a caller whose state is this generator's own kind: float64
-        arrays of shape (n,), finite, ``velocity`` and ``acceleration`` its to modify; the
-        target is left for the caller to set (:class:`OnlinePose` restarts in new frames at
-        each target: the checks and the interim target were a fifth of its cost)."""
-        velocity[np.abs(velocity) < _REST_VELOCITY] = 0.0
-        acceleration[np.abs(acceleration) < _REST_ACCELERATION] = 0.0
+        arrays of shape (n,), finite, left unmodified (the state takes a velocity or an
+        acceleration below its rest threshold as 0); the target is left for the caller to
+        set (:class:`OnlinePose` restarts in new frames at each target: the checks and the
+        interim target were a fifth of its cost)."""
+        # (in scalars: a hand-over's path, where each NumPy call costs 20-30 us on the
+        # cold caches the hand-overs of a caller that slept in between meet)
+        rest_v, rest_a = _REST_VELOCITY, _REST_ACCELERATION
+        v = [0.0 if -rest_v < x < rest_v else x for x in velocity.tolist()]
+        a = [0.0 if -rest_a < x < rest_a else x for x in acceleration.tolist()]
         inp = self._inp
-        inp.current_position = position.tolist()
-        inp.current_velocity = velocity.tolist()
-        inp.current_acceleration = acceleration.tolist()
-        self.position[:] = position
-        self.velocity[:] = velocity
-        self.acceleration[:] = acceleration
+        inp.current_position = p = position.tolist()
+        inp.current_velocity = v
+        inp.current_acceleration = a
+        self.position[:] = p
+        self.velocity[:] = v
+        self.acceleration[:] = a
         self._changed, self._moved = True, False
 
     def set_target(
@@ -260,6 +281,11 @@ class OnlineGenerator:
         inp = self._input()
         inp.control_interface = ControlInterface.Position
         inp.target_position = list(map(float, position))
+        self.finished = False
+        if _zero(velocity) and _zero(acceleration):  # at rest (a goal's: a hand-over's path)
+            inp.target_velocity = [0.0] * self.n
+            inp.target_acceleration = [0.0] * self.n
+            return
         v = np.zeros(self.n) if velocity is None else np.clip(velocity, -self._vmax, self._vmax)
         a = np.zeros(self.n)
         if acceleration is not None:
@@ -268,7 +294,6 @@ class OnlineGenerator:
             a[(np.abs(v) >= self._vmax) & (a * v > 0.0)] = 0.0
         inp.target_velocity = v.tolist()
         inp.target_acceleration = a.tolist()
-        self.finished = False
 
     def _retry(self) -> Result:
         inp, out = self._inp, self._out
@@ -458,16 +483,10 @@ class OnlinePose:
     ) -> None:  # fmt: skip
         """:meth:`reset` to this state, then :meth:`set_target`, in one restart of the
         generator (a move's hand-over: the two restarts were a third of it)."""
-        quat = np.array(orientation, dtype=np.float64)  # (a fresh copy: one kernel signature)
-        if quat.shape != (4,) or not np.isfinite(quat).all() or np.linalg.norm(quat) == 0.0:
-            raise ValueError(f"orientation: expected a unit quaternion, got {orientation!r}")
-        p = np.array(position, dtype=np.float64)
-        tw = np.array(twist, dtype=np.float64)
-        ac = np.array(accel, dtype=np.float64)
-        for name, arr, n, given in (("position", p, 3, position), ("twist", tw, 6, twist),
-                                    ("accel", ac, 6, accel)):  # fmt: skip
-            if arr.shape != (n,) or not np.isfinite(arr).all():
-                raise ValueError(f"{name}: expected {n} finite values, got {given!r}")
+        quat = _quaternion(orientation)  # (fresh copies: one kernel signature)
+        p = _finite("position", position, 3)
+        tw = _finite("twist", twist, 6)
+        ac = _finite("accel", accel, 6)
         kernels = _compiled()
         if kernels is not None:  # the same, compiled in one call (a hand-over's path)
             anchor, R0 = np.empty(4), np.empty((3, 3))
@@ -580,6 +599,8 @@ class OnlinePose:
         ``twist`` and ``accel`` (base frame)."""
         Ft, Fr, R0t = self._Ft, self._Fr, self._R0.T
         vel = acc = None
+        if _zero(twist) and _zero(accel):  # at rest (a goal's)
+            twist = accel = None
         if twist is not None:
             vel = np.concatenate([Ft.T @ twist[:3], Fr.T @ (R0t @ twist[3:])])
         if accel is not None:
