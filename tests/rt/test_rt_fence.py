@@ -105,3 +105,38 @@ def test_readers_never_see_a_torn_copy_while_another_process_writes() -> None:
         block.close()
         os.close(fd)
     assert seen > 0 and proc.exitcode == 0
+
+
+def test_the_inline_latchs_slot_copies_are_fenced_where_the_machine_needs_it(
+    block: SharedBlock,
+) -> None:
+    """``Panda.q`` and ``get_pose`` read the latch inline with the block's slot copies:
+    bare copies where the machine keeps loads in order, each fenced before and after its
+    copy where it does not (the fence replaced by a recorder, as above)."""
+    dtype = np.dtype([("q", "<f8", (7,)), ("O_T_EE", "<f8", (16,)), ("tau", "<f4", (7,))])
+    record = np.zeros((), dtype)
+    record["q"] = np.arange(7.0)
+    record["O_T_EE"] = np.arange(16.0)
+    record["tau"] = np.arange(7.0) / 2
+    data = record.tobytes()
+    block.publish_state(data)
+    T = block.field_views(dtype, "O_T_EE")
+    pose = (T[0].reshape(4, 4).T, T[1].reshape(4, 4).T)
+    plain = block.slot_copies(pose)
+    out = plain[1]()
+    assert out.flags["F_CONTIGUOUS"] and out.dtype == np.float64
+    np.testing.assert_array_equal(out, np.arange(16.0).reshape(4, 4).T)
+    assert not np.shares_memory(out, pose[1])
+    cast = block.slot_copies(block.field_views(dtype, "tau"))[0]()
+    assert cast.dtype == np.float64 and cast.tolist() == (np.arange(7.0) / 2).tolist()
+    q = block.field_views(dtype, "q")
+    fences = []
+
+    def fence() -> None:  # the writer moves on at each fence
+        fences.append(True)
+        q[0][:] = 10.0 * len(fences)
+
+    block._fence = fence
+    fenced = block.slot_copies(q)
+    assert fenced[0]().tolist() == [10.0] * 7  # copied after one fence, before the next
+    assert len(fences) == 2

@@ -58,14 +58,6 @@ def realtime_priority_available() -> tuple[bool, str]:
     )
 
 
-def _copy_keep_order(view: np.ndarray) -> FloatArray:
-    return view.copy(order="K")
-
-
-def _cast_keep_order(view: np.ndarray) -> FloatArray:
-    return view.astype(np.float64, order="K")
-
-
 class Panda:
     """The main interface to control one robot (panda-py's ``Panda``).
 
@@ -109,15 +101,16 @@ class Panda:
         self._limits = get_robot(self._info.limits)
         self._model = Model(self._spec)
         block = self._proc.block
-        self._q_view = block.field_views(self._dialect.state_dtype, "q")
+        q = block.field_views(self._dialect.state_dtype, "q")
         T = block.field_views(self._dialect.state_dtype, "O_T_EE")
         # column-major 16 -> the 4x4 pose as a (Fortran-ordered) view, and its position
-        self._T_view = (T[0].reshape(4, 4).T, T[1].reshape(4, 4).T)
+        pose = (T[0].reshape(4, 4).T, T[1].reshape(4, 4).T)
         self._p_view = (T[0][12:15], T[1][12:15])
         self._header = block.header
-        # float64 fields (protocol <= 9) copy as they are; v10's float32 ones are cast
-        f64 = self._q_view[0].dtype == np.float64
-        self._copy = _copy_keep_order if f64 else _cast_keep_order
+        # the state latch read inline by q and get_pose (a user's hot path), with the
+        # block's copies of the two slots (float64; v10's float32 fields cast)
+        self._q_copies = block.slot_copies(q)
+        self._T_copies = block.slot_copies(pose)
         self._logger.info("Connected to robot (%s).", hostname)
         self._logger.info(
             "Using %s joint limits (robot server version %d).",
@@ -199,10 +192,10 @@ class Panda:
         if proc.dead:
             raise proc.gone()
         # the state latch, read inline (this is the hot path of a user's loop)
-        h, views, copy = self._header, self._q_view, self._copy
+        h, copies = self._header, self._q_copies
         while True:
             seq = h[0]
-            out = copy(views[seq & 1])
+            out = copies[seq & 1]()
             if seq == h[0]:
                 return out
 
@@ -211,10 +204,10 @@ class Panda:
         proc = self._proc
         if proc.dead:
             raise proc.gone()
-        h, views, copy = self._header, self._T_view, self._copy
+        h, copies = self._header, self._T_copies
         while True:
             seq = h[0]
-            out = copy(views[seq & 1])
+            out = copies[seq & 1]()
             if seq == h[0]:
                 return out
 

@@ -16,13 +16,13 @@ import platform
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["ORDERED_MACHINES", "compiled_fence", "fence_for", "memory_fence"]
+__all__ = ["ORDERED_MACHINES", "compiled_fence", "fence_for", "memory_fence", "no_fence"]
 
 # Machines whose memory model keeps stores in order and loads in order (TSO).
 ORDERED_MACHINES = frozenset({"x86_64", "amd64", "i386", "i686"})
 
 
-def _no_fence() -> None:
+def no_fence() -> None:
     """Nothing to do: the machine keeps the orders a seqlock needs."""
 
 
@@ -58,7 +58,7 @@ def compiled_fence() -> Callable[[], None]:
 
 def fence_for(machine: str) -> Callable[[], None]:
     """The fence for a machine named as ``platform.machine()`` names it."""
-    return _no_fence if machine.lower() in ORDERED_MACHINES else compiled_fence()
+    return no_fence if machine.lower() in ORDERED_MACHINES else compiled_fence()
 
 
 _fence_impl: Callable[[], None] | None = None
