@@ -112,7 +112,8 @@ def test_the_inline_latchs_slot_copies_are_fenced_where_the_machine_needs_it(
 ) -> None:
     """``Panda.q`` and ``get_pose`` read the latch inline with the block's slot copies:
     bare copies where the machine keeps loads in order, each fenced before and after its
-    copy where it does not (the fence replaced by a recorder, as above)."""
+    copy where it does not (the fence replaced by one that moves a writer on: what the
+    copy holds shows where between the fences it was taken)."""
     dtype = np.dtype([("q", "<f8", (7,)), ("O_T_EE", "<f8", (16,)), ("tau", "<f4", (7,))])
     record = np.zeros((), dtype)
     record["q"] = np.arange(7.0)
