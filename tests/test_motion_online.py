@@ -152,6 +152,10 @@ def test_reset_toward_is_reset_then_set_target_in_one(seed: int) -> None:
         b.reset_toward([0.3, np.inf, 0.5], q0, np.zeros(6), np.zeros(6), *target[:2])
     with pytest.raises(ValueError, match="accel: expected 6 finite values"):
         b.reset_toward(start[0], q0, np.zeros(6), np.zeros(7), *target[:2])
+    gen = OnlineGenerator(OnlineLimits.joints(FER, 0.5))  # huge but finite: not refused
+    gen.reset(np.full(7, 1e308), np.zeros(7), np.zeros(7))
+    with pytest.raises(ValueError, match="position: expected 7 finite values"):
+        gen.reset(np.array([1e308, 1e308, np.inf, 0, 0, 0, 0]), np.zeros(7), np.zeros(7))
 
 
 def test_scaled_limits_refuse_factors_that_are_not_positive() -> None:
