@@ -229,7 +229,7 @@ class OnlineGenerator:
         self._changed = True
         self._fresh = False
         self._moved = False
-        self.set_limits(limits)
+        self._apply_limits(limits)
         self.position = np.zeros(n)
         self.velocity = np.zeros(n)
         self.acceleration = np.zeros(n)
@@ -238,6 +238,10 @@ class OnlineGenerator:
 
     def set_limits(self, limits: OnlineLimits) -> None:
         """Bound what follows by ``limits`` (same coordinates); the current target stays."""
+        if limits is not self.limits:  # (the same: in effect already)
+            self._apply_limits(limits)
+
+    def _apply_limits(self, limits: OnlineLimits) -> None:
         if len(limits.velocity) != self.n:
             raise ValueError(f"limits: expected {self.n} coordinates, got {len(limits.velocity)}")
         self.limits = limits
@@ -636,6 +640,8 @@ class OnlinePose:
 
     def set_limits(self, limits: OnlineLimits) -> None:
         """Bound what follows by ``limits`` (the norms' limits, 6 coordinates)."""
+        if limits is self.limits:  # in effect already (a joints' cap that did not bind)
+            return
         if len(limits.velocity) != 6:
             raise ValueError(f"limits: expected 6 coordinates, got {len(limits.velocity)}")
         self.limits = limits
