@@ -225,3 +225,13 @@ def test_a_single_pose_is_parsed_in_scalars_to_its_position_and_quaternion() -> 
         for given in (T.reshape(1, 4, 4), T.reshape(1, 4, 4).tolist()):
             with pytest.raises(ValueError, match=words):
                 parse_poses(given)
+
+
+def test_all_finite_is_exact_where_the_sum_overflows() -> None:
+    from panda_py import checks
+
+    assert checks.all_finite([0.5, -2.0, 3.0])
+    assert checks.all_finite([1e308, 1e308, 1e308])  # the sum overflows, each is finite
+    assert not checks.all_finite([1e308, 1e308, math.inf])
+    assert not checks.all_finite([0.0, math.nan])
+    assert not checks.all_finite([math.inf, -math.inf])

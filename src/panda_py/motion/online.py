@@ -41,6 +41,7 @@ from ruckig import (
     Trajectory,
 )
 
+from panda_py import checks
 from panda_py.fci import PERIOD
 from panda_py.motion import rotation
 from panda_py.motion.errors import TrajectoryError
@@ -182,23 +183,16 @@ _NO_BRAKE = [0.0] * 10
 def _finite(name: str, value: Any, n: int) -> FloatArray:
     """``value`` as a new float64 array (n,), all finite, else a ValueError naming it."""
     arr = np.array(value, dtype=np.float64)
-    if arr.shape != (n,) or not _all_finite(arr.tolist()):
+    if arr.shape != (n,) or not checks.all_finite(arr.tolist()):
         raise ValueError(f"{name}: expected {n} finite values, got {value!r}")
     return arr
-
-
-def _all_finite(values: list[float]) -> bool:
-    """Whether every value is finite: their sum is (inf - inf and NaN are NaN), or, where
-    the sum overflowed, each one is."""
-    total = sum(values)
-    return total - total == 0.0 or all(math.isfinite(v) for v in values)
 
 
 def _quaternion(value: Any) -> FloatArray:
     """``value`` as a new float64 array (4,), finite and not 0, else a ValueError."""
     quat = np.array(value, dtype=np.float64)
     values = quat.tolist() if quat.shape == (4,) else [math.nan]
-    if not _all_finite(values) or not any(values):
+    if not checks.all_finite(values) or not any(values):
         raise ValueError(f"orientation: expected a unit quaternion, got {value!r}")
     return quat
 

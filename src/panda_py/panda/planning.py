@@ -173,8 +173,7 @@ def _one_waypoint(target: Any) -> FloatArray | None:
     slept in between, as a policy does between targets); else None."""
     if type(target) is np.ndarray and target.dtype == np.float64 and target.shape == (7,):
         values = target.tolist()
-        total = sum(values)
-        if total - total == 0.0:  # (inf - inf and NaN are NaN)
+        if checks.all_finite(values):
             return np.array([values])
     return None
 
@@ -472,7 +471,7 @@ def check_reachable(positions: FloatArray, quats: FloatArray, q_now: FloatArray,
 
 def _solvable(solutions: FloatArray) -> bool:
     """Whether one of ik_full's rows (4, 7) is a solution (finite)."""
-    return any(total - total == 0.0 for total in map(sum, solutions.tolist()))
+    return any(checks.all_finite(row) for row in solutions.tolist())
 
 
 # of the joints' velocity and acceleration limits a sampled Cartesian plan may ask for:
