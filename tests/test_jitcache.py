@@ -31,12 +31,17 @@ def test_the_cache_lives_under_panda_py_cache(monkeypatch, tmp_path: Path) -> No
 
 
 def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles() -> None:
-    """CartesianImpedance's fused step inlines the Jacobian (kinematics) and the Coriolis
-    recursion (dynamics): an edit to either must compile it afresh."""
+    """The fused laws inline the Jacobian (kinematics), the recursions (dynamics), the
+    online generator's sampling, and read PoseImpedance's buffer at its layout's offsets
+    (tracking): an edit to any of them must compile them afresh."""
+    from panda_py.controllers import tracking
+    from panda_py.motion import _online_jit
+
     fused = laws.fused()
     assert fused is not None
     kin, dyn = kinematics.compiled_kernels(), dynamics.compiled_kernels()
     sources = [Path(fused.__file__), Path(laws.compiled().__file__), Path(dyn.__file__),
+               Path(tracking.__file__), Path(_online_jit.__file__),
                *Path(kin.__file__).parent.glob("*.py")]  # fmt: skip
     assert fused.KEY == jitcache.source_key(sources)
     fused.warmup()

@@ -438,8 +438,10 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     """PoseMove and CartesianTarget on a real ControlModel (a load picked up mid-way,
     another end effector): the tracking in one call (_fused.pose_tracking_step: Jacobian,
     mass matrix, damping from the arm's inertia on the first tick and the 21st, tracking
-    torque with its feed-forward, Coriolis) gives the torques of the separate calls and of
-    the plain law, through the plan, its end and the settle phase after it."""
+    torque with its feed-forward, Coriolis; for the target with its generator's sampling
+    and its outputs, _fused.pose_target_step) gives the torques and outputs of the
+    separate calls and of the plain law, through the plan, its end and the settle phase
+    after it."""
     from panda_py.controllers.moves import PoseMove
     from panda_py.controllers.plans import PosePlan
 
@@ -467,7 +469,16 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
         assert out[-1][14 + target._out_layout["lag"][0]] > 0.01  # and lags
         return out
 
+    kernels, calls = laws.fused(), []
+    target_step = kernels.pose_target_step  # the target's tick in one call: counted
+
+    def counted(*args):  # type: ignore[no-untyped-def]
+        calls.append(args[0][0])  # whether it sampled the generator's trajectory
+        return target_step(*args)
+
+    monkeypatch.setattr(kernels, "pose_target_step", counted)
     fused = run()
+    assert len(calls) == len(states) and 0.0 in calls and 1.0 in calls
     monkeypatch.setattr(laws, "_FUSED", None)
     if path == "numpy":
         monkeypatch.setattr(laws, "_KERNELS", None)
@@ -514,9 +525,9 @@ def test_the_fused_kernels_never_compile_in_the_loop() -> None:
     fused = laws.fused()
     assert fused is not None
     kernels = (fused.cartesian_impedance_step, fused.pose_tracking_step,
-               fused.joint_tracking_step)  # fmt: skip
+               fused.joint_tracking_step, fused.pose_target_step)  # fmt: skip
     fused.warmup()  # read-only state fields and writable buffers
-    assert [len(k.signatures) for k in kernels] == [1, 1, 1]
+    assert [len(k.signatures) for k in kernels] == [1, 1, 1, 1]
     from panda_py import dynamics
 
     arm = dynamics.LoadedArm("fer").arrays
@@ -525,4 +536,4 @@ def test_the_fused_kernels_never_compile_in_the_loop() -> None:
     with pytest.raises(TypeError, match="No matching definition"):
         fused.joint_tracking_step(strided, z7, *arm, z7, z7, z7, z7, z7, z7, z7, 0.01, 10.0,
                                   np.empty(7))  # fmt: skip
-    assert [len(k.signatures) for k in kernels] == [1, 1, 1]
+    assert [len(k.signatures) for k in kernels] == [1, 1, 1, 1]

@@ -27,18 +27,22 @@ import numpy as np
 from numba import types
 
 from panda_py import dynamics, jitcache, kinematics
-from panda_py.controllers import _kernels
+from panda_py.controllers import _kernels, tracking
+from panda_py.motion import _online_jit
 
 _KIN = kinematics.compiled_kernels()
 _DYN = dynamics.compiled_kernels()
 if _KIN is None or _DYN is None:  # plain Python: the separate calls run
     raise ImportError("the kinematics or the dynamics run without numba")
 
-__all__ = ["cartesian_impedance_step", "joint_tracking_step", "pose_tracking_step", "warmup"]
+__all__ = [
+    "cartesian_impedance_step", "joint_tracking_step", "pose_target_step", "pose_tracking_step",
+    "warmup",
+]  # fmt: skip
 
 KEY = jitcache.source_key([
-    Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__),
-    *Path(_KIN.__file__).parent.glob("*.py"),
+    Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__), Path(tracking.__file__),
+    Path(_online_jit.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
 ])  # fmt: skip
 _jacobian_one = _KIN.jacobian_one
 _rnea = _DYN.rnea
@@ -47,6 +51,12 @@ _mass_damping = _kernels.mass_damping
 _tracking = _kernels.pose_tracking_torque
 _pose_filter = _kernels.pose_filter
 _torque = _kernels.cartesian_impedance_torque
+_sample_pose = _online_jit.sample_pose
+_target_outputs = _kernels.pose_target_outputs
+# tracking.PoseImpedance's buffer: the offsets of its arrays (constants, compiled in)
+_L = tracking.LAW_LAYOUT
+_SCALARS, _K, _D, _QN = _L["scalars"][0], _L["K"][0], _L["D"][0], _L["q_n"][0]
+_ERR, _PINV, _J, _JP = _L["err"][0], _L["J_pinv"][0], _L["J"][0], _L["J_prev"][0]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -102,30 +112,60 @@ def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
-    O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, armature, coulomb, scalars,
-    p_d, quat_d, v_d, a_d, K, D, q_n, J, J_prev, tau, err, J_pinv,
+    O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, armature, coulomb, p_d, quat_d,
+    v_d, a_d, law, tau,
 ):  # fmt: skip
-    """One tick of ``tracking.PoseImpedance`` with the Coriolis torques, into ``tau`` (7,):
-    the Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7) (``J_prev`` (1, 6,
-    7): the previous tick's), the arm's mass matrix (``origin ... inertia``:
-    ``dynamics.LoadedArm.arrays``), the damping ``D`` from the arm's inertia where asked
-    (``_kernels.mass_damping``), the tracking torque (``_kernels.pose_tracking_torque``,
-    its pose error into ``err``, the pseudo-inverse into ``J_pinv``) and ``C(q, dq) dq``.
-    ``scalars``: dt, k_n, the damping ratio, the friction's speed, the friction's error
-    rate, the smallest inverse inertia, 1 to update the damping now (else 0), 1 if
-    ``J_prev`` holds the previous tick's Jacobian (else 0: no rate of the Jacobian). NaN
-    torques where ``q`` is not finite."""
+    """One tick of ``tracking.PoseImpedance`` with the Coriolis torques, into ``tau`` (7,),
+    on the law's buffer ``law`` (``tracking.LAW_LAYOUT``: its scalars, K, D, q_n, err,
+    J_pinv, J, J_prev): the Jacobian to the end effector of ``chain`` into J (the one it
+    held copied to J_prev first, where the scalars say it is the previous tick's), the
+    arm's mass matrix (``origin ... inertia``: ``dynamics.LoadedArm.arrays``), the damping
+    D from the arm's inertia where the scalars ask (``_kernels.mass_damping``), the
+    tracking torque (``_kernels.pose_tracking_torque``, its pose error into err, the
+    pseudo-inverse into J_pinv) and ``C(q, dq) dq``. NaN torques where ``q`` is not
+    finite."""
+    scalars = law[_SCALARS : _SCALARS + 8]
+    J = law[_J : _J + 42].reshape((1, 6, 7))
+    J_prev = law[_JP : _JP + 42].reshape((1, 6, 7))
+    has_prev = scalars[7] != 0.0
+    if has_prev:
+        J_prev[:] = J
     if not _jacobian_or_nan(q, chain, J, tau):
         return
+    K = law[_K : _K + 36].reshape((6, 6))
+    D = law[_D : _D + 36].reshape((6, 6))
     M = np.empty((7, 7))
     _crba(origin, ca, sa, mass, h, inertia, q, M)
     if scalars[6] != 0.0:
         _mass_damping(K, scalars[2], M, armature, J[0], scalars[5], D)
-    Jp = J_prev[0] if scalars[7] != 0.0 else J[0]
+    Jp = J_prev[0] if has_prev else J[0]
     dt, k_n, speed, rate = scalars[0], scalars[1], scalars[3], scalars[4]
-    _tracking(O_T_EE, J[0], Jp, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
-              coulomb, speed, rate, tau, err, J_pinv)  # fmt: skip
+    _tracking(O_T_EE, J[0], Jp, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, law[_QN : _QN + 7],
+              k_n, M, armature, coulomb, speed, rate, tau, law[_ERR : _ERR + 6],
+              law[_PINV : _PINV + 42].reshape((7, 6)))  # fmt: skip
     _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def pose_target_step(  # type: ignore[no-untyped-def,unused-ignore]
+    tick, traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel, O_T_EE, q, dq,
+    chain, origin, ca, sa, mass, h, inertia, armature, coulomb, law, target, out, tau,
+):  # fmt: skip
+    """One tick of ``CartesianTarget`` in one call: its generator's compiled step
+    (``_online_jit.sample_pose``: the trajectory ``traj`` sampled into ``p``, ``v``, ``a``
+    and turned into the reference ``position``, ``orientation``, ``twist``, ``accel``),
+    where ``tick`` asks for it, then :func:`pose_tracking_step` toward that reference and
+    the controller's outputs (``_kernels.pose_target_outputs``, the distance to the
+    ``target`` (7,: position, orientation)). ``tick``: 1 to sample (else the reference
+    stands as it is), the trajectory's duration, the time to sample at [s], 1 if the
+    targets went stale (else 0), and the outputs' offset in ``out``."""
+    if tick[0] != 0.0:
+        _sample_pose(traj, tick[1], tick[2], p, v, a, Ft, Fr, R0, q0, position, orientation,
+                     twist, accel)  # fmt: skip
+    pose_tracking_step(O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, armature,
+                       coulomb, position, orientation, twist, accel, law, tau)  # fmt: skip
+    _target_outputs(position, orientation, twist, target[0:3], target[3:7], tick[3] != 0.0,
+                    out, int(tick[4]))  # fmt: skip
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -172,8 +212,13 @@ _SIGNATURES = {
         _in(1), _in(1), _in(1), *_ARM, _out(3), _out(1),
     ),
     pose_tracking_step: (
-        _in(1), _in(1), _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1),
-        _in(1), _in(1), _in(2), _out(2), _in(1), _out(3), _in(3), _out(1), _out(1), _out(2),
+        _in(1), _in(1), _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1), _in(1),
+        _out(1), _out(1),
+    ),
+    pose_target_step: (
+        _in(1), _in(2), _out(1), _out(1), _out(1), _in(2), _in(2), _in(2), _in(1), _out(1),
+        _out(1), _out(1), _out(1), _in(1), _in(1), _in(1), _in(1), *_ARM, _in(1), _in(1),
+        _out(1), _in(1), _out(1), _out(1),
     ),
     joint_tracking_step: (
         _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1), _in(1), _in(1), _F8,
@@ -203,13 +248,18 @@ def warmup() -> None:
     chain = kinematics.get_kinematics("fer").chain_constants
     cartesian_impedance_step(ctrl._values, at, filtered, np.eye(6), O_T_EE, q, dq, chain,
                              *arm.arrays, np.empty((1, 6, 7)), np.empty(7))  # fmt: skip
-    z6, K = np.zeros(6), np.eye(6)
-    scalars = np.array([1e-3, 1.0, 1.0, 0.01, 10.0, 1e-2, 1.0, 0.0])
-    J = np.zeros((1, 6, 7))
+    z6 = np.zeros(6)
+    law = tracking.PoseImpedance(np.eye(6), 1.0, np.zeros(7), 1.0)
+    buf = law.compiled_inputs(1e-3)
     z7 = np.zeros(7)
     joint_tracking_step(q, dq, *arm.arrays, z7, z7, z7 + 1.0, z7 + 1.0, z7, z7, z7, 0.01, 10.0,
                         np.empty(7))  # fmt: skip
     quat = np.array([0.0, 0.0, 0.0, 1.0])
-    pose_tracking_step(O_T_EE, q, dq, chain, *arm.arrays, np.zeros(7), np.zeros(7), scalars,
-                       np.zeros(3), quat, z6, z6.copy(), K, K.copy(), np.zeros(7), J, J.copy(),
-                       np.empty(7), np.empty(6), np.empty((7, 6)))  # fmt: skip
+    pose_tracking_step(O_T_EE, q, dq, chain, *arm.arrays, np.zeros(7), np.zeros(7),
+                       np.zeros(3), quat, z6, z6.copy(), buf, np.empty(7))  # fmt: skip
+    traj, I3 = np.zeros((6, _online_jit.ROW)), np.eye(3)
+    tick = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
+    pose_target_step(tick, traj, z6.copy(), z6.copy(), z6.copy(), I3, I3, I3, quat, np.zeros(3),
+                     quat.copy(), z6.copy(), z6.copy(), O_T_EE, q, dq, chain, *arm.arrays,
+                     np.zeros(7), np.zeros(7), buf, np.zeros(7), np.zeros(20),
+                     np.empty(7))  # fmt: skip

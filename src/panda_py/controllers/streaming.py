@@ -32,6 +32,7 @@ from panda_py import checks
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
 from panda_py.controllers._builtin import JOINT_DAMPING, JOINT_STIFFNESS
+from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import joint_capped
 from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
 from panda_py.libfranka.errors import InvalidOperationException
@@ -300,6 +301,13 @@ class CartesianTarget(_Streamed):
                                   self.nullspace_stiffness)  # fmt: skip
         self.initial_signals(position=p, orientation=quat)
         self._begin()
+        # the compiled step's: its per-tick scalars (see _fused_step), the target's
+        # position and orientation (declared one after the other: one view)
+        o = self._out_layout["position_d"][0]
+        self._tick = np.array([0.0, 0.0, 0.0, 0.0, float(o)])
+        a = self._sig_layout["position"][0]
+        assert self._sig_layout["orientation"][0] == a + 3
+        self._target = self._values[a : a + 7]
         self.set_output("reach", reach(spec, state.F_T_EE))
         self._publish(p, quat)
 
@@ -335,14 +343,38 @@ class CartesianTarget(_Streamed):
                 gen.set_rest()
                 limits = self._stop
             # within the joints' limits where the arm is (a Cartesian bound can ask a
-            # joint for more)
-            gen.set_limits(joint_capped(limits, model.ee_jacobian(state), model.spec, gen.frames,
-                                        STREAM_JOINT_SHARE))  # fmt: skip
+            # joint for more; the last tick's Jacobian, where the law has one)
+            J = self._law.J_prev
+            if J is None:
+                J = model.ee_jacobian(state)
+            gen.set_limits(joint_capped(limits, J, model.spec, gen.frames, STREAM_JOINT_SHARE))
+        fused = laws.fused()
+        if fused is not None and type(model) is ControlModel:
+            return self._fused_step(fused, state, model)
         if not gen.finished:
             gen.step()
         tau = self._law.torque(state, model, self.dt, gen.position, gen.orientation, gen.twist,
                                gen.accel)  # fmt: skip
         self._publish(p, quat)
+        return tau  # (with the Coriolis torques)
+
+    def _fused_step(self, fused: Any, state: Any, model: Any) -> FloatArray:
+        """The rest of :meth:`step` in one compiled call (``_fused.pose_target_step``): the
+        generator's sampling, the tracking and the outputs (the same arithmetic as the
+        separate calls)."""
+        gen, tick = self._gen, self._tick
+        t = None if gen.finished else gen.advance()
+        if t is None:
+            tick[0] = 0.0  # the reference stands (or ruckig's step just set it)
+        else:
+            tick[0], tick[1], tick[2] = 1.0, gen.duration, t
+        tick[3] = 1.0 if self._stale else 0.0
+        chain, arm = model.kernel_arrays(state)
+        tau = np.empty(7)
+        fused.pose_target_step(tick, *gen.sampling(), state.O_T_EE, state.q, state.dq, chain,
+                               *arm, model.armature, model.coulomb,
+                               self._law.compiled_inputs(self.dt), self._target, self._out,
+                               tau)  # fmt: skip
         return tau  # (with the Coriolis torques)
 
 

@@ -37,6 +37,15 @@ DAMPING_TICKS = 20
 # lost direction grows without bound
 MIN_INVERSE_INERTIA = 1e-2
 
+# PoseImpedance's arrays in its one buffer: name -> (offset, size). The scalars: dt, k_n,
+# the damping ratio, FRICTION_SPEED, FRICTION_ERROR_RATE, MIN_INVERSE_INERTIA, 1 to update
+# the damping this tick (else 0), 1 if J_prev holds the previous tick's Jacobian (else 0).
+# The compiled tracking (_fused) reads it at these offsets (its cache key covers this
+# file).
+LAW_LAYOUT = {"scalars": (0, 8), "K": (8, 36), "D": (44, 36), "q_n": (80, 7), "err": (87, 6),
+              "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42)}  # fmt: skip
+LAW_SIZE = 219
+
 
 def joint_impedance_torque(
     K: FloatArray, D: FloatArray, q_d: FloatArray, dq_d: FloatArray, ddq_d: FloatArray,
@@ -96,47 +105,63 @@ class PoseImpedance:
 
     def __init__(self, impedance: FloatArray, damping_ratio: float, q_nullspace: FloatArray,
                  nullspace_stiffness: float) -> None:  # fmt: skip
-        self.K = np.array(impedance, dtype=np.float64)
+        # its arrays are views into one buffer, which the compiled tracking takes whole
+        # (one argument of its call where there were eight: each costs the call ~0.2 us on
+        # the loop's cold caches); laid out as LAW_LAYOUT
+        buf = self.buffer = np.zeros(LAW_SIZE)
+        view = {name: buf[a : a + size] for name, (a, size) in LAW_LAYOUT.items()}
+        self._scalars = view["scalars"]
+        self._scalars[:] = (0.0, float(nullspace_stiffness), float(damping_ratio), FRICTION_SPEED,
+                            FRICTION_ERROR_RATE, MIN_INVERSE_INERTIA, 0.0, 0.0)  # fmt: skip
+        self.K = view["K"].reshape(6, 6)
+        self.K[:] = np.asarray(impedance, dtype=np.float64)
         self.zeta = float(damping_ratio)
-        # the damping's buffer: every path of torque() sets it on its first call (from
-        # the arm's inertia, _damping_due 0) before it reads it
-        self.D = np.zeros((6, 6))
-        self.qn = np.array(q_nullspace, dtype=np.float64)  # its own: one kernel signature
+        # the damping: every path of torque() sets it on its first call (from the arm's
+        # inertia, _damping_due 0) before it reads it
+        self.D = view["D"].reshape(6, 6)
+        self.qn = view["q_n"]
+        self.qn[:] = np.asarray(q_nullspace, dtype=np.float64)
         self.kn = float(nullspace_stiffness)
-        self.err = np.empty(6)
+        self.err = view["err"]
         self.J_prev: FloatArray | None = None
-        self.J_pinv = np.empty((7, 6))
+        self.J_pinv = view["J_pinv"].reshape(7, 6)
         self._damping_due = 0  # ticks until the damping is updated
-        # the fused step's: this tick's and the previous tick's Jacobian (swapped each
-        # tick), and its scalars (see _fused.pose_tracking_step)
-        self._J, self._J_last = np.empty((1, 6, 7)), np.empty((1, 6, 7))
-        self._scalars = np.array([0.0, self.kn, self.zeta, FRICTION_SPEED, FRICTION_ERROR_RATE,
-                                  MIN_INVERSE_INERTIA, 0.0, 0.0])  # fmt: skip
+        # the compiled step's: this tick's Jacobian, and the previous tick's (it copies
+        # the one to the other before it computes this tick's)
+        self._J = view["J"].reshape(1, 6, 7)
+        self._J_last = view["J_prev"].reshape(1, 6, 7)
+
+    def compiled_inputs(self, dt: float) -> FloatArray:
+        """The buffer the compiled tracking takes (:data:`LAW_LAYOUT`), its scalars set for
+        a tick ``dt`` [s] after the previous one; afterwards ``J_prev`` is that tick's
+        Jacobian (in the buffer)."""
+        self._damping_due -= 1
+        s = self._scalars
+        s[0] = dt
+        s[7] = 0.0 if self.J_prev is None else 1.0
+        if self._damping_due < 0:
+            s[6] = 1.0
+            self._damping_due = DAMPING_TICKS - 1
+        else:
+            s[6] = 0.0
+        self.J_prev = self._J[0]
+        return self.buffer
 
     def torque(self, state: Any, model: Any, dt: float, p_d: FloatArray, quat_d: FloatArray,
                v_d: FloatArray, a_d: FloatArray) -> FloatArray:  # fmt: skip
         """The torques [Nm] (with the Coriolis torques) toward the reference position
         ``p_d`` [m], orientation ``quat_d`` (x, y, z, w), twist ``v_d`` [m/s, rad/s] and its
         rate ``a_d`` [m/s^2, rad/s^2], ``dt`` [s] after the previous call."""
-        self._damping_due -= 1
         fused = laws.fused()
         if fused is not None and type(model) is ControlModel:  # all of it in one call
             chain, arm = model.kernel_arrays(state)
-            s = self._scalars
-            s[0], s[1], s[2] = dt, self.kn, self.zeta
-            s[6] = 1.0 if self._damping_due < 0 else 0.0
-            s[7] = 0.0 if self.J_prev is None else 1.0
-            if self._damping_due < 0:
-                self._damping_due = DAMPING_TICKS - 1
+            buf = self.compiled_inputs(dt)
             tau = np.empty(7)
-            J, last = self._J, self._J_last
             fused.pose_tracking_step(state.O_T_EE, state.q, state.dq, chain, *arm,
-                                     model.armature, model.coulomb, s, p_d, quat_d, v_d, a_d,
-                                     self.K, self.D, self.qn, J, last, tau, self.err,
-                                     self.J_pinv)  # fmt: skip
-            self._J, self._J_last = last, J  # this tick's is the next one's previous
-            self.J_prev = J[0]
+                                     model.armature, model.coulomb, p_d, quat_d, v_d, a_d, buf,
+                                     tau)  # fmt: skip
             return tau
+        self._damping_due -= 1
         q, dq = state.q, state.dq
         J = model.ee_jacobian(state)
         kn = self.kn
@@ -155,12 +180,14 @@ class PoseImpedance:
             )  # fmt: skip
         else:
             if self._damping_due < 0:
-                self.D = mass_damping(self.K, self.zeta, model.driven_mass_of(state), J)
+                self.D[:] = mass_damping(self.K, self.zeta, model.driven_mass_of(state), J)
                 self._damping_due = DAMPING_TICKS - 1
-            err = self.err = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
+            err = self.err
+            err[:] = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
             tau = J.T @ (-(self.K @ err) - self.D @ (J @ dq - v_d))
             tau += laws.nullspace_projector(J) @ (kn * (self.qn - q) - 2.0 * math.sqrt(kn) * dq)
-            J_pinv = self.J_pinv = laws.damped_pinv(J)
+            J_pinv = self.J_pinv
+            J_pinv[:] = laws.damped_pinv(J)
             a = a_d
             if self.J_prev is not None and dt > 0.0:
                 a = a - ((J - self.J_prev) @ dq) / dt

@@ -659,6 +659,30 @@ class OnlinePose:
                             self.orientation, self.twist, self.accel)  # fmt: skip
         return g.finished
 
+    def advance(self) -> float | None:
+        """:meth:`step` for a caller that samples in its own compiled call: the time to
+        sample the trajectory at (:meth:`sampling` gives what ``_online_jit.sample_pose``
+        takes besides), or None where this call stepped in full (ruckig steps after a
+        change of its input, or nothing is compiled)."""
+        g = self.gen
+        if g._changed or _compiled() is None:
+            self.step()
+            return None
+        return g._advance()
+
+    def sampling(self) -> tuple[Any, ...]:
+        """What ``_online_jit.sample_pose`` takes after the time (see :meth:`advance`): the
+        packed trajectory, the generator's state, the frames and the anchor, and this
+        generator's outputs (the arrays themselves: they are written)."""
+        g = self.gen
+        return (g._packed, g.position, g.velocity, g.acceleration, self._Ft, self._Fr, self._R0,
+                self._q0, self.position, self.orientation, self.twist, self.accel)  # fmt: skip
+
+    @property
+    def duration(self) -> float:
+        """[s] of the trajectory toward the newest target (from its change)."""
+        return self.gen.duration
+
     def _publish(self) -> None:
         kernels = _compiled()
         if kernels is None:
