@@ -48,9 +48,54 @@ def test_spoofed_states_are_dropped_from_any_address_but_the_robots(sim_for_vers
             _spoof(robot, source, 2**63)
             state = robot.read_once()
             assert before < state.time.to_msec() < 2**40
-        assert robot._conn.net.foreign_datagrams >= 10
+        # the socket is connected to where the states come from: the kernel dropped them
+        net = robot._conn.net
+        assert net._udp.getpeername() == net._udp_peer and net.foreign_datagrams == 0
         # the commands still go to the robot: a short motion runs
         robot.control(lambda s, d: lf.motion_finished(lf.Torques(np.zeros(7))))
+
+
+def test_datagrams_before_the_first_state_are_checked_by_their_sender() -> None:
+    """Until the socket is connected (at the first state) and what was queued before is
+    read, each datagram's sender is checked: another address, then the robot's address
+    from another port, are counted and dropped; after that the kernel drops them."""
+    from panda_py.libfranka import _network
+
+    net = _network.Network.__new__(_network.Network)  # its UDP side only
+    net._udp_size, net._next_due, net.spin = 8, 0.0, False
+    net._robot_ip, net._udp_peer, net._checked, net.foreign_datagrams = "127.0.0.2", None, False, 0
+    with (
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp,
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as robot,
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as stranger,
+        socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as neighbour,
+    ):
+        udp.bind(("127.0.0.1", 0))
+        udp.setblocking(False)
+        net._udp = udp
+        robot.bind(("127.0.0.2", 0))
+        stranger.bind(("127.0.0.3", 0))
+        neighbour.bind(("127.0.0.2", 0))  # the robot's address, another port
+        to = udp.getsockname()
+
+        def send(sock: socket.socket, tag: bytes) -> None:
+            sock.sendto(tag * 8, to)
+            time.sleep(0.01)  # queued in this order
+
+        send(stranger, b"s")
+        send(robot, b"a")
+        send(neighbour, b"n")
+        send(robot, b"b")
+        assert net._recv_udp(block=False) == b"a" * 8  # the stranger's first: dropped
+        assert udp.getpeername() == robot.getsockname() and not net._checked
+        assert net._recv_udp(block=False) == b"b" * 8  # the neighbour's: dropped
+        assert net.foreign_datagrams == 2 and net._checked
+        send(stranger, b"t")  # now dropped by the kernel
+        send(robot, b"c")
+        assert net._recv_udp(block=False) == b"c" * 8
+        assert net._recv_udp(block=False) is None
+        net.send_udp(b"command")
+        assert robot.recv(64) == b"command"
 
 
 def test_a_bogus_newest_id_ends_in_a_timeout_not_a_hang(sim):

@@ -145,16 +145,16 @@ def test_the_state_phase_follows_early_states_and_slews_after_late_ones(monkeypa
     net._next_due = 0.0
     net._robot_ip, net._udp_peer, net.foreign_datagrams = "h", None, 0
     P = _network.STATE_PERIOD
-    net._accept(b"x", ("h", 1))  # the first state sets the phase
+    net._accept(b"x")  # the first state sets the phase
     assert net._next_due == pytest.approx(100.0 + P)
     clock.t = 100.0 + P + 60e-6  # late inside the spin: the phase moves by the slew only
-    net._accept(b"x", ("h", 1))
+    net._accept(b"x")
     assert net._next_due == pytest.approx(100.0 + 2 * P + _network.PHASE_SLEW)
     clock.t = 100.0 + 2 * P - 5e-6  # early: sets the phase at once
-    net._accept(b"x", ("h", 1))
+    net._accept(b"x")
     assert net._next_due == pytest.approx(clock.t + P)
     clock.t += P + 2e-3  # far later than the spin covers: reset
-    net._accept(b"x", ("h", 1))
+    net._accept(b"x")
     assert net._next_due == pytest.approx(clock.t + P)
 
 

@@ -105,14 +105,15 @@ class _Streamed(TorqueController):
 
     def _begin(self) -> None:
         """Control process, in start: nothing arrived yet; the time starts now."""
-        self._seen = float(self.signal("count")[0])
+        self._count_at = self._sig_layout["count"][0]  # (read each tick: by index)
+        self._seen = float(self._values[self._count_at])
         self._t_target = 0.0
         self._stale = False
 
     def _news(self) -> int:
         """Control process, each tick: ``_NEW`` if a target arrived, ``_STALE`` if the
         timeout just passed without one, else 0."""
-        count = float(self.signal("count")[0])
+        count = float(self._values[self._count_at])
         if count != self._seen:
             self._seen = count
             self._t_target = self.t
@@ -333,11 +334,10 @@ class CartesianTarget(_Streamed):
 
     def step(self, state: Any, model: Any) -> FloatArray:
         gen = self._gen
-        p, quat = self.signal("position"), self.signal("orientation")
         news = self._news()
         if news:
             if news == _NEW:
-                gen.set_target(p, quat)
+                gen.set_target(self.signal("position"), self.signal("orientation"))
                 limits = self._follow
             else:
                 gen.set_rest()
@@ -355,7 +355,7 @@ class CartesianTarget(_Streamed):
             gen.step()
         tau = self._law.torque(state, model, self.dt, gen.position, gen.orientation, gen.twist,
                                gen.accel)  # fmt: skip
-        self._publish(p, quat)
+        self._publish(self.signal("position"), self.signal("orientation"))
         return tau  # (with the Coriolis torques)
 
     def _fused_step(self, fused: Any, state: Any, model: Any) -> FloatArray:
