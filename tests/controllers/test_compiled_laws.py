@@ -283,6 +283,36 @@ def test_the_damping_stays_bounded_at_a_singular_configuration() -> None:
     D = mass_damping(K, 1.0, M, J)
     assert np.isfinite(D).all()
     assert np.linalg.eigvalsh(D).max() <= 2.0 * np.sqrt(800.0 / MIN_INVERSE_INERTIA) + 1e-6
+    out = np.empty((6, 6))  # and the kernel's the same
+    laws.compiled().mass_damping(K, 1.0, M - np.diag(model.armature), model.armature, J,
+                                 MIN_INVERSE_INERTIA, out)  # fmt: skip
+    np.testing.assert_allclose(out, D, rtol=1e-8, atol=1e-8)
+
+
+@pytest.mark.parametrize("case", ["random", "repeated", "diagonal", "rank one", "zero"])
+def test_jacobis_eigenvalues_agree_with_lapacks(case: str) -> None:
+    """The damping's eigen-decomposition in loops (_kernels._symmetric_eigen): the same
+    eigenvalues as LAPACK's, orthonormal eigenvectors that rebuild the matrix, also where
+    eigenvalues repeat (eigenvectors not unique) or the matrix is already diagonal."""
+    from panda_py.controllers import _kernels
+
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    values = {
+        "random": rng.normal(size=6) * 100.0,
+        "repeated": np.array([2.0, 2.0, 2.0, 5.0, 5.0, -1.0]),
+        "diagonal": rng.uniform(0.01, 10.0, 6),
+        "rank one": np.array([0.0] * 5 + [3.0]),
+        "zero": np.zeros(6),
+    }[case]
+    A = np.diag(values) if case == "diagonal" else Q @ np.diag(values) @ Q.T
+    A = 0.5 * (A + A.T)
+    w, V = np.empty(6), np.empty((6, 6))
+    _kernels._symmetric_eigen(A.copy(), w, V)
+    scale = max(1.0, np.abs(values).max())
+    np.testing.assert_allclose(np.sort(w), np.linalg.eigvalsh(A), atol=1e-12 * scale)
+    np.testing.assert_allclose(V.T @ V, np.eye(6), atol=1e-12)
+    np.testing.assert_allclose(V @ np.diag(w) @ V.T, A, atol=1e-12 * scale)
 
 
 def test_the_compiled_joint_cap_equals_the_numpy_one(monkeypatch) -> None:  # type: ignore[no-untyped-def]

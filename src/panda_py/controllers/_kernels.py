@@ -350,20 +350,110 @@ def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # t
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _symmetric_eigen(A, w, V):  # type: ignore[no-untyped-def,unused-ignore]
+    """Eigenvalues into ``w`` (n,) and eigenvectors (columns) into ``V`` (n, n) of the
+    symmetric ``A`` (n, n; overwritten), by cyclic Jacobi rotations until the off-diagonal
+    is below 1e-15 of the diagonal (a few sweeps for the 6x6 matrices here: loops, where
+    LAPACK's eigh through numba cost several calls and allocations)."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(n):
+            V[i, j] = 1.0 if i == j else 0.0
+    for _ in range(50):
+        off = 0.0
+        diag = 0.0
+        for i in range(n):
+            diag += A[i, i] * A[i, i]
+            for j in range(i + 1, n):
+                off += A[i, j] * A[i, j]
+        if off <= 1e-30 * diag or off == 0.0:
+            break
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                apq = A[p, q]
+                if apq == 0.0:
+                    continue
+                theta = (A[q, q] - A[p, p]) / (2.0 * apq)
+                if abs(theta) > 1e150:  # theta squared would overflow
+                    t = 0.5 / theta
+                else:
+                    t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                    if theta < 0.0:
+                        t = -t
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                sn = t * c
+                for k in range(n):  # A J (columns p, q)
+                    akp, akq = A[k, p], A[k, q]
+                    A[k, p] = c * akp - sn * akq
+                    A[k, q] = sn * akp + c * akq
+                for k in range(n):  # J^T (A J) (rows p, q)
+                    apk, aqk = A[p, k], A[q, k]
+                    A[p, k] = c * apk - sn * aqk
+                    A[q, k] = sn * apk + c * aqk
+                for k in range(n):  # V J
+                    vkp, vkq = V[k, p], V[k, q]
+                    V[k, p] = c * vkp - sn * vkq
+                    V[k, q] = sn * vkp + c * vkq
+    for i in range(n):
+        w[i] = A[i, i]
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _sandwich(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``out = A B A`` for 6x6 ``A``, ``B``."""
+    T = np.empty((6, 6))
+    for i in range(6):
+        for j in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += B[i, k] * A[k, j]
+            T[i, j] = acc
+    for i in range(6):
+        for j in range(6):
+            acc = 0.0
+            for k in range(6):
+                acc += A[i, k] * T[k, j]
+            out[i, j] = acc
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untyped-def,unused-ignore]
     """Into ``D`` (6, 6): the Cartesian damping that gives the stiffness ``K`` the damping
     ratio ``zeta`` on the end effector's inertia ``Lambda = (J (M + diag(armature))^-1
     J^T)^-1``: ``D = 2 zeta S (S^-1 K S^-1)^(1/2) S`` with ``S = Lambda^(1/2)`` (for one
     axis ``2 zeta sqrt(K Lambda)``; positive semi-definite by construction). The
     eigenvalues of ``Lambda^-1`` are kept >= ``min_eig``, so a singular configuration's
-    unbounded inertia stays bounded (the reference: ``tracking.mass_damping``)."""
-    Md = M.copy()
+    unbounded inertia stays bounded (the reference: ``tracking.mass_damping``). In loops:
+    a Cholesky solve and Jacobi's eigenvalues (:func:`_symmetric_eigen`), no BLAS or
+    LAPACK call (each cost the loop's tick more than this arithmetic)."""
+    L = np.zeros((7, 7))  # M + diag(armature) = L L^T
     for i in range(7):
-        Md[i, i] += armature[i]
-    X = np.linalg.solve(Md, np.ascontiguousarray(J.T))  # (7, 6): M^-1 J^T
-    A = J @ X
-    A = 0.5 * (A + A.T)
-    w, V = np.linalg.eigh(A)
+        for j in range(i + 1):
+            acc = M[i, j] + (armature[i] if i == j else 0.0)
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                L[i, i] = math.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    Y = np.empty((7, 6))  # L^-1 J^T: then J M^-1 J^T = Y^T Y
+    for c in range(6):
+        for i in range(7):
+            acc = J[c, i]
+            for k in range(i):
+                acc -= L[i, k] * Y[k, c]
+            Y[i, c] = acc / L[i, i]
+    A = np.empty((6, 6))
+    for i in range(6):
+        for j in range(i + 1):
+            acc = 0.0
+            for k in range(7):
+                acc += Y[k, i] * Y[k, j]
+            A[i, j] = acc
+            A[j, i] = acc
+    w = np.empty(6)
+    V = np.empty((6, 6))
+    _symmetric_eigen(A, w, V)
     S = np.zeros((6, 6))
     S_inv = np.zeros((6, 6))
     for k in range(6):
@@ -374,16 +464,22 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
                 vv = V[i, k] * V[j, k]
                 S[i, j] += vv / r
                 S_inv[i, j] += vv * r
-    Kt = S_inv @ K @ S_inv
-    Kt = 0.5 * (Kt + Kt.T)
-    u, U = np.linalg.eigh(Kt)
+    Kt = np.empty((6, 6))
+    _sandwich(S_inv, K, Kt)
+    for i in range(6):
+        for j in range(i):
+            m = 0.5 * (Kt[i, j] + Kt[j, i])
+            Kt[i, j] = m
+            Kt[j, i] = m
+    _symmetric_eigen(Kt, w, V)
     R = np.zeros((6, 6))
     for k in range(6):
-        r = math.sqrt(max(u[k], 0.0))
+        r = math.sqrt(max(w[k], 0.0))
         for i in range(6):
             for j in range(6):
-                R[i, j] += U[i, k] * U[j, k] * r
-    out = S @ R @ S
+                R[i, j] += V[i, k] * V[j, k] * r
+    out = np.empty((6, 6))
+    _sandwich(S, R, out)
     for i in range(6):
         for j in range(6):
             D[i, j] = zeta * (out[i, j] + out[j, i])
