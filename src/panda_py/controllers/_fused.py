@@ -28,12 +28,13 @@ from numba import types
 
 from panda_py import dynamics, jitcache, kinematics
 from panda_py.controllers import _kernels, tracking
-from panda_py.motion import _online_jit
+from panda_py.motion import online
 
 _KIN = kinematics.compiled_kernels()
 _DYN = dynamics.compiled_kernels()
-if _KIN is None or _DYN is None:  # plain Python: the separate calls run
-    raise ImportError("the kinematics or the dynamics run without numba")
+_ONLINE = online.compiled_kernels()
+if _KIN is None or _DYN is None or _ONLINE is None:  # plain Python: the separate calls run
+    raise ImportError("the kinematics, the dynamics or the online generator run without numba")
 
 __all__ = [
     "cartesian_impedance_step", "joint_tracking_step", "pose_target_step", "pose_tracking_step",
@@ -42,7 +43,7 @@ __all__ = [
 
 KEY = jitcache.source_key([
     Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__), Path(tracking.__file__),
-    Path(_online_jit.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
+    Path(_ONLINE.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
 ])  # fmt: skip
 _jacobian_one = _KIN.jacobian_one
 _rnea = _DYN.rnea
@@ -51,7 +52,7 @@ _mass_damping = _kernels.mass_damping
 _tracking = _kernels.pose_tracking_torque
 _pose_filter = _kernels.pose_filter
 _torque = _kernels.cartesian_impedance_torque
-_sample_pose = _online_jit.sample_pose
+_sample_pose = _ONLINE.sample_pose
 _target_outputs = _kernels.pose_target_outputs
 # tracking.PoseImpedance's buffer: the offsets of its arrays (constants, compiled in)
 _L = tracking.LAW_LAYOUT
@@ -257,7 +258,7 @@ def warmup() -> None:
     quat = np.array([0.0, 0.0, 0.0, 1.0])
     pose_tracking_step(O_T_EE, q, dq, chain, *arm.arrays, np.zeros(7), np.zeros(7),
                        np.zeros(3), quat, z6, z6.copy(), buf, np.empty(7))  # fmt: skip
-    traj, I3 = np.zeros((6, _online_jit.ROW)), np.eye(3)
+    traj, I3 = np.zeros((6, _ONLINE.ROW)), np.eye(3)
     tick = np.array([1.0, 0.0, 0.0, 0.0, 0.0])
     pose_target_step(tick, traj, z6.copy(), z6.copy(), z6.copy(), I3, I3, I3, quat, np.zeros(3),
                      quat.copy(), z6.copy(), z6.copy(), O_T_EE, q, dq, chain, *arm.arrays,

@@ -126,10 +126,9 @@ class PoseImpedance:
         self.J_prev: FloatArray | None = None
         self.J_pinv = view["J_pinv"].reshape(7, 6)
         self._damping_due = 0  # ticks until the damping is updated
-        # the compiled step's: this tick's Jacobian, and the previous tick's (it copies
-        # the one to the other before it computes this tick's)
-        self._J = view["J"].reshape(1, 6, 7)
-        self._J_last = view["J_prev"].reshape(1, 6, 7)
+        # the compiled step's Jacobian, as J_prev shows it after a tick (the kernel copies
+        # it to the buffer's J_prev before it computes this tick's)
+        self._J0 = view["J"].reshape(6, 7)
 
     def compiled_inputs(self, dt: float) -> FloatArray:
         """The buffer the compiled tracking takes (:data:`LAW_LAYOUT`), its scalars set for
@@ -144,7 +143,7 @@ class PoseImpedance:
             self._damping_due = DAMPING_TICKS - 1
         else:
             s[6] = 0.0
-        self.J_prev = self._J[0]
+        self.J_prev = self._J0
         return self.buffer
 
     def torque(self, state: Any, model: Any, dt: float, p_d: FloatArray, quat_d: FloatArray,

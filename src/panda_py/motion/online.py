@@ -47,11 +47,19 @@ from panda_py.motion import rotation
 from panda_py.motion.errors import TrajectoryError
 from panda_py.robots.params import RobotSpec
 
-__all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose", "warmup"]
+__all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose", "compiled_kernels", "warmup"]
 
 FloatArray = NDArray[np.float64]
 _UNSET = object()
 _KERNELS: Any = _UNSET
+
+
+def compiled_kernels() -> Any:
+    """The generator's compiled per-tick work (numba: ``sample_pose`` and the others of
+    :mod:`._online_jit`), or None where it runs as plain Python (numba missing,
+    ``PANDA_PY_NO_JIT=1``): for a compiled loop that samples an :class:`OnlinePose` itself
+    (:meth:`OnlinePose.advance`, :meth:`OnlinePose.sampling`)."""
+    return _compiled()
 
 
 def _compiled() -> Any:
