@@ -10,6 +10,7 @@ the model terms in one call where numba is installed: :mod:`._fused`).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -45,6 +46,7 @@ MIN_INVERSE_INERTIA = 1e-2
 LAW_LAYOUT = {"scalars": (0, 8), "K": (8, 36), "D": (44, 36), "q_n": (80, 7), "err": (87, 6),
               "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42)}  # fmt: skip
 LAW_SIZE = 219
+_K, _QN, _J = LAW_LAYOUT["K"][0], LAW_LAYOUT["q_n"][0], LAW_LAYOUT["J"][0]
 
 
 def joint_impedance_torque(
@@ -105,30 +107,54 @@ class PoseImpedance:
 
     def __init__(self, impedance: FloatArray, damping_ratio: float, q_nullspace: FloatArray,
                  nullspace_stiffness: float) -> None:  # fmt: skip
-        # its arrays are views into one buffer, which the compiled tracking takes whole
-        # (one argument of its call where there were eight: each costs the call ~0.2 us on
-        # the loop's cold caches); laid out as LAW_LAYOUT
-        buf = self.buffer = np.zeros(LAW_SIZE)
-        view = {name: buf[a : a + size] for name, (a, size) in LAW_LAYOUT.items()}
-        self._scalars = view["scalars"]
-        self._scalars[:] = (0.0, float(nullspace_stiffness), float(damping_ratio), FRICTION_SPEED,
-                            FRICTION_ERROR_RATE, MIN_INVERSE_INERTIA, 0.0, 0.0)  # fmt: skip
-        self.K = view["K"].reshape(6, 6)
-        self.K[:] = np.asarray(impedance, dtype=np.float64)
+        # its arrays live in one buffer, which the compiled tracking takes whole (one
+        # argument of its call where there were eight: each costs the call ~0.2 us on the
+        # loop's cold caches), laid out as LAW_LAYOUT; the views other than the Jacobian's
+        # are made on first use (a hand-over builds this law on cold caches, where each
+        # NumPy call costs tens of microseconds)
         self.zeta = float(damping_ratio)
-        # the damping: every path of torque() sets it on its first call (from the arm's
-        # inertia, _damping_due 0) before it reads it
-        self.D = view["D"].reshape(6, 6)
-        self.qn = view["q_n"]
-        self.qn[:] = np.asarray(q_nullspace, dtype=np.float64)
         self.kn = float(nullspace_stiffness)
-        self.err = view["err"]
+        buf = self.buffer = np.zeros(LAW_SIZE)
+        buf[:8] = (0.0, self.kn, self.zeta, FRICTION_SPEED, FRICTION_ERROR_RATE,
+                   MIN_INVERSE_INERTIA, 0.0, 0.0)  # fmt: skip
+        buf[_K : _K + 36] = np.asarray(impedance, dtype=np.float64).reshape(36)
+        buf[_QN : _QN + 7] = q_nullspace
+        self._scalars = buf[:8]
         self.J_prev: FloatArray | None = None
-        self.J_pinv = view["J_pinv"].reshape(7, 6)
         self._damping_due = 0  # ticks until the damping is updated
         # the compiled step's Jacobian, as J_prev shows it after a tick (the kernel copies
         # it to the buffer's J_prev before it computes this tick's)
-        self._J0 = view["J"].reshape(6, 7)
+        self._J0 = buf[_J : _J + 42].reshape(6, 7)
+
+    def _view(self, name: str) -> FloatArray:
+        a, size = LAW_LAYOUT[name]
+        return self.buffer[a : a + size]
+
+    @functools.cached_property
+    def K(self) -> FloatArray:
+        """The stiffness (6, 6) [N/m, Nm/rad] (in the buffer)."""
+        return self._view("K").reshape(6, 6)
+
+    @functools.cached_property
+    def D(self) -> FloatArray:
+        """The damping (6, 6) [N s/m, Nm s/rad] (in the buffer): every path of torque() sets
+        it on its first call (from the arm's inertia, _damping_due 0) before it reads it."""
+        return self._view("D").reshape(6, 6)
+
+    @functools.cached_property
+    def qn(self) -> FloatArray:
+        """The nullspace's configuration (7,) [rad] (in the buffer)."""
+        return self._view("q_n")
+
+    @functools.cached_property
+    def err(self) -> FloatArray:
+        """The pose error (6,) [m, rad] of the last tick (in the buffer)."""
+        return self._view("err")
+
+    @functools.cached_property
+    def J_pinv(self) -> FloatArray:
+        """The damped pseudo-inverse (7, 6) of the last tick's Jacobian (in the buffer)."""
+        return self._view("J_pinv").reshape(7, 6)
 
     def compiled_inputs(self, dt: float) -> FloatArray:
         """The buffer the compiled tracking takes (:data:`LAW_LAYOUT`), its scalars set for
