@@ -97,6 +97,22 @@ def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _cholesky(A, L):  # type: ignore[no-untyped-def,unused-ignore]
+    """The lower triangle ``L`` (n, n; its upper part left as it is) of the symmetric
+    positive definite ``A = L L^T``."""
+    n = A.shape[0]
+    for i in range(n):
+        for j in range(i + 1):
+            s = A[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            if i == j:
+                L[i, i] = math.sqrt(s)
+            else:
+                L[i, j] = s / L[j, j]
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
     definite): the damped pseudo-inverse of J^T."""
@@ -110,15 +126,7 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
             A[j, i] = s
         A[i, i] += PINV_DAMPING * PINV_DAMPING
     L = np.zeros((6, 6))
-    for i in range(6):
-        for j in range(i + 1):
-            s = A[i, j]
-            for k in range(j):
-                s -= L[i, k] * L[j, k]
-            if i == j:
-                L[i, i] = math.sqrt(s)
-            else:
-                L[i, j] = s / L[j, j]
+    _cholesky(A, L)
     for c in range(J.shape[1]):  # solve L L^T x = J[:, c]
         y = np.empty(6)
         for i in range(6):
@@ -426,16 +434,11 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
     unbounded inertia stays bounded (the reference: ``tracking.mass_damping``). In loops:
     a Cholesky solve and Jacobi's eigenvalues (:func:`_symmetric_eigen`), no BLAS or
     LAPACK call (each cost the loop's tick more than this arithmetic)."""
-    L = np.zeros((7, 7))  # M + diag(armature) = L L^T
+    Md = M.copy()  # the driven inertia M + diag(armature) = L L^T
     for i in range(7):
-        for j in range(i + 1):
-            acc = M[i, j] + (armature[i] if i == j else 0.0)
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                L[i, i] = math.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
+        Md[i, i] += armature[i]
+    L = np.zeros((7, 7))
+    _cholesky(Md, L)
     Y = np.empty((7, 6))  # L^-1 J^T: then J M^-1 J^T = Y^T Y
     for c in range(6):
         for i in range(7):
