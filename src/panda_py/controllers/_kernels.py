@@ -407,21 +407,22 @@ def _symmetric_eigen(A, w, V):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _product(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``out = A B`` (written out: numba's ``@`` calls BLAS, dearer for these sizes)."""
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            acc = 0.0
+            for k in range(A.shape[1]):
+                acc += A[i, k] * B[k, j]
+            out[i, j] = acc
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _sandwich(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A B A`` for 6x6 ``A``, ``B``."""
     T = np.empty((6, 6))
-    for i in range(6):
-        for j in range(6):
-            acc = 0.0
-            for k in range(6):
-                acc += B[i, k] * A[k, j]
-            T[i, j] = acc
-    for i in range(6):
-        for j in range(6):
-            acc = 0.0
-            for k in range(6):
-                acc += A[i, k] * T[k, j]
-            out[i, j] = acc
+    _product(B, A, T)
+    _product(A, T, out)
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
