@@ -83,11 +83,11 @@ class Simulator:
 
     ``lockstep`` makes simulated time advance one tick per command during motions (tests);
     otherwise it runs at 1 kHz on the wall clock like a real robot; in lockstep it polls
-    for each answer ``lockstep_spin`` seconds before sleeping on it, while a core is spare
-    (0: sleep at once, less CPU, about 1.3x slower). By default it accepts the protocol
-    versions the simulated robot's systems speak (a FER 3-5, an FR3 10, an
-    ``"fr3-pre-5.9"`` 6-9), chosen from the client's Connect request; ``versions`` pins a
-    subset of them (a real robot speaks exactly one). ``desk`` adds
+    for each answer ``lockstep_spin`` seconds before sleeping on it (0: sleep at once, less
+    CPU, about 1.4x slower). By default it accepts the protocol versions the simulated
+    robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9), chosen from
+    the client's Connect request; ``versions`` pins a subset of them (a real robot speaks
+    exactly one). ``desk`` adds
     the simulated Desk (HTTPS/WSS on ``host``, see :class:`DeskConfig`), coupled to the FCI;
     without it the robot is always unlocked with the FCI active. ``connect_timeout`` [s]: a
     TCP connection that sends no Connect within it is closed (it would hold the robot from

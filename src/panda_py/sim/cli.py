@@ -56,8 +56,7 @@ def _parser() -> argparse.ArgumentParser:
         type=float,
         default=300.0,
         metavar="US",
-        help="lockstep: microseconds to poll for a command before sleeping, while a core is "
-        "spare (0: never poll)",
+        help="lockstep: microseconds to poll for a command before sleeping (0: never poll)",
     )
     p.add_argument(
         "--version",

@@ -27,8 +27,7 @@ class SimConfig:
     robot: str = "fer"
     lockstep: bool = False
     lockstep_timeout: float = 2.0  # [s] wait for a command this long before counting it lost
-    # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never),
-    # while a core is spare (sim/spin.py).
+    # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never).
     # A sleeping simulator wakes on cold caches: its next tick takes about twice as long.
     lockstep_spin: float = 300e-6
     # Accept only these protocol versions (None: every version the robot's systems speak).

@@ -311,10 +311,8 @@ class FciSession(ServerState):
 
     def _spin_for_command(self, conn: RobotConnection) -> None:
         """Lockstep: poll the command socket for up to ``lockstep_spin`` (the client's
-        answer usually comes within it), keeping this core's caches warm; not while every
-        core is taken (:class:`~panda_py.sim.spin.SpinGate`)."""
-        now = time.monotonic()
-        end = now + self._spin_gate.budget(now)
+        answer usually comes within it), keeping this core's caches warm."""
+        end = time.monotonic() + self.config.lockstep_spin
         read = self._read_robot_udp
         while conn.command is None and conn.udp is not None and time.monotonic() < end:
             read(conn)

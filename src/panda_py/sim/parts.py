@@ -19,7 +19,6 @@ from panda_py.sim.connections import Client, GripperConnection, RobotConnection
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.physics import Physics
 from panda_py.sim.robot import RobotCore
-from panda_py.sim.spin import SpinGate
 from panda_py.sim.vacuum import VacuumCore
 
 
@@ -53,7 +52,6 @@ class ServerState:
     _budget: float
     _tick_deadline: float
     _next_check: float
-    _spin_gate: SpinGate
     _models: ThreadPoolExecutor
     _urdf: Future[bytes | str]
     _libraries: dict[tuple[int, int], Future[bytes | str]]

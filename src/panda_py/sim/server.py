@@ -45,7 +45,6 @@ from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import RobotCore
 from panda_py.sim.sockets import REQUEST_BUDGET, Sockets
-from panda_py.sim.spin import SpinGate
 from panda_py.sim.vacuum import VacuumCore
 from panda_py.sim.vacuum_session import VacuumSession
 
@@ -102,7 +101,6 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         self._budget = REQUEST_BUDGET  # [s] left for requests until the next tick
         self._tick_deadline = 0.0  # monotonic: when the current tick was due
         self._next_check = 0.0  # monotonic: next look for idle connections
-        self._spin_gate = SpinGate(config.lockstep_spin if config.lockstep else 0.0)
         # Model delivery runs in its own thread; the loop answers once a build is done.
         self._models = ThreadPoolExecutor(max_workers=1, thread_name_prefix="panda-sim-models")
         self._urdf: Future[bytes | str] = self._models.submit(self._build_urdf)
@@ -124,7 +122,6 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             self._sel.unregister(s)
             s.close()
         self._sel.close()
-        self._spin_gate.close()
 
     def serve_forever(self) -> None:
         # Everything built so far (MuJoCo, numpy, the model) lives as long as the server:
