@@ -80,3 +80,43 @@ def test_without_memfd_a_temporary_file_carries_the_arrays(pair, monkeypatch) ->
     msg, fds = receiver.recv()
     np.testing.assert_array_equal(msg["q"], q)
     assert fds == []
+
+
+def test_a_message_is_whole_once_its_last_byte_is_buffered(pair) -> None:  # type: ignore[no-untyped-def]
+    sender, receiver = pair
+    assert not receiver.whole()  # nothing buffered
+    data = ch._LEN.pack(5) + b"\x80\x05K\x07."  # a pickle of 7, written by hand
+    for cut in (1, 4, len(data) - 1):  # part of the length, the length, all but one byte
+        sender.sock.sendall(data[:cut])
+        assert not receiver.whole(), cut
+        assert receiver.whole() is False  # and reads nothing: asked again, the same
+        sender.sock.sendall(data[cut:])
+        assert receiver.whole()
+        assert receiver.recv() == (7, [])
+    assert not receiver.whole()
+
+
+def test_a_message_with_descriptors_or_out_of_band_is_whole_when_sent(pair) -> None:  # type: ignore[no-untyped-def]
+    sender, receiver = pair
+    r, w = os.pipe()
+    try:
+        sender.send({"small": 1}, (r,))
+        assert receiver.whole()
+        message, fds = receiver.recv()
+        assert message == {"small": 1} and len(fds) == 1
+        os.close(fds[0])
+    finally:
+        os.close(r)
+        os.close(w)
+    q = np.arange(70_000.0)  # out of band: its bytes in a memfd, the socket's part whole
+    sender.send(q)
+    assert receiver.whole()
+    np.testing.assert_array_equal(receiver.recv()[0], q)
+
+
+def test_a_closed_channel_is_never_whole(pair) -> None:  # type: ignore[no-untyped-def]
+    sender, receiver = pair
+    sender.close()
+    assert not receiver.whole()
+    with pytest.raises(ChannelClosed):
+        receiver.recv()

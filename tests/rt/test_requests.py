@@ -180,15 +180,49 @@ def test_a_queued_state_comes_before_a_request(server, robot_socket) -> None:  #
     assert (law, rid) == (old, 1) and srv.requests_taken == 0  # taken after this tick
 
 
-def test_a_request_not_yet_counted_is_left_whole_for_a_later_tick(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+def _written(message: Any) -> bytes:
+    """What Channel.send writes for ``message`` (in band)."""
+    payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    return len(payload).to_bytes(4, "little") + payload
+
+
+def test_a_request_being_written_is_left_whole_for_a_later_tick(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
     srv, user = server
     robot, loop = robot_socket
     old, state = _running_move(srv)
-    user.send(rq.Call(2, REQUESTS[2]))  # sent, not yet counted: it may still be being written
+    data = _written(rq.Call(2, REQUESTS[2]))
+    user.sock.sendall(data[:-8])  # not yet whole, nor counted
     threading.Timer(0.01, robot.send, (b"state",)).start()
     law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
     assert (law, rid) == (old, 1) and srv.requests_taken == 0
     assert loop.recv(16) == b"state"  # it returned for the state, having waited on it alone
+    user.sock.sendall(data[-8:])  # whole now, still not counted: taken at the next gap
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert rid == 2 and isinstance(law, JointMove) and srv.requests_taken == 1
+
+
+def test_a_whole_request_is_taken_before_its_sender_counts_it(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
+    # the loop woken by the send often runs before the sender gets to count: it need not
+    # wait for the count (it polled for it every COUNT_POLL, 100 us, before)
+    srv, user = server
+    robot, loop = robot_socket
+    old, state = _running_move(srv)
+    user.send(rq.Call(2, REQUESTS[2]))  # whole, not counted
+    sent: list[float] = []
+
+    def state_() -> None:
+        sent.append(time.monotonic())
+        robot.send(b"state")
+
+    threading.Timer(0.6 * STATE_WAIT, state_).start()
+    law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
+    assert rid == 2 and law is not old and srv.requests_taken == 1
+    reply, _ = user.recv()
+    assert reply.rid == 1 and reply.value.end_time < sent[0]  # handed over before the state
+    srv.block.header[HEADER.REQUESTS] += 1  # counted late: nothing more to take
+    assert loop.recv(16) == b"state"  # (the tick's state, read as readOnce would)
+    assert srv._await_state(loop.fileno(), srv.chan.fileno(), law, 2, state) == (law, 2)
+    assert srv.requests_taken == 1
 
 
 def test_a_hand_over_waits_one_gap_when_a_state_is_queued(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
@@ -243,7 +277,7 @@ def test_a_request_never_counted_does_not_keep_the_loop_from_a_silent_robot(
     srv, user = server
     _, loop = robot_socket
     old, state = _running_move(srv)
-    user.send(rq.Call(2, REQUESTS[2]))  # never counted (its sender died half way, say)
+    user.sock.sendall(_written(rq.Call(2, REQUESTS[2]))[:-8])  # its sender died half way
     t0 = time.monotonic()
     law, rid = srv._await_state(loop.fileno(), srv.chan.fileno(), old, 1, state)
     assert (law, rid) == (old, 1) and srv.requests_taken == 0

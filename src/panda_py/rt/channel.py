@@ -9,8 +9,9 @@ through the socket: its pickle (protocol 5) leaves the arrays' bytes out of band
 written to an anonymous memory file (``memfd``) sent along as a descriptor, and the
 receiver maps it and unpickles the arrays onto the mapping, without copying. The socket
 then only ever carries small messages, so a send never waits for the reader: the control
-loop reads a request when its count says it is whole (see ``ControlProcess.submit``), and
-a sender blocked on a full socket buffer would wait for a loop that waits for it.
+loop reads a request when it is whole (all its bytes buffered, :meth:`Channel.whole`, or
+counted by its sender, see ``ControlProcess.submit``), and a sender blocked on a full
+socket buffer would wait for a loop that waits for it.
 """
 
 from __future__ import annotations
@@ -34,6 +35,15 @@ OUT_OF_BAND = 32 * 1024
 _OOB_FLAG = 1 << 31  # in the length word: the last descriptor holds the arrays' bytes
 _COUNT = struct.Struct("<I")
 _SIZE = struct.Struct("<Q")
+_INT = struct.Struct("i")  # FIONREAD's answer: the bytes buffered
+_INT_ZERO = _INT.pack(0)
+try:
+    import fcntl
+    import termios
+
+    _FIONREAD: int | None = termios.FIONREAD
+except ImportError:  # (no fcntl, termios: Windows)
+    _FIONREAD = None
 
 
 class ChannelClosed(EOFError):
@@ -125,6 +135,23 @@ class Channel:
             return _loads_mapped(payload, memfd), list(fds)
         finally:
             os.close(memfd)
+
+    def whole(self) -> bool:
+        """True if a whole message is buffered, so that :meth:`recv` takes it without
+        waiting; never waits, and reads nothing. False where the buffered bytes cannot
+        be counted (no ``FIONREAD``)."""
+        if _FIONREAD is None:
+            return False
+        try:
+            buffered = _INT.unpack(fcntl.ioctl(self.sock, _FIONREAD, _INT_ZERO))[0]
+            if buffered < 4:
+                return False
+            head = self.sock.recv(4, socket.MSG_PEEK | socket.MSG_DONTWAIT)
+        except OSError:  # (BlockingIOError among them)
+            return False
+        if len(head) < 4:
+            return False
+        return bool(buffered >= 4 + (_LEN.unpack(head)[0] & ~_OOB_FLAG))
 
     def poll(self, timeout: float = 0.0) -> bool:
         """True if a message (or the close) is waiting."""

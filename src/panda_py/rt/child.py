@@ -442,10 +442,11 @@ class ControlServer:
         A state already queued goes first: a hand-over it would delay waits for the next
         gap, once, on that tick's state (unpacking and handing over each take up to about
         half a millisecond on cold caches, together more than a gap, and a late command
-        is a lost one). A request is whole once the user's process has counted it (it
-        counts after its send, so the channel is readable a moment before): meanwhile the
-        count is looked at every COUNT_POLL while waiting on the robot's socket alone."""
-        header = self.block.header
+        is a lost one). A request is whole once all its bytes are buffered, or once the
+        user's process has counted it (it counts after its send: the woken loop often runs
+        before the sender gets to count); until then the buffer and the count are looked
+        at every COUNT_POLL while waiting on the robot's socket alone."""
+        header, chan = self.block.header, self.chan
         both, alone = [udp, requests], [udp]
         deadline = time.monotonic() + STATE_WAIT
         polling = False  # the channel is readable, its request not counted yet
@@ -465,7 +466,9 @@ class ControlServer:
                 readable = select.select(both, [], [], left)[0]
             if udp in readable:
                 return law, move_rid  # the state
-            if header[HEADER.REQUESTS] > self.requests_taken:
+            if header[HEADER.REQUESTS] > self.requests_taken or (
+                (readable or polling) and chan.whole()
+            ):
                 self._receive(running=True)
                 polling = False
             elif readable:  # being written (or the user's side closed: PARENT_CHECK_TICKS)
