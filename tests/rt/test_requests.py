@@ -181,9 +181,15 @@ def test_a_queued_state_comes_before_a_request(server, robot_socket) -> None:  #
 
 
 def _written(message: Any) -> bytes:
-    """What Channel.send writes for ``message`` (in band)."""
-    payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
-    return len(payload).to_bytes(4, "little") + payload
+    """The bytes Channel.send writes for ``message``, caught on a socket pair of its own."""
+    a, b = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    with a, b:
+        Channel(a).send(message)
+        a.shutdown(socket.SHUT_WR)
+        chunks = []
+        while chunk := b.recv(1 << 16):
+            chunks.append(chunk)
+    return b"".join(chunks)
 
 
 def test_a_request_being_written_is_left_whole_for_a_later_tick(server, robot_socket) -> None:  # type: ignore[no-untyped-def]
