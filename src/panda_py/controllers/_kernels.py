@@ -113,6 +113,19 @@ def _cholesky(A, L):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _forward_solve(L, B, Y):  # type: ignore[no-untyped-def,unused-ignore]
+    """``Y = L^-1 B`` (n, m) for the lower triangular ``L`` (n, n), by forward
+    substitution."""
+    n = L.shape[0]
+    for c in range(B.shape[1]):
+        for i in range(n):
+            s = B[i, c]
+            for k in range(i):
+                s -= L[i, k] * Y[k, c]
+            Y[i, c] = s / L[i, i]
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
     definite): the damped pseudo-inverse of J^T."""
@@ -127,15 +140,11 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
         A[i, i] += PINV_DAMPING * PINV_DAMPING
     L = np.zeros((6, 6))
     _cholesky(A, L)
-    for c in range(J.shape[1]):  # solve L L^T x = J[:, c]
-        y = np.empty(6)
-        for i in range(6):
-            s = J[i, c]
-            for k in range(i):
-                s -= L[i, k] * y[k]
-            y[i] = s / L[i, i]
+    Y = np.empty((6, J.shape[1]))  # solve L L^T x = J: L y = J, then L^T x = y
+    _forward_solve(L, J, Y)
+    for c in range(J.shape[1]):
         for i in range(5, -1, -1):
-            s = y[i]
+            s = Y[i, c]
             for k in range(i + 1, 6):
                 s -= L[k, i] * out[k, c]
             out[i, c] = s / L[i, i]
@@ -441,12 +450,7 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
     L = np.zeros((7, 7))
     _cholesky(Md, L)
     Y = np.empty((7, 6))  # L^-1 J^T: then J M^-1 J^T = Y^T Y
-    for c in range(6):
-        for i in range(7):
-            acc = J[c, i]
-            for k in range(i):
-                acc -= L[i, k] * Y[k, c]
-            Y[i, c] = acc / L[i, i]
+    _forward_solve(L, J.T, Y)
     A = np.empty((6, 6))
     for i in range(6):
         for j in range(i + 1):
