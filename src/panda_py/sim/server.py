@@ -57,6 +57,11 @@ RESYNC = 0.1
 ENGAGE_WAIT = 0.02
 # How often the loop looks for connections idle before Connect [s].
 IDLE_CHECK_PERIOD = 0.1
+# With nobody watching (no client, no viewer or recorder, no Desk drive), the loop runs the
+# ticks of this long [s] back to back and then sleeps: the same ticks, woken 20 times a
+# second instead of 1000 (the Desk's page shows the arm at 20 Hz). A woken process runs its
+# first ticks several times slower than the next, so this halves an idle simulator's CPU.
+UNWATCHED_BATCH = 0.05
 
 
 class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDelivery, ControlRpc):
@@ -188,9 +193,26 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     next_tick = now
                 self._tick(next_tick, late=late > LATE_THRESHOLD)
                 next_tick += DT
+                ahead = now + UNWATCHED_BATCH
+                while next_tick < ahead and self._running and self._unwatched():
+                    self._tick(next_tick, late=False)
+                    next_tick += DT
                 lockstep_deadline = time.monotonic() + self._lockstep_wait()
         finally:
             self.close()
+
+    def _unwatched(self) -> bool:
+        """No client is connected (robot, gripper or pump, or one being refused), no
+        request is pending, no viewer or recorder draws, and the arm is not moving to where
+        the Desk asked: nobody sees when a tick runs, only that it ran."""
+        return (
+            self.robot_conn is None
+            and self.gripper_conn is None
+            and not self._refusing
+            and not self._model_requests
+            and self.frames is None
+            and not self.core.driving
+        )
 
     def _lockstep_wait(self) -> float:
         """How long lockstep waits for the next command [s]: the full timeout once the
