@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import signal
 import socket
 import struct
+import time
 
 import numpy as np
 import pytest
@@ -378,3 +381,27 @@ def test_lockstep_without_polling_loses_nothing():
             assert s.stats()["commands_received"] == 299
         finally:
             c.close()
+
+
+def test_a_client_that_sent_a_request_and_left_does_not_keep_the_next_one_out(sim):
+    """The first client sends a request and closes; the next connects before the
+    simulator has read either (it is stopped meanwhile, as a loaded machine may do). The
+    new client is served: the one that left, request unread or not, is gone. (Before,
+    about half of such tries heard "robot busy"; five in a row here.)"""
+    pid = sim._process.pid
+    for _ in range(5):
+        c = RawClient(sim.host, 10)
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            time.sleep(0.05)  # stopped
+            c.send(Command.AUTOMATIC_ERROR_RECOVERY)
+            c.close()
+            s = socket.create_connection((sim.host, fci.COMMAND_PORT), timeout=5)
+            s.sendall(fci.encode_connect_request(10, 4242, command_id=0))
+            time.sleep(0.05)  # all of it arrived
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        s.settimeout(5)
+        answer = s.recv(100)
+        s.close()
+        assert fci.decode_connect_response(answer)[1] == fci.ConnectStatus.SUCCESS

@@ -6,6 +6,7 @@ misbehaving connections. Nothing here ever waits."""
 from __future__ import annotations
 
 import logging
+import select
 import selectors
 import socket
 import time
@@ -35,6 +36,13 @@ READ_CHUNK = 4096
 REQUEST_BUDGET = 0.00025
 # Second clients waiting for their "robot busy" answer; beyond this, closed at once.
 MAX_REFUSING = 8
+# poll() events of a peer that closed or reset its end, even with data unread (0: the
+# platform cannot tell, before that data is read)
+_PEER_GONE = (
+    select.POLLRDHUP | select.POLLHUP | select.POLLERR
+    if hasattr(select, "POLLRDHUP") and hasattr(select, "poll")
+    else 0
+)
 
 
 class Sockets(ServerState):
@@ -154,7 +162,17 @@ class Sockets(ServerState):
 
     @staticmethod
     def _alive(conn: RobotConnection | GripperConnection) -> bool:
-        """Whether a connection is still open (its peer may have closed it unseen yet)."""
+        """Whether a connection is still open: its peer may have closed it unseen yet,
+        also behind requests not read yet (a client that sent one and left: Linux's
+        ``POLLRDHUP``; elsewhere such a client counts as connected until they are read)."""
+        if _PEER_GONE:
+            poller = select.poll()
+            poller.register(conn.sock, _PEER_GONE)
+            try:
+                if poller.poll(0):
+                    return False
+            except OSError:
+                return False
         try:
             return conn.sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) != b""
         except (BlockingIOError, InterruptedError):
