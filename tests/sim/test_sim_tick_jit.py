@@ -167,6 +167,33 @@ def test_the_command_views_use_the_warm_kernels(core: RobotCore) -> None:
     assert [len(k.signatures) for k in kernels] == before
 
 
+def test_joint_controller_equals_the_reference(core: RobotCore) -> None:
+    """The robot's joint impedance controller (holding, a Desk drive, a motion
+    generator's tracking) against ``Physics.joint_tracking_torque``: equal to rounding
+    (the mass matrix's product sums in its own order), moving joints and joints at rest
+    (their friction comes from the push) alike, at any stiffness the client set; and the
+    loop's arrays compile nothing new."""
+    from panda_py.sim import _tick_jit
+
+    assert core._fast is not None
+    before = len(_tick_jit.joint_tracking.signatures)
+    rng = np.random.default_rng(7)
+    ph = core.physics
+    default = np.asarray(core.spec.default_K_theta)
+    for k in range(300):
+        _randomise(core, rng)
+        if k % 3 == 0:
+            ph.data.qvel[ph.v0 : ph.v0 + 7] = 0.0  # at rest: the clipped push
+        q_d = core.joint.q + rng.normal(scale=0.05, size=7)
+        dq_d, ddq_d = rng.normal(size=7), rng.normal(scale=3.0, size=7)
+        K = default * rng.uniform(0.0, 2.0, size=7)  # 0: the 1e-3 floor
+        got = core._fast.joint_tracking(ph, q_d, dq_d, ddq_d, K).copy()
+        want = ph.joint_tracking_torque(q_d, dq_d, ddq_d, np.maximum(K / default, 1e-3))
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+    core._hold_torque()  # the held joints' zeros
+    assert len(_tick_jit.joint_tracking.signatures) == before
+
+
 def test_without_the_jit_the_robot_runs_the_reference() -> None:
     probe = (
         "import numpy as np\n"

@@ -1,12 +1,14 @@
 """The simulator's per-tick arithmetic compiled by numba: the robot state's per-tick fields,
-the checks every received command and every motion tick pass through, and the commanded
-joint signal's derivatives and limits.
+the checks every received command and every motion tick pass through, the commanded
+joint signal's derivatives and limits, and the robot's joint impedance controller.
 
 Each kernel does, value for value, what the plain NumPy reference does
 (:meth:`StateAssembly._fill_state_reference`, :meth:`RobotCore._accept`,
-:meth:`RobotCore._motion_tick`, :class:`~panda_py.sim.safety.JointSignal`); one call
-replaces a few dozen NumPy calls on 7-vectors, whose fixed cost (about 0.5 us each) was
-most of a tick. ``tests/sim/test_sim_tick_jit.py`` holds them equal bit for bit.
+:meth:`RobotCore._motion_tick`, :class:`~panda_py.sim.safety.JointSignal`,
+:meth:`~panda_py.sim.physics.Physics.joint_tracking_torque`); one call replaces a few
+dozen NumPy calls on 7-vectors, whose fixed cost (about 0.5 us each) was most of a tick.
+``tests/sim/test_sim_tick_jit.py`` holds them equal bit for bit (the controller to
+rounding: its matrix product sums in an order of its own).
 Imported by :mod:`.fastpath` only when the kinematics run compiled (numba installed,
 ``PANDA_PY_NO_JIT`` unset); compiled once per machine (about 3 s, when the first simulator
 starts) and cached on disk under a key over this file (:mod:`panda_py.jitcache`); the
@@ -18,11 +20,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from panda_py import jitcache
 
 __all__ = [
-    "FIELDS", "all_finite", "fill_state", "joint_limit_bits", "joint_push", "measured_in_limits",
-    "torque_in_limits",
+    "FIELDS", "all_finite", "fill_state", "joint_limit_bits", "joint_push", "joint_tracking",
+    "measured_in_limits", "torque_in_limits",
 ]  # fmt: skip
 
 # the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
@@ -209,3 +213,33 @@ def all_finite(x):  # type: ignore[no-untyped-def,unused-ignore]
         if not math.isfinite(x[i]):
             return False
     return True
+
+
+@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def joint_tracking(  # type: ignore[no-untyped-def,unused-ignore]
+    M, bias, grav, q, dq, q_d, dq_d, ddq_d, K_theta, K_default, coulomb, omega, fs_inv, out
+):  # fmt: skip
+    """The robot's joint impedance controller tracking (q_d, dq_d, ddq_d) into ``out``, as
+    :meth:`~panda_py.sim.physics.Physics.joint_tracking_torque` with its friction
+    compensation: stiffness scaled by max(K_theta / K_default, 1e-3), computed torque
+    ``M acc + (bias - grav)`` (``M`` the arm's mass matrix, ``bias`` MuJoCo's bias force,
+    ``grav`` its gravity compensation), then the dry friction cancelled (``coulomb``,
+    ``fs_inv`` one over the friction's speed). Operation for operation but the matrix
+    product's sum, whose order BLAS chooses: equal to the reference to rounding."""
+    acc = np.empty(7)
+    kp_gain = omega * omega
+    kd_gain = 2.0 * omega
+    for i in range(7):
+        scale = max(K_theta[i] / K_default[i], 1e-3)
+        kp = kp_gain * scale
+        kd = kd_gain * math.sqrt(scale)
+        acc[i] = ddq_d[i] + kp * (q_d[i] - q[i]) + kd * (dq_d[i] - dq[i])
+    for i in range(7):
+        tau = 0.0
+        for j in range(7):
+            tau += M[i, j] * acc[j]
+        tau += bias[i] - grav[i]
+        c = coulomb[i]
+        moving = math.tanh(dq[i] * fs_inv)
+        still = min(max(tau, -c), c)
+        out[i] = tau + (c * moving + (1.0 - abs(moving)) * still)

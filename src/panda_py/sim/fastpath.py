@@ -1,5 +1,6 @@
-"""The compiled per-tick path of one simulated robot: its state fill, its command checks
-and its commanded joint signal on numba kernels (:mod:`._tick_jit`), on buffers allocated once.
+"""The compiled per-tick path of one simulated robot: its state fill, its command checks,
+its commanded joint signal and its joint controller on numba kernels (:mod:`._tick_jit`),
+on buffers allocated once.
 
 Used where the kinematics run compiled (numba installed, ``PANDA_PY_NO_JIT`` unset;
 ``panda_py.kinematics``' choice, so the two never disagree); otherwise, and for the rare
@@ -16,7 +17,7 @@ import numpy as np
 from panda_py import fci, kinematics
 from panda_py.fci import MotionGeneratorMode
 from panda_py.robots.params import GRAVITY
-from panda_py.sim.physics import DT
+from panda_py.sim.physics import DT, FRICTION_SPEED, OMEGA, Physics
 
 if TYPE_CHECKING:
     from panda_py.sim.state import StateAssembly
@@ -45,12 +46,14 @@ class TickKernels:
             for mg in MotionGeneratorMode
         }
         self._cartesian = frozenset(cart)
-        self._warm()
+        self._K_default = np.array(core.spec.default_K_theta, dtype=float)
+        self._tau = np.zeros(7)
+        self._warm(ph)
 
-    def _warm(self) -> None:
+    def _warm(self, ph: Physics) -> None:
         """Compile (or load from the cache) the checks for the views they get in the loop
-        (each dialect's command buffer, read-only and possibly unaligned), now, not at a
-        motion's first command."""
+        (each dialect's command buffer, read-only and possibly unaligned) and the joint
+        controller for the arrays it gets, now, not at a motion's first command."""
         from panda_py.sim.wire import CommandWire  # (wire imports the robot, which imports us)
 
         k = self._k
@@ -70,6 +73,7 @@ class TickKernels:
         k.all_finite(z)
         k.joint_push(*signal, z, k.PUSH_POSITION, DT)  # (the robot's own IK, generator)
         k.joint_limit_bits(*signal, np.zeros(35), z)
+        self.joint_tracking(ph, z, z, z, np.ones(7))
 
     def fill(self, core: StateAssembly) -> bool:
         """The per-tick state fields; False (nothing written) where the reference must
@@ -97,6 +101,18 @@ class TickKernels:
         )  # fmt: skip
         core._fill_contacts(core._T_view["O_T_EE"])
         return True
+
+    def joint_tracking(
+        self, ph: Physics, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, K_theta: np.ndarray
+    ) -> np.ndarray:
+        """:meth:`Physics.joint_tracking_torque` at the stiffness scale of ``K_theta``
+        against the robot's default, into a buffer the next call reuses."""
+        self._k.joint_tracking(
+            ph.mass_matrix(), ph._bias_arm, ph._gravcomp_arm, ph._qpos_arm, ph._qvel_arm, q_d,
+            dq_d, ddq_d, K_theta, self._K_default, ph._coulomb, OMEGA, 1.0 / FRICTION_SPEED,
+            self._tau,
+        )  # fmt: skip
+        return self._tau
 
     def torque_in_limits(
         self, tau: np.ndarray, tau_J_d: np.ndarray, tau_max: np.ndarray, dtau_step: np.ndarray

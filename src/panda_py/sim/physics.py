@@ -21,16 +21,16 @@ DT = PERIOD  # [s] one control tick: one MuJoCo step
 
 # Tracking bandwidth of the robot's internal joint controller at the default stiffness:
 # a computed-torque law with natural frequency OMEGA [rad/s], critically damped.
-_OMEGA = 60.0  # [rad/s]
+OMEGA = 60.0  # [rad/s]
 # Joint-space gains of the null-space posture task used by differential IK.
 _IK_ITERATIONS = 3
 _IK_DAMPING = 1e-6
 _ELBOW_HELD = np.array([0, 1, 3, 4, 5, 6])  # the joints IK moves when joint 3 is commanded
 # The robot's joint controllers compensate the drives' dry friction: on a joint moving
-# faster than _FRICTION_SPEED, all of it, along its velocity; on a joint at rest, in the
+# faster than FRICTION_SPEED, all of it, along its velocity; on a joint at rest, in the
 # direction the controller pushes, as much again as it pushes (up to the Coulomb level), so
 # a joint breaks free at half the torque and its controller's gain at most doubles.
-_FRICTION_SPEED = 1e-3  # [rad/s]
+FRICTION_SPEED = 1e-3  # [rad/s]
 # Constraint rows of contacts (frictionless, pyramidal, elliptic: the last of MuJoCo's kinds).
 _CONTACT_ROWS = int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS)
 # The smallest pivot of J J^T's factorisation when a wrench is fitted to torques [m^2]:
@@ -264,17 +264,17 @@ class Physics:
     ) -> np.ndarray:
         """The robot's joint impedance controller tracking (q_d, dq_d, ddq_d): computed
         torque with feed-forward, stiffness scaled per joint by K_theta / default."""
-        kp = _OMEGA * _OMEGA * stiffness_scale
-        kd = 2.0 * _OMEGA * np.sqrt(stiffness_scale)
+        kp = OMEGA * OMEGA * stiffness_scale
+        kd = 2.0 * OMEGA * np.sqrt(stiffness_scale)
         acc = ddq_d + kp * (q_d - self.q) + kd * (dq_d - self.dq)
         tau = self.mass_matrix() @ acc + self.coriolis()
         return tau + self.friction_compensation(tau)
 
     def friction_compensation(self, push: np.ndarray) -> np.ndarray:
         """The torque [Nm] with which the robot's joint controllers cancel the joints' dry
-        friction, for a controller pushing with ``push`` [Nm] (see ``_FRICTION_SPEED``)."""
+        friction, for a controller pushing with ``push`` [Nm] (see ``FRICTION_SPEED``)."""
         c = self._coulomb
-        moving = np.tanh(self.dq * (1.0 / _FRICTION_SPEED))
+        moving = np.tanh(self.dq * (1.0 / FRICTION_SPEED))
         still = np.clip(push, -c, c)
         return c * moving + (1.0 - np.abs(moving)) * still
 

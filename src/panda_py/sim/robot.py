@@ -49,6 +49,8 @@ from panda_py.sim.state import CONTACT_FIELDS, StateAssembly
 log = logging.getLogger("panda_py.sim")
 
 _ERROR_INDEX = {name: i for i, name in enumerate(ERROR_NAMES)}
+# the velocity and acceleration a held joint is tracked at (read, never written)
+_REST = np.zeros(7)
 
 # After this many lost commands in a row the robot aborts (FCI docs: "20 consecutively
 # dropped packets" -> communication_constraints_violation).
@@ -361,18 +363,26 @@ class RobotCore(RobotSettings, StateAssembly):
             self.q_hold = self.physics.q.copy()
         if self.robot_mode == RobotMode.GUIDING:
             return -2.0 * self.physics.dq  # hand guiding: gravity-compensated, lightly damped
-        scale = np.maximum(self.K_theta / self._K_default, 1e-3)
         if drive is not None:
             q_d, dq_d, ddq_d = drive.advance(DT)
             if drive.finished:
                 self.drive = None
                 self.q_hold = drive.goal.copy()
             self.joint.reset(q_d)  # the state's q_d: the path, as the robot reports it
-            return self.physics.joint_tracking_torque(q_d, dq_d, ddq_d, scale)
-        return self.physics.joint_tracking_torque(self.q_hold, np.zeros(7), np.zeros(7), scale)
+            return self._joint_tracking(q_d, dq_d, ddq_d)
+        return self._joint_tracking(self.q_hold, _REST, _REST)
+
+    def _joint_tracking(self, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray) -> np.ndarray:
+        """The joint impedance controller's torque tracking (q_d, dq_d, ddq_d) at the
+        stiffness the client set (K_theta), compiled where the tick is; a buffer the next
+        call reuses."""
+        fast = self._fast
+        if fast is not None:
+            return fast.joint_tracking(self.physics, q_d, dq_d, ddq_d, self.K_theta)
+        scale = np.maximum(self.K_theta / self._K_default, 1e-3)
+        return self.physics.joint_tracking_torque(q_d, dq_d, ddq_d, scale)
 
     def _motion_tick(self, command: Command | None, excused: bool = False) -> np.ndarray:
-        ph = self.physics
         if self.async_gen is not None:
             self._async_tick(command)
         elif command is None and self.first_command:
@@ -405,8 +415,7 @@ class RobotCore(RobotSettings, StateAssembly):
                 return np.zeros(7)
         if self.ctrl_mode == ControllerMode.EXTERNAL_CONTROLLER:
             return self.tau_J_d.copy()
-        scale = np.maximum(self.K_theta / self._K_default, 1e-3)
-        tau = ph.joint_tracking_torque(self.joint.q, self.joint.dq, self.joint.ddq, scale)
+        tau = self._joint_tracking(self.joint.q, self.joint.dq, self.joint.ddq)
         self.tau_J_d[:] = tau
         return tau
 
