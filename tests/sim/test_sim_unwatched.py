@@ -45,19 +45,23 @@ def server(request: pytest.FixtureRequest) -> Iterator[SimServer]:
     assert not loop.is_alive()
 
 
-def _over(srv: SimServer, seconds: float) -> tuple[int, int, float]:
-    """Ticks, loop passes and wall time over ``seconds``."""
+def _over(srv: SimServer, seconds: float) -> tuple[int, int, float, bool]:
+    """Ticks, loop passes and wall time over ``seconds``, and whether the machine stalled
+    the loop past its catching up (a resync: the clock's ticks were skipped)."""
     sel: Any = srv._sel
+    resyncs = srv.stats.resyncs
     ticks, passes, t0 = srv.tick_count, sel.passes, time.monotonic()
     time.sleep(seconds)
-    return srv.tick_count - ticks, sel.passes - passes, time.monotonic() - t0
+    stalled = srv.stats.resyncs != resyncs
+    return srv.tick_count - ticks, sel.passes - passes, time.monotonic() - t0, stalled
 
 
 def test_unwatched_ticks_run_in_batches_and_keep_the_wall_clock(server: SimServer) -> None:
     time.sleep(0.2)  # started
-    ticks, passes, wall = _over(server, 1.0)
+    ticks, passes, wall, stalled = _over(server, 1.0)
     # the same ticks as one a millisecond, within a batch either way
-    assert abs(ticks - 1000 * wall) <= 1000 * UNWATCHED_BATCH + 5, (ticks, wall)
+    if not stalled:
+        assert abs(ticks - 1000 * wall) <= 1000 * UNWATCHED_BATCH + 5, (ticks, wall)
     # woken about once a batch, not once a tick
     assert passes <= 3 * wall / UNWATCHED_BATCH, (ticks, passes)
 
@@ -70,12 +74,13 @@ def test_a_connected_client_gets_every_tick_on_its_own(server: SimServer) -> Non
         while server.robot_conn is None:  # accepted
             assert time.monotonic() < deadline
             time.sleep(0.01)
-        ticks, passes, wall = _over(server, 0.5)
-        assert abs(ticks - 1000 * wall) <= 100, (ticks, wall)
+        ticks, passes, wall, stalled = _over(server, 0.5)
+        if not stalled:
+            assert abs(ticks - 1000 * wall) <= 100, (ticks, wall)
         assert passes >= ticks, (ticks, passes)  # a pass (at least) for every tick
     deadline = time.monotonic() + 5
     while server.robot_conn is not None:  # gone: batches again
         assert time.monotonic() < deadline
         time.sleep(0.01)
-    _, passes, wall = _over(server, 0.5)
+    _, passes, wall, _ = _over(server, 0.5)
     assert passes <= 3 * wall / UNWATCHED_BATCH
