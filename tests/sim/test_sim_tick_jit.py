@@ -187,7 +187,7 @@ def test_joint_controller_equals_the_reference(core: RobotCore) -> None:
         q_d = core.joint.q + rng.normal(scale=0.05, size=7)
         dq_d, ddq_d = rng.normal(size=7), rng.normal(scale=3.0, size=7)
         K = default * rng.uniform(0.0, 2.0, size=7)  # 0: the 1e-3 floor
-        got = core._fast.joint_tracking(ph, q_d, dq_d, ddq_d, K).copy()
+        got = core._fast.joint_tracking(ph, q_d, dq_d, ddq_d, K, default).copy()
         want = ph.joint_tracking_torque(q_d, dq_d, ddq_d, np.maximum(K / default, 1e-3))
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
     core._hold_torque()  # the held joints' zeros

@@ -46,7 +46,6 @@ class TickKernels:
             for mg in MotionGeneratorMode
         }
         self._cartesian = frozenset(cart)
-        self._K_default = np.array(core.spec.default_K_theta, dtype=float)
         self._tau = np.zeros(7)
         self._warm(ph)
 
@@ -73,7 +72,7 @@ class TickKernels:
         k.all_finite(z)
         k.joint_push(*signal, z, k.PUSH_POSITION, DT)  # (the robot's own IK, generator)
         k.joint_limit_bits(*signal, np.zeros(35), z)
-        self.joint_tracking(ph, z, z, z, np.ones(7))
+        self.joint_tracking(ph, z, z, z, np.ones(7), np.ones(7))
 
     def fill(self, core: StateAssembly) -> bool:
         """The per-tick state fields; False (nothing written) where the reference must
@@ -103,13 +102,19 @@ class TickKernels:
         return True
 
     def joint_tracking(
-        self, ph: Physics, q_d: np.ndarray, dq_d: np.ndarray, ddq_d: np.ndarray, K_theta: np.ndarray
+        self,
+        ph: Physics,
+        q_d: np.ndarray,
+        dq_d: np.ndarray,
+        ddq_d: np.ndarray,
+        K_theta: np.ndarray,
+        K_default: np.ndarray,
     ) -> np.ndarray:
         """:meth:`Physics.joint_tracking_torque` at the stiffness scale of ``K_theta``
-        against the robot's default, into a buffer the next call reuses."""
+        against ``K_default``, into a buffer the next call reuses."""
         self._k.joint_tracking(
             ph.mass_matrix(), ph._bias_arm, ph._gravcomp_arm, ph._qpos_arm, ph._qvel_arm, q_d,
-            dq_d, ddq_d, K_theta, self._K_default, ph._coulomb, OMEGA, 1.0 / FRICTION_SPEED,
+            dq_d, ddq_d, K_theta, K_default, ph._coulomb, OMEGA, 1.0 / FRICTION_SPEED,
             self._tau,
         )  # fmt: skip
         return self._tau

@@ -378,7 +378,9 @@ class RobotCore(RobotSettings, StateAssembly):
         call reuses."""
         fast = self._fast
         if fast is not None:
-            return fast.joint_tracking(self.physics, q_d, dq_d, ddq_d, self.K_theta)
+            return fast.joint_tracking(
+                self.physics, q_d, dq_d, ddq_d, self.K_theta, self._K_default
+            )
         scale = np.maximum(self.K_theta / self._K_default, 1e-3)
         return self.physics.joint_tracking_torque(q_d, dq_d, ddq_d, scale)
 
