@@ -1,6 +1,7 @@
 """Benchmark the simulated robot (panda-sim) against franky-sim on the same client workloads.
 
-Run: ``python benchmarks/bench_sim.py [--quick] [--duration 60] [--profile]``.
+Run: ``python benchmarks/bench_sim.py [--quick] [--duration 60] [--profile]``, or
+``--idle SECONDS`` for the simulators with no client connected.
 
 Cases (run one after another, never side by side):
 
@@ -394,6 +395,45 @@ def profile_tick(robot: str, n: int = 3000) -> None:
 # --- main -------------------------------------------------------------------------------
 
 
+def idle_cpu(target: Target, seconds: float) -> list[float]:
+    """The simulator's CPU share [% of a core] in 1 s windows while no client is connected
+    (after a second to settle)."""
+    time.sleep(1.0)
+    shares = []
+    c0, t0 = proc_cpu(target.pid), time.monotonic()
+    for _ in range(max(1, int(seconds))):
+        time.sleep(1.0)
+        c1, t1 = proc_cpu(target.pid), time.monotonic()
+        shares.append(100.0 * (c1 - c0) / (t1 - t0))
+        c0, t0 = c1, t1
+    return shares
+
+
+def idle(robot: str, seconds: float, franky: bool) -> None:
+    """``--idle``: each simulator left alone (no client) for ``seconds``, one after another."""
+    import numpy as np
+
+    print(f"idle, no client connected, {seconds:g} s each: the simulator's CPU, % of a core "
+          "in 1 s windows")  # fmt: skip
+    cases: list[tuple[str, Any]] = [
+        ("panda-sim realtime", panda_sim(robot, False)),
+        ("panda-sim lockstep", panda_sim(robot, True)),
+    ]
+    if franky:
+        cases.append(("franky-sim", franky_sim()))
+    medians: dict[str, float] = {}
+    for label, ctx in cases:
+        with ctx as target:
+            shares = np.asarray(idle_cpu(target, seconds))
+        medians[label] = float(np.median(shares))
+        print(f"  {label:20s} median {np.median(shares):5.1f}  p99 "
+              f"{np.percentile(shares, 99):5.1f}  worst {shares.max():5.1f} %")  # fmt: skip
+    if "franky-sim" in medians:
+        for label in ("panda-sim realtime", "panda-sim lockstep"):
+            print(f"  {label} / franky-sim (medians): "
+                  f"{medians[label] / medians['franky-sim']:.2f}x")  # fmt: skip
+
+
 def libfranka_workload_available() -> bool:
     try:
         import panda_py.libfranka  # noqa: F401
@@ -418,6 +458,8 @@ def main() -> None:
     parser.add_argument("--profile", action="store_true", help="add the tick profile")
     parser.add_argument("--profile-only", action="store_true", help="only the tick profile")
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
+    parser.add_argument("--idle", type=float, default=None, metavar="SECONDS",
+                        help="only the idle simulators (no client), this long each")  # fmt: skip
     parser.add_argument("--cpus", default=None,
                         help="run every process of the run on these CPUs (e.g. 0: a lockstep "
                              "simulator and its client on one core)")  # fmt: skip
@@ -436,6 +478,18 @@ def main() -> None:
 
     if args.profile_only:
         profile_tick(args.robot)
+        return
+    if args.idle is not None:
+        if not args.idle >= 1.0:
+            parser.error(f"--idle: expected at least 1 s, got {args.idle}")
+        franky = False
+        if not args.no_franky:
+            try:
+                peer_python("franky-sim")
+                franky = True
+            except PeerUnavailable as exc:
+                print(f"(franky-sim skipped: {exc})")
+        idle(args.robot, args.idle, franky)
         return
 
     rev = subprocess.run(
