@@ -9,6 +9,7 @@ an arrow in the design.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -38,15 +39,20 @@ def _unit(module: str) -> str:
     return parts[1] if len(parts) > 1 else "__init__"
 
 
-def _imports() -> list[tuple[str, int, str, str, list[str]]]:
+Import = tuple[str, int, str, str, list[str]]
+
+
+@functools.cache
+def _imports() -> list[Import]:
     """(file, line, importing unit, imported module, imported names) for every import of
-    panda_py in the package."""
-    found = []
+    panda_py in the package; read once, when a test first asks (not while collecting,
+    which every worker of the suite does)."""
+    found: list[Import] = []
     for path in sorted(SRC.rglob("*.py")):
-        module = ".".join(path.relative_to(SRC.parent).with_suffix("").parts)
-        me = _unit(module)
+        rel = path.relative_to(SRC.parent)
+        me = _unit(".".join(rel.with_suffix("").parts))
+        where = str(rel)
         for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            rel = str(path.relative_to(SRC.parent))
             if (
                 isinstance(node, ast.ImportFrom)
                 and node.module
@@ -55,17 +61,14 @@ def _imports() -> list[tuple[str, int, str, str, list[str]]]:
                 names = [a.name for a in node.names]
                 if node.module == "panda_py":  # from panda_py import fci, checks
                     for name in names:
-                        found.append((rel, node.lineno, me, f"panda_py.{name}", []))
+                        found.append((where, node.lineno, me, f"panda_py.{name}", []))
                 else:
-                    found.append((rel, node.lineno, me, node.module, names))
+                    found.append((where, node.lineno, me, node.module, names))
             elif isinstance(node, ast.Import):
                 for alias in node.names:
                     if alias.name.startswith("panda_py."):
-                        found.append((rel, node.lineno, me, alias.name, []))
+                        found.append((where, node.lineno, me, alias.name, []))
     return found
-
-
-IMPORTS = _imports()
 
 
 def test_every_unit_has_a_layer() -> None:
@@ -77,7 +80,7 @@ def test_every_unit_has_a_layer() -> None:
 def test_imports_point_down_the_layers() -> None:
     up = [
         f"{f}:{line}: {me} -> {mod}"
-        for f, line, me, mod, _ in IMPORTS
+        for f, line, me, mod, _ in _imports()
         if _unit(mod) != me and LEVEL[_unit(mod)] >= LEVEL[me]
     ]
     assert up == []
@@ -86,7 +89,7 @@ def test_imports_point_down_the_layers() -> None:
 def test_no_private_module_or_name_crosses_a_unit() -> None:
     private = [
         f"{f}:{line}: {me} imports {mod} {names}"
-        for f, line, me, mod, names in IMPORTS
+        for f, line, me, mod, names in _imports()
         if _unit(mod) != me
         and (
             any(p.startswith("_") for p in mod.split(".")[1:])
@@ -101,7 +104,7 @@ def test_the_simulator_and_the_client_do_not_import_each_other(side: str) -> Non
     if side == "sim":
         bad = [
             f"{f}:{line}: {mod}"
-            for f, line, me, mod, _ in IMPORTS
+            for f, line, me, mod, _ in _imports()
             if me == "sim"
             # (jitcache: the compile cache the kinematics use too, no client code)
             and _unit(mod)
@@ -110,12 +113,12 @@ def test_the_simulator_and_the_client_do_not_import_each_other(side: str) -> Non
     else:
         bad = [
             f"{f}:{line}: {mod}"
-            for f, line, me, mod, _ in IMPORTS
+            for f, line, me, mod, _ in _imports()
             if me in CLIENT and _unit(mod) == "sim"
         ]
         bad += [
             f"{f}:{line}: {mod}"
-            for f, line, me, mod, _ in IMPORTS
+            for f, line, me, mod, _ in _imports()
             if _unit(mod) == "sim" and me not in {"sim", *SIM_ALLOWED_FROM}
         ]
     assert bad == []
