@@ -84,8 +84,11 @@ class Simulator:
     ``lockstep`` makes simulated time advance one tick per command during motions (tests);
     otherwise it runs at 1 kHz on the wall clock like a real robot; in lockstep it polls
     for each answer ``lockstep_spin`` seconds before sleeping on it (0: sleep at once, less
-    CPU, about 1.4x slower). By default it accepts the protocol versions the simulated
-    robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9), chosen from
+    CPU, about 1.4x slower); ``lockstep_max_speed`` caps how fast its time runs against the
+    wall clock (1.0: never ahead of it, so a user's loop on the wall clock sees the robot's
+    timing and no CPU goes on running ahead, while every command is still waited for;
+    None: as fast as the client answers). By default it accepts the protocol versions the
+    simulated robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9), chosen from
     the client's Connect request; ``versions`` pins a subset of them (a real robot speaks
     exactly one). ``desk`` adds
     the simulated Desk (HTTPS/WSS on ``host``, see :class:`DeskConfig`), coupled to the FCI;
@@ -110,6 +113,7 @@ class Simulator:
         lockstep: bool = False,
         lockstep_timeout: float = 2.0,
         lockstep_spin: float = 300e-6,
+        lockstep_max_speed: float | None = None,
         versions: Sequence[int] | None = None,
         scene: bool = True,
         extra: str | Path | None = None,
@@ -130,6 +134,7 @@ class Simulator:
             lockstep=lockstep,
             lockstep_timeout=lockstep_timeout,
             lockstep_spin=lockstep_spin,
+            lockstep_max_speed=lockstep_max_speed,
             versions=tuple(versions) if versions is not None else None,
             scene=scene,
             extra=str(extra) if extra is not None else None,

@@ -59,6 +59,14 @@ def _parser() -> argparse.ArgumentParser:
         help="lockstep: microseconds to poll for a command before sleeping (0: never poll)",
     )
     p.add_argument(
+        "--lockstep-max-speed",
+        type=float,
+        default=None,
+        metavar="X",
+        help="lockstep: run simulated time at most X times as fast as the wall clock "
+        "(1: never ahead of it; default: as fast as the client answers)",
+    )
+    p.add_argument(
         "--version",
         type=int,
         action="append",
@@ -108,6 +116,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             lockstep=args.lockstep,
             lockstep_timeout=args.lockstep_timeout,
             lockstep_spin=args.lockstep_spin * 1e-6,
+            lockstep_max_speed=args.lockstep_max_speed,
             versions=tuple(args.versions) if args.versions else None,
             scene=not args.no_scene,
             extra=args.scene,

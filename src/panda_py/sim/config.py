@@ -30,6 +30,10 @@ class SimConfig:
     # Lockstep: poll for the client's answer this long before sleeping on it [s] (0: never).
     # A sleeping simulator wakes on cold caches: its next tick takes about twice as long.
     lockstep_spin: float = 300e-6
+    # Lockstep: simulated time runs at most this many times as fast as the wall clock (1.0:
+    # never ahead of it, as a robot whose client never misses a command; None: as fast as
+    # the client answers).
+    lockstep_max_speed: float | None = None
     # Accept only these protocol versions (None: every version the robot's systems speak).
     versions: tuple[int, ...] | None = None
     robot_port: int = fci.COMMAND_PORT
@@ -67,6 +71,18 @@ class SimConfig:
             raise ValueError(f"lockstep_timeout: expected > 0 s, got {self.lockstep_timeout}")
         if not 0 <= self.lockstep_spin <= 0.01:
             raise ValueError(f"lockstep_spin: expected 0..0.01 s, got {self.lockstep_spin}")
+        speed = self.lockstep_max_speed
+        if speed is not None and not (
+            isinstance(speed, (int, float)) and not isinstance(speed, bool) and 0 < speed < 1e6
+        ):
+            raise ValueError(
+                f"lockstep_max_speed: expected None or a speed factor in (0, 1e6), got {speed!r}"
+            )
+        if speed is not None and not self.lockstep:
+            raise ValueError(
+                f"lockstep_max_speed: applies to lockstep only (realtime runs at the wall "
+                f"clock's speed), got {speed!r} without lockstep"
+            )
         if not 0 < self.connect_timeout <= 3600:
             raise ValueError(f"connect_timeout: expected 0..3600 s, got {self.connect_timeout}")
         if len(self.q_start) != 7:

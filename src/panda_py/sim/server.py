@@ -135,6 +135,10 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         gc.freeze()
         next_tick = time.monotonic()
         lockstep_deadline = 0.0
+        # lockstep_max_speed: a lockstep tick runs no earlier than paced_tick (0: never waits)
+        speed = self.config.lockstep_max_speed
+        pace = DT / speed if speed else 0.0
+        paced_tick = 0.0
         try:
             while self._running:
                 conn = self.robot_conn
@@ -145,14 +149,20 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     and self.core.async_gen is None  # its generator runs on the clock
                 )
                 now = time.monotonic()
-                if waiting and conn is not None and conn.command is None and conn.awaiting:
+                if (
+                    waiting
+                    and conn is not None
+                    and conn.command is None
+                    and conn.awaiting
+                    and now >= paced_tick - self.config.lockstep_spin  # (paced: sleeps anyway)
+                ):
                     self._spin_for_command(conn)
                     now = time.monotonic()
                 if waiting:
                     if conn is not None and conn.command is not None:
-                        timeout = 0.0
+                        timeout = max(0.0, paced_tick - now)
                     else:
-                        timeout = max(0.0, lockstep_deadline - now)
+                        timeout = max(0.0, max(lockstep_deadline, paced_tick) - now)
                 else:
                     timeout = max(0.0, next_tick - now)
                 if waiting:
@@ -174,6 +184,10 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     have = conn is not None and conn.command is not None
                     if not have and now < lockstep_deadline:
                         continue
+                    if now < paced_tick:
+                        continue  # answered early: the wall clock has not caught up
+                    if pace:
+                        paced_tick = max(paced_tick + pace, now)
                     self._tick(now, late=False)
                     next_tick = time.monotonic() + DT
                     lockstep_deadline = time.monotonic() + self._lockstep_wait()
