@@ -8,7 +8,9 @@ from panda_py import controllers
 
 
 def options(parser):
-    parser.add_argument("--runtime", type=float, default=np.pi * 4, help="[s] (robot time)")
+    parser.add_argument(
+        "--runtime", type=float, default=np.pi * 4, help="[s] of the loop, on the wall clock"
+    )
 
 
 if __name__ == "__main__":

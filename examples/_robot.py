@@ -15,6 +15,17 @@ from collections.abc import Callable, Iterator, Sequence
 import panda_py
 
 
+def _speed(text: str) -> float:
+    """``--max-speed``'s value: a speed factor > 0."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = float("nan")
+    if not 0 < x < 1e6:
+        raise argparse.ArgumentTypeError(f"expected a speed factor > 0, got {text!r}")
+    return x
+
+
 def _parser(
     description: str | None, options: Callable[[argparse.ArgumentParser], None] | None
 ) -> argparse.ArgumentParser:
@@ -22,9 +33,22 @@ def _parser(
     parser = argparse.ArgumentParser(description=(description or "").strip().splitlines()[0])
     parser.add_argument("--robot", default="fer", choices=["fer", "fr3"], help="simulated robot")
     parser.add_argument("--realtime", action="store_true", help="simulate on the wall clock")
+    parser.add_argument(
+        "--max-speed",
+        type=_speed,
+        metavar="X",
+        help="lockstep: the simulated robot's time runs at most X times as fast as the wall "
+        "clock (1: the robot's own pace, still waiting for every command; default: as fast "
+        "as the client answers)",
+    )
     if options is not None:
         options(parser)
     return parser
+
+
+def _check(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    if args.max_speed is not None and (args.realtime or args.host):
+        parser.error("--max-speed: paces the lockstep simulator (not --realtime, not --host)")
 
 
 @contextlib.contextmanager
@@ -37,7 +61,8 @@ def robot_host(
     camera: tuple[int, int] | None = None,
 ) -> Iterator[tuple[str, argparse.Namespace]]:
     """Parse the example's arguments and yield ``(hostname, args)``: ``--host`` if given,
-    otherwise the address of a simulator started here (``--robot``, ``--realtime``).
+    otherwise the address of a simulator started here (``--robot``, ``--realtime``,
+    ``--max-speed``).
     ``desk``: the simulator also serves its Desk, locked as after power-up, and
     ``args.desk_host`` is its address (a real robot's Desk is at ``--host``).
     ``camera=(width, height)``: ``args.render()`` returns the simulator's image of the
@@ -45,6 +70,7 @@ def robot_host(
     parser = _parser(description, options)
     parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
     args = parser.parse_args(argv)
+    _check(parser, args)
     args.render = None
     if args.host:
         args.desk_host = args.host
@@ -58,6 +84,7 @@ def robot_host(
         free_loopback_host(),
         robot=args.robot,
         lockstep=not args.realtime,
+        lockstep_max_speed=args.max_speed,
         desk=config,
         camera_size=camera,
     ) as sim:
@@ -83,6 +110,7 @@ def robot_hosts(
         "--host", action="append", default=[], help=f"a robot's FCI address, {count} times"
     )
     args = parser.parse_args(argv)
+    _check(parser, args)
     if args.host:
         if len(args.host) != count:
             parser.error(f"--host: expected {count} robot addresses, got {len(args.host)}")
@@ -94,7 +122,12 @@ def robot_hosts(
         hosts = []
         for _ in range(count):
             sim = stack.enter_context(
-                Simulator(free_loopback_host(), robot=args.robot, lockstep=not args.realtime)
+                Simulator(
+                    free_loopback_host(),
+                    robot=args.robot,
+                    lockstep=not args.realtime,
+                    lockstep_max_speed=args.max_speed,
+                )
             )
             hosts.append(sim.host)
         print(f"({count} simulated {args.robot.upper()}s on {', '.join(hosts)})")
