@@ -68,6 +68,18 @@ def test_01_wrong_desk_password_is_a_clear_error(tmp_path: Path) -> None:
     assert "refused 'franka': wrong password?" in done.stderr
 
 
+def test_a_bad_max_speed_is_a_clear_error(tmp_path: Path) -> None:
+    (script,) = EXAMPLES.glob("09_*.py")
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    for args, says in (
+        (["--max-speed", "0"], "argument --max-speed: expected a speed factor > 0, got '0'"),
+        (["--realtime", "--max-speed", "1"], "--max-speed: paces the lockstep simulator"),
+    ):
+        done = subprocess.run([sys.executable, str(script), *args], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=60)  # fmt: skip
+        assert done.returncode == 2 and says in done.stderr, done.stderr
+
+
 def test_02_connect(tmp_path: Path) -> None:
     out = run_example("02", cwd=tmp_path)
     assert "joint positions q [rad]: [ 0.    -0.785  0.    -2.356  0.     1.571  0.785]" in out
