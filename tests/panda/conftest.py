@@ -61,13 +61,21 @@ def _fresh_settings(shared_panda: panda_py.Panda) -> dict[str, np.ndarray]:
 
 @pytest.fixture
 def reset_panda(
-    shared_panda: panda_py.Panda, _fresh_settings: dict[str, np.ndarray]
+    request: pytest.FixtureRequest,
+    shared_panda: panda_py.Panda,
+    _fresh_settings: dict[str, np.ndarray],
 ) -> panda_py.Panda:
     """The module's Panda as a fresh one is: nothing running, no pending error, no reflex,
     panda-py's default behaviour, the load and frames a fresh robot has, no logging, at
     rest at the start pose. For tests that need no fresh process or simulator (each saves
     the ~2 s their start takes); the reset is checked, so a trace it cannot remove fails
     the test that finds it rather than bending its outcome."""
+    if request.node.get_closest_marker("panda_sim") is not None:
+        pytest.fail(
+            "panda_sim(...) options reach the fresh simulator (the `sim` and `panda` fixtures "
+            "of this conftest); this test runs on the module's shared one (reset_panda)",
+            pytrace=False,
+        )
     p = shared_panda
     if p.is_moving():
         p.stop_controller()
