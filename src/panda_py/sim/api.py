@@ -88,13 +88,12 @@ class Simulator:
     wall clock (1.0: never ahead of it, so a user's loop on the wall clock sees the robot's
     timing and no CPU goes on running ahead, while every command is still waited for;
     None: as fast as the client answers). By default it accepts the protocol versions the
-    simulated robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9), chosen from
-    the client's Connect request; ``versions`` pins a subset of them (a real robot speaks
-    exactly one). ``desk`` adds
-    the simulated Desk (HTTPS/WSS on ``host``, see :class:`DeskConfig`), coupled to the FCI;
-    without it the robot is always unlocked with the FCI active. ``connect_timeout`` [s]: a
-    TCP connection that sends no Connect within it is closed (it would hold the robot from
-    every other client).
+    simulated robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9),
+    chosen from the client's Connect request; ``versions`` pins a subset of them (a real
+    robot speaks exactly one). ``desk`` adds the simulated Desk (HTTPS/WSS on ``host``,
+    see :class:`DeskConfig`), coupled to the FCI; without it the robot is always unlocked
+    with the FCI active. ``connect_timeout`` [s]: a TCP connection that sends no Connect
+    within it is closed (it would hold the robot from every other client).
 
     ``viewer=True`` opens MuJoCo's interactive viewer on the robot (needs a display:
     ``$DISPLAY``, e.g. under ``xvfb-run``); ``record="run.mp4"`` writes a video of the run,
