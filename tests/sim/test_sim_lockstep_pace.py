@@ -3,50 +3,26 @@ by more than the factor, and which still waits for every command."""
 
 from __future__ import annotations
 
-import time
-
-import numpy as np
 import pytest
+from test_sim_protocol import run_joint_motion
 
-from panda_py.fci import (
-    Command,
-    MotionGeneratorMode,
-    MoveControllerMode,
-    MoveMotionGeneratorMode,
-    MoveStatus,
-    RobotMode,
-)
+from panda_py.fci import MoveStatus
 from panda_py.sim import Simulator, free_loopback_host
 from panda_py.sim.cli import main as sim_cli
 from panda_py.sim.probe import RawClient
 
 pytestmark = pytest.mark.timeout(60)
 
-JP = MoveMotionGeneratorMode.JOINT_POSITION
-
 
 def drive(c: RawClient, ticks: int, answer_after: float = 0.0) -> tuple[list[tuple], MoveStatus]:
     """A joint-position motion of ``ticks`` commands (joint 1 eases by 0.05 rad over 300
-    ms, less over fewer: the same acceleration), each sent
-    ``answer_after`` seconds after its state arrived; returns (wall time, robot ms) at each
-    state, and the motion's end."""
-    cid, status = c.move(MoveControllerMode.JOINT_IMPEDANCE, JP)
-    assert status == MoveStatus.MOTION_STARTED
-    s = c.wait_state(lambda s: s["motion_generator_mode"] == MotionGeneratorMode.JOINT_POSITION)
-    q0 = np.array(s["q"], dtype=float)
-    seen = []
-    for k in range(1, ticks + 1):
-        s = c.state()
-        seen.append((time.monotonic(), int(s["message_id"])))
-        if s["robot_mode"] != RobotMode.MOVE:
-            break
-        if answer_after:
-            time.sleep(answer_after)
-        q = q0.copy()
-        q[0] += 0.05 * (ticks / 300) ** 2 * (1 - np.cos(np.pi * k / ticks)) / 2
-        c.command(s, q_c=q, motion_generation_finished=k == ticks)
-    final, _ = c.response(Command.MOVE, cid)
-    return seen, final
+    ms, less over fewer: the same acceleration), each sent ``answer_after`` seconds after
+    its state arrived; returns (wall time, robot ms) at each state, and the motion's end."""
+    arrivals: list[float] = []
+    states, final = run_joint_motion(
+        c, 0.05 * (ticks / 300) ** 2, ticks, answer_after=answer_after, arrivals=arrivals
+    )
+    return [(t, int(s["message_id"])) for t, s in zip(arrivals, states, strict=True)], final
 
 
 def test_its_time_runs_at_most_the_factor_faster_than_the_wall_clock() -> None:

@@ -112,8 +112,17 @@ def test_a_version_the_robot_never_spoke_cannot_be_pinned():
         Simulator(robot="fr3", versions=(5, 10))
 
 
-def run_joint_motion(c: RawClient, dq0: float, ticks: int) -> tuple[list[np.void], MoveStatus]:
-    """Cosine move of joint 1 by dq0 [rad] over ``ticks`` ms, as libfranka would drive it."""
+def run_joint_motion(
+    c: RawClient,
+    dq0: float,
+    ticks: int,
+    *,
+    answer_after: float = 0.0,
+    arrivals: list[float] | None = None,
+) -> tuple[list[np.void], MoveStatus]:
+    """Cosine move of joint 1 by dq0 [rad] over ``ticks`` ms, as libfranka would drive it;
+    each command sent ``answer_after`` [s] after its state arrived, and each state's arrival
+    (monotonic) appended to ``arrivals``."""
     cid, status = c.move(MoveControllerMode.JOINT_IMPEDANCE, JP)
     assert status == MoveStatus.MOTION_STARTED
     s = c.wait_state(lambda s: s["motion_generator_mode"] == MotionGeneratorMode.JOINT_POSITION)
@@ -121,9 +130,13 @@ def run_joint_motion(c: RawClient, dq0: float, ticks: int) -> tuple[list[np.void
     states = []
     for k in range(1, ticks + 1):
         s = c.state()
+        if arrivals is not None:
+            arrivals.append(time.monotonic())
         states.append(s)
         if s["robot_mode"] != RobotMode.MOVE:
             break
+        if answer_after:
+            time.sleep(answer_after)
         q = q0.copy()
         q[0] += dq0 * (1 - np.cos(np.pi * k / ticks)) / 2
         c.command(s, q_c=q, motion_generation_finished=k == ticks)
