@@ -186,8 +186,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                         continue
                     if now < paced_tick:
                         continue  # answered early: the wall clock has not caught up
-                    if pace:
-                        paced_tick = max(paced_tick + pace, now)
+                    if pace:  # on its schedule; a tick a period late or more re-anchors it
+                        paced_tick = paced_tick + pace if now - paced_tick < pace else now + pace
                     self._tick(now, late=False)
                     next_tick = time.monotonic() + DT
                     lockstep_deadline = time.monotonic() + self._lockstep_wait()
