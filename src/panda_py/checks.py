@@ -10,6 +10,8 @@ unchecked, and a robot is never sent a non-finite value)."""
 from __future__ import annotations
 
 import math
+import operator
+import os
 from typing import Any
 
 import numpy as np
@@ -19,6 +21,7 @@ __all__ = [
     "MAX_TIMEOUT",
     "QUATERNION_NORM_TOL",
     "RIGID_TOL",
+    "cpus",
     "fast_floats",
     "floats",
     "matrix6",
@@ -75,6 +78,30 @@ def number(
         interval = _interval(low, high, low_open, high_open)
         raise ValueError(f"{name}: expected a finite number in {interval}{u}, got {value!r}")
     return x
+
+
+def cpus(name: str, value: Any) -> tuple[int, ...] | None:
+    """The CPUs a process may be pinned to (``os.sched_setaffinity``): ``None`` (no
+    pinning), or a non-empty collection of CPU numbers this process may run on, as a
+    sorted tuple. Linux only (other systems have no per-process affinity to set)."""
+    if value is None:
+        return None
+    if not hasattr(os, "sched_setaffinity"):
+        raise ValueError(f"{name}: pinning to CPUs needs Linux (sched_setaffinity), got {value!r}")
+    allowed = sorted(os.sched_getaffinity(0))
+    expected = f"expected None or a non-empty set of CPU numbers from {allowed}"
+    if isinstance(value, (str, bytes, int)) or not hasattr(value, "__iter__"):
+        raise ValueError(f"{name}: {expected}, got {value!r}")
+    try:
+        items = list(value)
+        if any(isinstance(c, bool) for c in items):
+            raise TypeError(value)
+        chosen = {operator.index(c) for c in items}  # ints (NumPy's too), not 1.0 or True
+    except TypeError:
+        chosen = set()
+    if not chosen or not chosen <= set(allowed):
+        raise ValueError(f"{name}: {expected}, got {value!r}")
+    return tuple(sorted(chosen))
 
 
 def _interval(low: float, high: float, low_open: bool, high_open: bool) -> str:

@@ -17,12 +17,13 @@ import logging
 import math
 import threading
 import time
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py import fci, kinematics
+from panda_py import checks, fci, kinematics
 from panda_py.controllers import TorqueController, laws
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, rotation_angle
 from panda_py.libfranka.model import Model
@@ -64,7 +65,11 @@ class Panda:
     Connects to the robot at ``hostname`` (its FCI address) from a new control process,
     which speaks whichever protocol version (3-10) the robot does. ``name`` names the
     logger. ``realtime_config``: ``kIgnore`` runs without ``SCHED_FIFO`` when it is not
-    permitted (with a warning), ``kEnforce`` refuses to.
+    permitted (with a warning), ``kEnforce`` refuses to. ``cpus`` (not in panda-py) pins
+    the control loop to these CPUs (Linux), e.g. a core isolated for it (``isolcpus``); or,
+    beside a simulated robot on a machine whose cores stall now and then (a VM), to the
+    simulator's (``Simulator(cpus=...)``): both then stall together, and no command is lost
+    to it.
     """
 
     def __init__(
@@ -72,12 +77,15 @@ class Panda:
         hostname: str,
         name: str = "panda",
         realtime_config: RealtimeConfig = RealtimeConfig.kIgnore,
+        *,
+        cpus: Iterable[int] | None = None,
     ) -> None:
         if not isinstance(hostname, str) or not hostname:
             raise ValueError(f"hostname: expected the robot's address, got {hostname!r}")
         if not isinstance(name, str):
             raise ValueError(f"name: expected a str (the logger's name), got {name!r}")
         config = RealtimeConfig.parse(realtime_config)
+        pinned = checks.cpus("cpus", cpus)
         self._name = name
         self._logger = logging.getLogger(name)
         self._controller: TorqueController | None = None
@@ -90,7 +98,7 @@ class Panda:
         warm.start()
         try:
             self._proc = ControlProcess(
-                hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger
+                hostname, config, timeout=CONNECT_TIMEOUT, logger=self._logger, cpus=pinned
             )
         finally:
             warm.join()

@@ -235,6 +235,8 @@ class ControlServer:
 
     def connect(self, request: rq.Connect) -> rq.Connected:
         config = RealtimeConfig(request.realtime_config)
+        if request.cpus is not None:  # (this thread: the loop's)
+            os.sched_setaffinity(0, request.cpus)
         robot = Robot(request.hostname, config, timeout=request.timeout)
         # sleep until each state arrives: polling for it cost this process about a
         # quarter of its CPU and lowered no latency (benchmarks/bench_panda.py)

@@ -80,6 +80,7 @@ class ControlProcess:
         *,
         timeout: float,
         logger: logging.Logger,
+        cpus: tuple[int, ...] | None = None,
     ) -> None:
         self.logger = logger
         self.block, shm_fd = SharedBlock.create()
@@ -112,7 +113,7 @@ class ControlProcess:
         _LIVE.add(self)
         try:
             info = self.call(
-                rq.Connect(hostname, int(realtime_config), float(timeout)),
+                rq.Connect(hostname, int(realtime_config), float(timeout), cpus),
                 timeout=timeout + READY_TIMEOUT,
             )
             self.info: rq.Connected = info

@@ -62,6 +62,7 @@ class Connect:
     hostname: str
     realtime_config: int  # libfranka's RealtimeConfig value
     timeout: float  # [s] for the robot to answer
+    cpus: tuple[int, ...] | None = None  # the loop's CPUs (checked; None: any)
 
 
 @dataclass(frozen=True)

@@ -17,13 +17,13 @@ import os
 import random
 import socket
 import threading
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from panda_py import warmstart
+from panda_py import checks, warmstart
 from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE
 from panda_py.sim.camera import Camera, check_camera_size
@@ -42,12 +42,12 @@ class SimulatorError(RuntimeError):
 
 def _child_main(config: SimConfig, conn: Any, log_level: str) -> None:
     logging.basicConfig(level=log_level, format="panda-sim %(levelname)s: %(message)s")
-    from panda_py.sim.server import SimServer, raise_priority
-
-    if not config.lockstep:
-        raise_priority()
+    from panda_py.sim.server import SimServer, pin, raise_priority
 
     try:
+        pin(config.cpus)
+        if not config.lockstep:
+            raise_priority()
         server = SimServer(config)
     except Exception as exc:  # reported to the parent as the start failure
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
@@ -87,7 +87,10 @@ class Simulator:
     CPU, about 1.4x slower); ``lockstep_max_speed`` caps how fast its time runs against the
     wall clock (1.0: never ahead of it, so a user's loop on the wall clock sees the robot's
     timing and no CPU goes on running ahead, while every command is still waited for;
-    None: as fast as the client answers). By default it accepts the protocol versions the
+    None: as fast as the client answers). ``cpus`` pins its process to these CPUs (Linux),
+    e.g. to the core ``Panda(host, cpus=...)`` pins the control loop to: where a core
+    stalls now and then (a VM's host takes it), robot and loop then stall together, and
+    no command is lost to it. By default it accepts the protocol versions the
     simulated robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9),
     chosen from the client's Connect request; ``versions`` pins a subset of them (a real
     robot speaks exactly one). ``desk`` adds the simulated Desk (HTTPS/WSS on ``host``,
@@ -113,6 +116,7 @@ class Simulator:
         lockstep_timeout: float = 2.0,
         lockstep_spin: float = 300e-6,
         lockstep_max_speed: float | None = None,
+        cpus: Iterable[int] | None = None,
         versions: Sequence[int] | None = None,
         scene: bool = True,
         extra: str | Path | None = None,
@@ -134,6 +138,7 @@ class Simulator:
             lockstep_timeout=lockstep_timeout,
             lockstep_spin=lockstep_spin,
             lockstep_max_speed=lockstep_max_speed,
+            cpus=checks.cpus("cpus", cpus),
             versions=tuple(versions) if versions is not None else None,
             scene=scene,
             extra=str(extra) if extra is not None else None,

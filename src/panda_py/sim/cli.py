@@ -24,6 +24,17 @@ from panda_py.sim.drawing import DrawingProcess, start_drawing, stop_drawing
 from panda_py.sim.video import DEFAULT_FPS, check_record
 
 
+def _cpu_list(text: str) -> tuple[int, ...]:
+    """``--cpus``: CPU numbers separated by commas (checked against the machine's by
+    SimConfig)."""
+    try:
+        return tuple(int(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected CPU numbers separated by commas (e.g. 1 or 0,1), got {text!r}"
+        ) from None
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="panda-sim",
@@ -67,6 +78,13 @@ def _parser() -> argparse.ArgumentParser:
         "(1: never ahead of it; default: as fast as the client answers)",
     )
     p.add_argument(
+        "--cpus",
+        type=_cpu_list,
+        default=None,
+        metavar="N[,N...]",
+        help="run on these CPUs only (e.g. the core the client's control loop is pinned to)",
+    )
+    p.add_argument(
         "--version",
         type=int,
         action="append",
@@ -103,7 +121,7 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="panda-sim %(levelname)s: %(message)s")
-    from panda_py.sim.server import SimConfig, SimServer
+    from panda_py.sim.server import SimConfig, SimServer, pin
 
     desk = None
     drawing: list[DrawingProcess] = []
@@ -117,6 +135,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             lockstep_timeout=args.lockstep_timeout,
             lockstep_spin=args.lockstep_spin * 1e-6,
             lockstep_max_speed=args.lockstep_max_speed,
+            cpus=args.cpus,
             versions=tuple(args.versions) if args.versions else None,
             scene=not args.no_scene,
             extra=args.scene,
@@ -126,6 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             config, viewer=args.viewer, record=args.record, fps=args.record_fps, timeout=60.0
         )
         desk, config.desk_link = start_desk(args, config.host, config.robot)
+        pin(config.cpus)
         server = SimServer(config)
     except (ValueError, OSError, RuntimeError) as exc:  # DrawingError too: one line
         print(f"panda-sim: {exc}", file=sys.stderr)

@@ -7,7 +7,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from panda_py import fci
+from panda_py import checks, fci
 from panda_py.fci.vacuum import VACUUM_COMMAND_PORT
 from panda_py.robots.end_effectors import EndEffector, get_end_effector
 from panda_py.robots.params import START_POSE, get_robot
@@ -34,6 +34,9 @@ class SimConfig:
     # never ahead of it, as a robot whose client never misses a command; None: as fast as
     # the client answers).
     lockstep_max_speed: float | None = None
+    # The CPUs the simulator's process runs on (os.sched_setaffinity; None: any). On the
+    # client's core, a machine that stalls one core stalls both, and no command is lost.
+    cpus: tuple[int, ...] | None = None
     # Accept only these protocol versions (None: every version the robot's systems speak).
     versions: tuple[int, ...] | None = None
     robot_port: int = fci.COMMAND_PORT
@@ -83,6 +86,7 @@ class SimConfig:
                 f"lockstep_max_speed: applies to lockstep only (realtime runs at the wall "
                 f"clock's speed), got {speed!r} without lockstep"
             )
+        self.cpus = checks.cpus("cpus", self.cpus)
         if not 0 < self.connect_timeout <= 3600:
             raise ValueError(f"connect_timeout: expected 0..3600 s, got {self.connect_timeout}")
         if len(self.q_start) != 7:

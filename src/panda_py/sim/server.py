@@ -328,6 +328,14 @@ def raise_priority() -> bool:
     return True
 
 
+def pin(cpus: tuple[int, ...] | None) -> None:
+    """Run this process (its threads from now on) on ``cpus`` (checked; None: as is)."""
+    if cpus is not None:
+        import os
+
+        os.sched_setaffinity(0, cpus)
+
+
 def run(config: SimConfig, control: Any = None, ready: Any = None) -> None:
     """Build a server from ``config`` and serve until stopped (process entry point)."""
     server = SimServer(config)
@@ -338,4 +346,4 @@ def run(config: SimConfig, control: Any = None, ready: Any = None) -> None:
     server.serve_forever()
 
 
-__all__ = ["SimConfig", "SimServer", "Stats", "raise_priority", "run"]
+__all__ = ["SimConfig", "SimServer", "Stats", "pin", "raise_priority", "run"]
