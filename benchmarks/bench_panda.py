@@ -12,7 +12,10 @@ on the same simulator, in the same run. Run by hand:
 ``lost``: a controller runs on a simulator on the wall clock (SCHED_FIFO when permitted),
 while the user's main thread runs a busy pure-Python loop and a CPU burner runs beside;
 the simulator counts the commands that did not arrive. For ours also with a user-written
-Python ``step()``; panda-python's twice: with its main thread as libfranka leaves it after
+Python ``step()``, and with the control loop and the simulator pinned to one core
+(``Panda(host, cpus=...)``, ``Simulator(cpus=...)``: a VM's host that stalls one of its
+cores then stalls both, as the peer's do when its busy main thread holds the other core at
+realtime priority); panda-python's twice: with its main thread as libfranka leaves it after
 a move (SCHED_FIFO 99: the busy loop then holds a core at realtime priority, and the
 simulator and the control loop share the other), and put back to SCHED_OTHER, as ours is.
 Each figure prints median, p99 and worst case and ours/theirs.
@@ -172,8 +175,8 @@ class Hold(controllers.TorqueController):
         return 300.0 * (self.q0 - state.q) - 15.0 * state.dq
 
 
-def _lost_run(sim: Simulator, seconds: float, controller: Any) -> dict:
-    with panda_py.Panda(sim.host) as panda:
+def _lost_run(sim: Simulator, seconds: float, controller: Any, cpus: Any = None) -> dict:
+    with panda_py.Panda(sim.host, cpus=cpus) as panda:
         panda.move_to_start()
         ctrl = controller()
         panda.start_controller(ctrl)
@@ -210,11 +213,16 @@ def lost(seconds: float, runs: int = 1) -> None:
     try:
         for run in range(runs):
             rows = []
-            for label, ctrl in (("CartesianImpedance", controllers.CartesianImpedance),
-                                ("user step() (Python)", Hold)):  # fmt: skip
-                with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
+            core = (max(os.sched_getaffinity(0)),)
+            for label, ctrl, cpus in (
+                ("CartesianImpedance", controllers.CartesianImpedance, None),
+                ("user step() (Python)", Hold, None),
+                (f"CartesianImpedance, cpus={core}", controllers.CartesianImpedance, core),
+            ):  # fmt: skip
+                with Simulator(free_loopback_host(), robot="fer", versions=(5,),
+                               cpus=cpus) as sim:  # fmt: skip
                     _fifo(sim._process.pid)
-                    rows.append((f"ours, {label}", _lost_run(sim, seconds, ctrl)))
+                    rows.append((f"ours, {label}", _lost_run(sim, seconds, ctrl, cpus)))
             for main_thread in ("as-left", "normal"):
                 with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
                     _fifo(sim._process.pid)
