@@ -60,6 +60,26 @@ def declare_body(sim: Simulator, path: str, length: int) -> int:
         conn.close()
 
 
+def stream_body(
+    sim: Simulator, path: str, chunks: list[bytes], end: bool = True
+) -> tuple[int, str]:
+    """POST ``path`` with a chunked body (no Content-Length: the server counts as it
+    reads), ``end``: with the last chunk's terminator; the answer's status and text."""
+    assert sim.desk is not None
+    conn = http.client.HTTPSConnection(sim.host, sim.desk.port, context=_context(), timeout=10)
+    try:
+        conn.putrequest("POST", path)
+        conn.putheader("Content-Type", "application/json")
+        conn.putheader("Transfer-Encoding", "chunked")
+        conn.endheaders()
+        data = b"".join(b"%x\r\n%s\r\n" % (len(c), c) for c in chunks)
+        conn.send(data + b"0\r\n\r\n" if end else data[:-2])
+        res = conn.getresponse()
+        return res.status, res.read().decode()
+    finally:
+        conn.close()
+
+
 def login(sim: Simulator) -> str:
     body = json.dumps({"login": USER, "password": encode_password(USER, PASSWORD)}).encode()
     status, text = call(sim, "POST", "/admin/api/login", body, Content_Type="application/json")
@@ -144,6 +164,19 @@ def test_malformed_oversized_unknown(fer: Simulator, fr3: Simulator) -> None:
     assert call(fr3, "GET", "/api/system")[0] == 401
     assert call(fr3, "GET", "/api/system", **BASIC)[0] == 200
     assert call(fr3, "DELETE", "/api/system", **BASIC)[0] == 405
+
+
+def test_a_streamed_body_is_read_and_bounded_as_it_arrives(fer: Simulator) -> None:
+    """A chunked body (no length declared) is read whole below the limit, and answered 413
+    once what arrived passes it. The oversized one is sent whole but for the chunk's
+    closing line: the server must read every byte before it can answer, so the answer
+    never races the client's writing."""
+    body = json.dumps({"login": USER, "password": encode_password(USER, PASSWORD)}).encode()
+    status, token = stream_body(fer, "/admin/api/login", [body[:10], body[10:]])
+    assert status == 200 and token
+    status, text = stream_body(fer, "/admin/api/login", [b" " * (64 * 1024 + 1)], end=False)
+    assert status == 413 and "PayloadTooLarge" in text
+    assert stream_body(fer, "/admin/api/login", [body])[0] == 200  # still serving
 
 
 def test_a_slow_client_gets_408_and_does_not_block_others(fr3: Simulator) -> None:
