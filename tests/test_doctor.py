@@ -87,3 +87,16 @@ def test_text_output_marks_each_item_and_bad_input_exits_2() -> None:
     assert bad.returncode == 2 and "expected an IP address or host name" in bad.stderr
     worse = _run("--jitter-seconds", "-1")
     assert worse.returncode == 2 and "--jitter-seconds" in worse.stderr
+
+
+def test_isolated_cpus_are_named_with_how_to_pin_the_loop_there(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    isolated = tmp_path / "isolated"
+    isolated.write_text("2-3\n")
+    check = doctor.isolated_cpus(str(isolated))
+    assert check.status == Status.OK
+    assert check.found.startswith("2, 3:") and "Panda(host, cpus={3})" in check.found
+    for text in ("\n", "garbage\n"):  # none isolated (or unreadable): fine, and how to
+        isolated.write_text(text)
+        check = doctor.isolated_cpus(str(isolated))
+        assert check.status == Status.OK and check.found.startswith("none (optional: isolcpus")
+    assert doctor.isolated_cpus(str(tmp_path / "absent")).found.startswith("none")

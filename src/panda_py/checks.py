@@ -21,6 +21,7 @@ __all__ = [
     "MAX_TIMEOUT",
     "QUATERNION_NORM_TOL",
     "RIGID_TOL",
+    "cpu_set",
     "cpus",
     "fast_floats",
     "floats",
@@ -28,6 +29,7 @@ __all__ = [
     "nonnegative",
     "nonnegative_scalar",
     "number",
+    "online_cpus",
     "quaternion",
     "rigid_errors",
     "rigid_message",
@@ -82,14 +84,14 @@ def number(
 
 def cpus(name: str, value: Any) -> tuple[int, ...] | None:
     """The CPUs a process may be pinned to (``os.sched_setaffinity``): ``None`` (no
-    pinning), or a non-empty collection of CPU numbers this process may run on, as a
-    sorted tuple. Linux only (other systems have no per-process affinity to set)."""
+    pinning), or a non-empty collection of CPU numbers this process may be moved to (an
+    isolated one too: tried on the calling thread and switched back), as a sorted tuple.
+    Linux only (other systems have no per-process affinity to set)."""
     if value is None:
         return None
     if not hasattr(os, "sched_setaffinity"):
         raise ValueError(f"{name}: pinning to CPUs needs Linux (sched_setaffinity), got {value!r}")
-    allowed = sorted(os.sched_getaffinity(0))
-    expected = f"expected None or a non-empty set of CPU numbers from {allowed}"
+    expected = f"expected None or a non-empty set of CPU numbers from {online_cpus()}"
     if isinstance(value, (str, bytes, int)) or not hasattr(value, "__iter__"):
         raise ValueError(f"{name}: {expected}, got {value!r}")
     try:
@@ -99,9 +101,42 @@ def cpus(name: str, value: Any) -> tuple[int, ...] | None:
         chosen = {operator.index(c) for c in items}  # ints (NumPy's too), not 1.0 or True
     except TypeError:
         chosen = set()
-    if not chosen or not chosen <= set(allowed):
+    if not chosen or min(chosen) < 0:
         raise ValueError(f"{name}: {expected}, got {value!r}")
+    before = os.sched_getaffinity(0)
+    try:
+        os.sched_setaffinity(0, chosen)
+    except (OSError, OverflowError) as exc:  # offline, absent, or outside this cpuset
+        reason = getattr(exc, "strerror", None) or str(exc)
+        raise ValueError(f"{name}: {expected}, got {value!r} ({reason})") from None
+    finally:
+        os.sched_setaffinity(0, before)
     return tuple(sorted(chosen))
+
+
+def online_cpus() -> list[int]:
+    """The CPUs the machine has online (``/sys/devices/system/cpu/online``; where that
+    cannot be read, those this process may run on)."""
+    try:
+        with open("/sys/devices/system/cpu/online") as f:
+            return sorted(cpu_set(f.read()))
+    except (OSError, ValueError):
+        return sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+
+
+def cpu_set(text: str) -> set[int]:
+    """A kernel CPU list ("0-3,5", as in /sys/devices/system/cpu/*; "" for none) as a
+    set; ValueError for anything else."""
+    out: set[int] = set()
+    for part in text.strip().split(","):
+        if not part:
+            continue
+        first, _, last = part.partition("-")
+        low, high = int(first), int(last or first)
+        if low < 0 or high < low:
+            raise ValueError(f"not a CPU list: {text!r}")
+        out.update(range(low, high + 1))
+    return out
 
 
 def _interval(low: float, high: float, low_open: bool, high_open: bool) -> str:

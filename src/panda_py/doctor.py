@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from panda_py import fci
+from panda_py import checks, fci
 from panda_py.libfranka import (
     Gripper,
     RealtimeConfig,
@@ -125,6 +125,29 @@ def cpu_governor() -> Check:
     )
 
 
+def isolated_cpus(path: str = "/sys/devices/system/cpu/isolated") -> Check:
+    """The cores the kernel keeps free of other work (``isolcpus``): the place for the
+    control loop, pinned there with ``Panda(host, cpus=...)``."""
+    try:
+        with open(path) as f:
+            isolated = sorted(checks.cpu_set(f.read()))
+    except (OSError, ValueError):
+        isolated = []
+    if isolated:
+        return Check(
+            "isolated CPUs",
+            Status.OK,
+            f"{', '.join(map(str, isolated))}: pin the control loop there with "
+            f"Panda(host, cpus={{{isolated[-1]}}})",
+        )
+    return Check(  # optional: fine without, better with
+        "isolated CPUs",
+        Status.OK,
+        "none (optional: isolcpus=N on the kernel's command line keeps core N free of other "
+        "work, then Panda(host, cpus={N}) pins the control loop there)",
+    )
+
+
 def jitter(seconds: float = 2.0) -> Check:
     """Lateness of a 1 kHz loop on absolute deadlines (sleep, then spin) in this thread."""
     period, n = fci.PERIOD, max(1, int(seconds / fci.PERIOD))
@@ -154,10 +177,10 @@ def jitter(seconds: float = 2.0) -> Check:
 
 
 def machine_checks(jitter_seconds: float = 2.0) -> list[Check]:
-    checks = [kernel(), realtime_permission(), cpu_governor()]
+    found = [kernel(), realtime_permission(), cpu_governor(), isolated_cpus()]
     if jitter_seconds > 0:
-        checks.append(jitter(jitter_seconds))
-    return checks
+        found.append(jitter(jitter_seconds))
+    return found
 
 
 # --- the robot ---------------------------------------------------------------------------

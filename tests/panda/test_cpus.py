@@ -9,6 +9,7 @@ import os
 import pytest
 
 import panda_py
+from panda_py import checks
 from panda_py.sim import Simulator
 from panda_py.sim.cli import main as sim_cli
 
@@ -55,3 +56,21 @@ def test_the_command_line_refuses_a_bad_set(capsys: pytest.CaptureFixture[str]) 
         sim_cli(["--cpus", "one"])
     assert exit_.value.code == 2
     assert "expected CPU numbers separated by commas" in capsys.readouterr().err
+
+
+def test_a_kernel_cpu_list_is_read_as_the_kernel_writes_it() -> None:
+    assert checks.cpu_set("0-3,5\n") == {0, 1, 2, 3, 5}
+    assert checks.cpu_set("7") == {7} and checks.cpu_set("\n") == set()
+    for bad in ("3-1", "a", "1-2-3", "-1"):
+        with pytest.raises(ValueError):
+            checks.cpu_set(bad)
+    assert set(checks.online_cpus()) >= MINE
+
+
+def test_the_check_leaves_the_calling_thread_where_it_was() -> None:
+    # (it tries the set on the calling thread, then switches back)
+    assert checks.cpus("cpus", [CORE]) == (CORE,)
+    assert os.sched_getaffinity(0) == MINE
+    with pytest.raises(ValueError, match=EXPECTED):
+        checks.cpus("cpus", [CORE + 64])
+    assert os.sched_getaffinity(0) == MINE
