@@ -16,7 +16,7 @@ import sys
 from collections.abc import Sequence
 from types import FrameType
 
-from panda_py import fci
+from panda_py import checks, fci
 from panda_py.robots.end_effectors import END_EFFECTOR_CHOICES
 from panda_py.robots.params import ROBOTS
 from panda_py.sim.desk.launch import add_desk_arguments, start_desk
@@ -25,13 +25,13 @@ from panda_py.sim.video import DEFAULT_FPS, check_record
 
 
 def _cpu_list(text: str) -> tuple[int, ...]:
-    """``--cpus``: CPU numbers separated by commas (checked against the machine's by
-    SimConfig)."""
+    """``--cpus``: a CPU list as the kernel and taskset write it (checked against the
+    machine's by SimConfig)."""
     try:
-        return tuple(int(part) for part in text.split(","))
+        return tuple(sorted(checks.cpu_set(text)))
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected CPU numbers separated by commas (e.g. 1 or 0,1), got {text!r}"
+            f"expected CPU numbers separated by commas (e.g. 1, 0,1 or 0-3), got {text!r}"
         ) from None
 
 
@@ -81,8 +81,9 @@ def _parser() -> argparse.ArgumentParser:
         "--cpus",
         type=_cpu_list,
         default=None,
-        metavar="N[,N...]",
-        help="run on these CPUs only (e.g. the core the client's control loop is pinned to)",
+        metavar="LIST",
+        help="run on these CPUs only, e.g. 1 or 0-1 (the core the client's control loop is "
+        "pinned to)",
     )
     p.add_argument(
         "--version",

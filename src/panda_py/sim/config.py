@@ -75,12 +75,15 @@ class SimConfig:
         if not 0 <= self.lockstep_spin <= 0.01:
             raise ValueError(f"lockstep_spin: expected 0..0.01 s, got {self.lockstep_spin}")
         speed = self.lockstep_max_speed
-        if speed is not None and not (
-            isinstance(speed, (int, float)) and not isinstance(speed, bool) and 0 < speed < 1e6
-        ):
-            raise ValueError(
-                f"lockstep_max_speed: expected None or a speed factor in (0, 1e6), got {speed!r}"
-            )
+        if speed is not None:
+            try:
+                checks.number("lockstep_max_speed", speed, low=0.0, high=1e6, low_open=True,
+                              high_open=True)  # fmt: skip
+            except ValueError:
+                raise ValueError(
+                    "lockstep_max_speed: expected None or a speed factor in (0, 1e6), got "
+                    f"{speed!r}"
+                ) from None
         if speed is not None and not self.lockstep:
             raise ValueError(
                 f"lockstep_max_speed: applies to lockstep only (realtime runs at the wall "
