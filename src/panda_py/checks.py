@@ -132,9 +132,12 @@ def cpu_set(text: str) -> set[int]:
         if not part:
             continue
         first, _, last = part.partition("-")
-        low, high = int(first), int(last or first)
+        try:
+            low, high = int(first), int(last or first)
+        except ValueError:
+            low, high = -1, -1
         if low < 0 or high < low:
-            raise ValueError(f"not a CPU list: {text!r}")
+            raise ValueError(f"expected a CPU list such as 0-3,5, got {text!r}")
         out.update(range(low, high + 1))
     return out
 

@@ -64,6 +64,8 @@ def test_a_kernel_cpu_list_is_read_as_the_kernel_writes_it() -> None:
     for bad in ("3-1", "a", "1-2-3", "-1"):
         with pytest.raises(ValueError):
             checks.cpu_set(bad)
+    with pytest.raises(ValueError, match=r"expected a CPU list such as 0-3,5, got '1-x'"):
+        checks.cpu_set("1-x")
     assert set(checks.online_cpus()) >= MINE
 
 
