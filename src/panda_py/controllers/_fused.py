@@ -58,6 +58,7 @@ _target_outputs = _kernels.pose_target_outputs
 _L = tracking.LAW_LAYOUT
 _SCALARS, _K, _D, _QN = _L["scalars"][0], _L["K"][0], _L["D"][0], _L["q_n"][0]
 _ERR, _PINV, _J, _JP = _L["err"][0], _L["J_pinv"][0], _L["J"][0], _L["J_prev"][0]
+_M = _L["M"][0]
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -118,13 +119,13 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
 ):  # fmt: skip
     """One tick of ``tracking.PoseImpedance`` with the Coriolis torques, into ``tau`` (7,),
     on the law's buffer ``law`` (``tracking.LAW_LAYOUT``: its scalars, K, D, q_n, err,
-    J_pinv, J, J_prev): the Jacobian to the end effector of ``chain`` into J (the one it
-    held copied to J_prev first, where the scalars say it is the previous tick's), the
-    arm's mass matrix (``origin ... inertia``: ``dynamics.LoadedArm.arrays``), the damping
-    D from the arm's inertia where the scalars ask (``_kernels.mass_damping``), the
-    tracking torque (``_kernels.pose_tracking_torque``, its pose error into err, the
-    pseudo-inverse into J_pinv) and ``C(q, dq) dq``. NaN torques where ``q`` is not
-    finite."""
+    J_pinv, J, J_prev, M): the Jacobian to the end effector of ``chain`` into J (the one
+    it held copied to J_prev first, where the scalars say it is the previous tick's); where
+    the scalars ask, the arm's mass matrix into M (``origin ... inertia``:
+    ``dynamics.LoadedArm.arrays``) and the damping D from the arm's inertia
+    (``_kernels.mass_damping``), else the last ones; the tracking torque
+    (``_kernels.pose_tracking_torque``, its pose error into err, the pseudo-inverse into
+    J_pinv) and ``C(q, dq) dq``. NaN torques where ``q`` is not finite."""
     scalars = law[_SCALARS : _SCALARS + 8]
     J = law[_J : _J + 42].reshape((1, 6, 7))
     J_prev = law[_JP : _JP + 42].reshape((1, 6, 7))
@@ -135,9 +136,9 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
         return
     K = law[_K : _K + 36].reshape((6, 6))
     D = law[_D : _D + 36].reshape((6, 6))
-    M = np.empty((7, 7))
-    _crba(origin, ca, sa, mass, h, inertia, q, M)
+    M = law[_M : _M + 49].reshape((7, 7))
     if scalars[6] != 0.0:
+        _crba(origin, ca, sa, mass, h, inertia, q, M)
         _mass_damping(K, scalars[2], M, armature, J[0], scalars[5], D)
     Jp = J_prev[0] if has_prev else J[0]
     dt, k_n, speed, rate = scalars[0], scalars[1], scalars[3], scalars[4]

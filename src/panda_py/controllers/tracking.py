@@ -30,8 +30,10 @@ FloatArray = NDArray[np.float64]
 # would otherwise hold the arm against the impedance's few newtons (a lag the reference's
 # end leaves to the settle phase, which costs a Cartesian move a few hundred ms)
 FRICTION_ERROR_RATE = 10.0
-# ticks between updates of the damping from the arm's inertia (it changes slowly with the
-# configuration: updated every 20 ms, it tracks as well as every tick, at a twentieth)
+# ticks between updates of the arm's mass matrix and the damping from it (they change
+# slowly with the configuration: updated every 20 ms, the arm tracks as well as with both
+# every tick; the mass matrix took a quarter of a streamed target's tick on the loop's
+# cold caches, 5-6 us of about 40)
 DAMPING_TICKS = 20
 # the smallest eigenvalue kept of the end effector's inverse inertia J M^-1 J^T [1/kg along
 # a translation, 1/(kg m^2) about a rotation]: near a singularity the inertia along the
@@ -40,12 +42,12 @@ MIN_INVERSE_INERTIA = 1e-2
 
 # PoseImpedance's arrays in its one buffer: name -> (offset, size). The scalars: dt, k_n,
 # the damping ratio, FRICTION_SPEED, FRICTION_ERROR_RATE, MIN_INVERSE_INERTIA, 1 to update
-# the damping this tick (else 0), 1 if J_prev holds the previous tick's Jacobian (else 0).
-# The compiled tracking (_fused) reads it at these offsets (its cache key covers this
-# file).
+# the mass matrix and the damping this tick (else 0), 1 if J_prev holds the previous
+# tick's Jacobian (else 0). M: the links' mass matrix as last updated. The compiled
+# tracking (_fused) reads it at these offsets (its cache key covers this file).
 LAW_LAYOUT = {"scalars": (0, 8), "K": (8, 36), "D": (44, 36), "q_n": (80, 7), "err": (87, 6),
-              "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42)}  # fmt: skip
-LAW_SIZE = 219
+              "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42), "M": (219, 49)}  # fmt: skip
+LAW_SIZE = 268
 _K, _QN, _J = LAW_LAYOUT["K"][0], LAW_LAYOUT["q_n"][0], LAW_LAYOUT["J"][0]
 
 
@@ -100,6 +102,8 @@ class PoseImpedance:
     ``2 damping_ratio sqrt(K)`` assumes a unit mass, which left the translation
     under-damped (the arm's 3-5 kg: ratio ~0.5, it overshot) and the rotation overdamped
     (the wrist's ~0.03 kg m^2: ratio ~6, it crept to its orientation for half a second).
+    ``M`` (links and rotors) is the one of that update too: a load picked up counts within
+    DAMPING_TICKS.
 
     After :meth:`torque`, ``err`` (6,) is the pose error [m, rad], ``J_prev`` the
     Jacobian of that tick (its rate is taken from the change of the Jacobian) and
@@ -140,6 +144,12 @@ class PoseImpedance:
         """The damping (6, 6) [N s/m, Nm s/rad] (in the buffer): every path of torque() sets
         it on its first call (from the arm's inertia, _damping_due 0) before it reads it."""
         return self._view("D").reshape(6, 6)
+
+    @functools.cached_property
+    def M(self) -> FloatArray:
+        """The links' mass matrix (7, 7) [kg m^2] as last updated with the damping (in the
+        buffer; the rotors' inertia is added where it is used)."""
+        return self._view("M").reshape(7, 7)
 
     @functools.cached_property
     def qn(self) -> FloatArray:
@@ -191,9 +201,10 @@ class PoseImpedance:
         J = model.ee_jacobian(state)
         kn = self.kn
         kernels = laws.compiled()
+        M = self.M
         if kernels is not None:  # the same terms, compiled in one call
-            M = model.mass_of(state)
             if self._damping_due < 0:
+                M[:] = model.mass_of(state)
                 kernels.mass_damping(self.K, self.zeta, M, model.armature, J,
                                      MIN_INVERSE_INERTIA, self.D)  # fmt: skip
                 self._damping_due = DAMPING_TICKS - 1
@@ -205,7 +216,8 @@ class PoseImpedance:
             )  # fmt: skip
         else:
             if self._damping_due < 0:
-                self.D[:] = mass_damping(self.K, self.zeta, model.driven_mass_of(state), J)
+                M[:] = model.mass_of(state)
+                self.D[:] = mass_damping(self.K, self.zeta, M + np.diag(model.armature), J)
                 self._damping_due = DAMPING_TICKS - 1
             err = self.err
             err[:] = laws.cartesian_error(state.O_T_EE, p_d, quat_d)
@@ -216,7 +228,8 @@ class PoseImpedance:
             a = a_d
             if self.J_prev is not None and dt > 0.0:
                 a = a - ((J - self.J_prev) @ dq) / dt
-            tau += model.driven_mass_of(state) @ (J_pinv @ a)
+            ddq = J_pinv @ a
+            tau += M @ ddq + model.armature * ddq
             tau += model.friction_for(J_pinv @ (v_d - FRICTION_ERROR_RATE * err))
         self.J_prev = J
         return tau + model.coriolis_of(state)
