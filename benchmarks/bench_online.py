@@ -17,11 +17,12 @@ Run: ``python benchmarks/bench_online.py [--quick]``.
 * **streamed** (panda-sim in real time, FER): the control process's CPU share while a
   ``CartesianTarget`` follows targets streamed at 20 Hz round a circle, against
   ``CartesianImpedance`` fed the same targets, alternating in the same run (each round
-  both, ``--rounds``, 4 by default; each round's ratio and the ratio of the medians are
-  printed: a round's ratio swung 0.3-1.9x here); and each law's tick plus step in this
-  process on states made here (a new one each tick, as the loop has), a new target every
-  50 ticks: the steadier figure on a shared machine. Target: <= 1.2x
-  CartesianImpedance's CPU.
+  both, which first alternating too, ``--rounds``, 8 by default: a round's ratio swung
+  0.3-1.9x here, and the ratio of the medians of four rounds 1.06-1.25x over four runs of
+  the same code; each round's ratio and the ratio of the medians are printed); and each
+  law's tick plus step in this process on states made here (a new one each tick, as the
+  loop has), a new target every 50 ticks: the steadier figure on a shared machine.
+  Target: <= 1.2x CartesianImpedance's CPU.
 
 Each prints median, p99 and worst. The machine is a noisy 2-core VM: run it more than once.
 ``--only generator|latency|streamed`` runs one section.
@@ -204,8 +205,8 @@ def bench_streamed(seconds: float, rounds: int, n: int) -> None:
         panda.move_to_start()
         center, quat = panda.get_position(), panda.get_orientation()
         pid = panda._proc.proc.pid
-        for _ in range(rounds):
-            for name in cpu:
+        for r in range(rounds):
+            for name in list(cpu) if r % 2 == 0 else list(cpu)[::-1]:
                 ctrl = getattr(controllers, name)()
                 send = ctrl.set_control if name == "CartesianImpedance" else ctrl.set_target
                 panda.start_controller(ctrl)
@@ -277,7 +278,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
     parser.add_argument("--only", choices=("generator", "latency", "streamed"))
-    parser.add_argument("--rounds", type=int, default=4,
+    parser.add_argument("--rounds", type=int, default=8,
                         help="streamed: rounds of each law (alternating)")  # fmt: skip
     args = parser.parse_args()
     if args.only in (None, "generator"):
