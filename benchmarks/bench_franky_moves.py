@@ -19,9 +19,11 @@ both start from the start pose at rest and read the start pose from the robot's 
   later, replaced by a move to goal B (``GOAL_B``): ours ``move_to_pose(B,
   asynchronous=True)`` while the first runs, franky ``robot.move(CartesianMotion(B),
   asynchronous=True)`` while its first runs. Measured: from the replacing call until the arm
-  is at rest at B; also the distance to B at the call and the largest after it, and, for
-  ours, the fastest any trajectory within our limits could reach B at rest from the arm's
-  position and velocity at the call (``fastest_to_rest``: what our limits allow at all).
+  is at rest at B; also the distance to B at the call and the largest after it, and the
+  fastest any trajectory could reach B at rest from the arm's position and velocity at the
+  call (``fastest_to_rest``): for ours within our limits (what they allow at all; also
+  with our numbers bounding each axis apart, as franky's ruckig bounds its coordinates),
+  for franky within its limits in effect, per axis.
 
 "At rest" is the same for both (``sim_client_franky_moves.watch_rest``, polled every 0.5 ms
 from the state each library gives the user, ``panda.get_state()`` and ``robot.state``):
@@ -80,48 +82,54 @@ GOAL_B = [0.0, 0.15, 0.0]  # [m] from the start
 CASES = ("path", "preempt")
 
 
-def fastest_to_rest(p: np.ndarray, v: np.ndarray, v_max: float, a_max: float) -> float:
+def fastest_to_rest(p: np.ndarray, v: np.ndarray, v_max: float, a_max: float,
+                    per_axis: bool = False) -> float:  # fmt: skip
     """The shortest time [s] from position ``p`` [m] relative to the goal and velocity
     ``v`` [m/s] (3,) to rest at the goal with speed <= ``v_max`` and acceleration <=
-    ``a_max`` (norms), to within a few milliseconds: what no trajectory under our limits
-    can beat. Jerk and the joints' limits are left out and each norm ball is replaced by
-    the 32-sided polygon round it (both allow more than our limits); the accelerations are
-    piecewise constant over 100 steps (allowing a little less: a few ms on a second). A
-    linear program in the plane of ``p`` and ``v``, bisected to 1 ms; needs SciPy (a
+    ``a_max``: norms (ours), or with ``per_axis`` each base axis's component (franky's, as
+    ruckig bounds each coordinate). To within a few milliseconds, what no trajectory under
+    those limits can beat: jerk and the joints' limits are left out, each norm ball is
+    replaced by the 32-sided polygon round it in the plane of ``p`` and ``v`` (both allow
+    more), and the accelerations are piecewise constant over 100 steps (allowing a little
+    less: a few ms on a second). A linear program, bisected to 1 ms; needs SciPy (a
     dependency of the examples extra)."""
 
     from scipy.optimize import linprog
 
-    e1 = v / np.linalg.norm(v) if np.linalg.norm(v) > 1e-9 else p / np.linalg.norm(p)
-    rest = p - (p @ e1) * e1
-    e2 = rest / np.linalg.norm(rest) if np.linalg.norm(rest) > 1e-9 else np.zeros(3)
-    p0, v0 = np.array([p @ e1, p @ e2]), np.array([v @ e1, v @ e2])
-    n, sides = 100, 32
-    angles = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
-    normals = np.c_[np.cos(angles), np.sin(angles)]
+    if per_axis:  # the axes apart: no plane to choose
+        p0, v0 = np.asarray(p, dtype=float), np.asarray(v, dtype=float)
+        normals = np.vstack([np.eye(3), -np.eye(3)])
+    else:
+        e1 = v / np.linalg.norm(v) if np.linalg.norm(v) > 1e-9 else p / np.linalg.norm(p)
+        rest = p - (p @ e1) * e1
+        e2 = rest / np.linalg.norm(rest) if np.linalg.norm(rest) > 1e-9 else np.zeros(3)
+        p0, v0 = np.array([p @ e1, p @ e2]), np.array([v @ e1, v @ e2])
+        angles = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
+        normals = np.c_[np.cos(angles), np.sin(angles)]
+    d, n = p0.size, 100
 
     def feasible(t: float) -> bool:
         dt = t / n
         rows, bounds = [], []
         for k in range(n):
             for m in normals:
-                acc = np.zeros(2 * n)
-                acc[2 * k : 2 * k + 2] = m
+                acc = np.zeros(d * n)
+                acc[d * k : d * k + d] = m
                 rows.append(acc)
                 bounds.append(a_max)
-                vel = np.zeros(2 * n)
-                vel[: 2 * k + 2] = np.tile(m * dt, k + 1)
+                vel = np.zeros(d * n)
+                vel[: d * k + d] = np.tile(m * dt, k + 1)
                 rows.append(vel)
                 bounds.append(v_max - m @ v0)
         eq, target = [], []
-        for c in range(2):
-            final_v = np.zeros(2 * n)
-            final_v[c::2] = dt
-            final_p = np.zeros(2 * n)
-            final_p[c::2] = dt * dt * (n - np.arange(n) - 0.5)
+        for c in range(d):
+            final_v = np.zeros(d * n)
+            final_v[c::d] = dt
+            final_p = np.zeros(d * n)
+            final_p[c::d] = dt * dt * (n - np.arange(n) - 0.5)
             eq += [final_v, final_p]
             target += [-v0[c], -p0[c] - v0[c] * t]
-        res = linprog(np.zeros(2 * n), A_ub=np.array(rows), b_ub=bounds, A_eq=np.array(eq),
+        res = linprog(np.zeros(d * n), A_ub=np.array(rows), b_ub=bounds, A_eq=np.array(eq),
                       b_eq=target, bounds=(None, None), method="highs")  # fmt: skip
         return bool(res.status == 0)
 
@@ -179,11 +187,13 @@ def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
             J = panda.get_model().zero_jacobian(Frame.kEndEffector, state)
             twist = np.asarray(J).reshape(6, 7, order="F") @ state.dq
             limits = get_robot("fr3").cartesian
+            at_call = state.O_T_EE[12:15] - goal, twist[:3]
+            r["call"] = [at_call[0].tolist(), at_call[1].tolist()]  # for the report's bounds
+            v_max, a_max = (factor * limits.translation_velocity,
+                            factor * limits.translation_acceleration)  # fmt: skip
             try:
-                r["bound"] = fastest_to_rest(
-                    state.O_T_EE[12:15] - goal, twist[:3], factor * limits.translation_velocity,
-                    factor * limits.translation_acceleration,
-                )  # fmt: skip
+                r["bound"] = fastest_to_rest(*at_call, v_max, a_max)
+                r["bound_axis"] = fastest_to_rest(*at_call, v_max, a_max, per_axis=True)
             except ImportError:  # no SciPy: no bound
                 pass
             return r
@@ -233,6 +243,30 @@ def ms_list(values: list[float | None]) -> str:
     return ", ".join("-" if v is None else f"{v * 1e3:.0f}" for v in values) or "-"
 
 
+def _franky_bounds(rows: dict[str, list[dict[str, Any]]], v_ours: float,
+                   a_ours: float) -> dict[str, list[float]]:  # fmt: skip
+    """For each franky run, from its own state at the replacing call, the fastest to rest
+    at B: under its limits in effect per axis (as its ruckig bounds each coordinate,
+    ``theirs``), and under ours (``v_ours`` [m/s], ``a_ours`` [m/s^2]) on the norm and per
+    axis: whether our limits could match its time even from its state. Empty without
+    SciPy."""
+    out: dict[str, list[float]] = {"theirs": [], "ours": [], "ours_axis": []}
+    for run in rows["franky"]:
+        call, lim = run.get("preempt", {}).get("call"), run.get("limits")
+        if call is None or lim is None:
+            continue
+        p, v = np.array(call[0]), np.array(call[1])
+        try:
+            out["theirs"].append(fastest_to_rest(p, v, lim["translation_velocity"],
+                                                 lim["translation_acceleration"],
+                                                 per_axis=True))  # fmt: skip
+            out["ours"].append(fastest_to_rest(p, v, v_ours, a_ours))
+            out["ours_axis"].append(fastest_to_rest(p, v, v_ours, a_ours, per_axis=True))
+        except ImportError:  # no SciPy
+            return {}
+    return out
+
+
 def report(rows: dict[str, list[dict[str, Any]]], spec: dict[str, Any]) -> None:
     ours_limits = get_robot("fr3").cartesian
     f_ours = spec["factor"]
@@ -275,8 +309,18 @@ def report(rows: dict[str, list[dict[str, Any]]], spec: dict[str, Any]) -> None:
                     line += f"; from B at the call {first:.0f} mm, farthest {far:.0f} mm"
                 bounds = [r["bound"] for r in ok if "bound" in r]
                 if case == "preempt" and bounds:
+                    axis = [r["bound_axis"] for r in ok if "bound_axis" in r]
                     line += (f"; fastest possible under our limits from the state at the "
-                             f"call [ms]: {ms_list(bounds)}")  # fmt: skip
+                             f"call [ms]: {ms_list(bounds)} (our numbers per axis "
+                             f"{ms_list(axis)})")  # fmt: skip
+                if case == "preempt" and lib == "franky":
+                    b = _franky_bounds(rows, f_ours * ours_limits.translation_velocity,
+                                       f_ours * ours_limits.translation_acceleration)  # fmt: skip
+                    if b.get("theirs"):
+                        line += (f"; fastest possible from its state at the call [ms]: under "
+                                 f"its limits per axis {ms_list(list(b['theirs']))}, under "
+                                 f"ours {ms_list(list(b['ours']))} (our numbers per axis "
+                                 f"{ms_list(list(b['ours_axis']))})")  # fmt: skip
                 if case == "path" and lib == "ours":
                     line += f"; planned trajectory {ms_list([r['planned'] for r in ok])}"
                 print(line)

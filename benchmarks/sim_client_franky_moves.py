@@ -12,7 +12,7 @@ the robot at HOST (``RealtimeConfig.Ignore``), then
 * **preempt**: a ``CartesianMotion`` to goal A started asynchronously, replaced after
   ``preempt_ms`` (wall clock) by ``robot.move`` of a ``CartesianMotion`` to goal B (franky
   queues it and it takes over the running one); the time from the replacing call until the
-  arm rests at B.
+  arm rests at B, and the arm's position relative to B and velocity just after the call.
 
 Geometry and thresholds come as one JSON argument (offsets [m] from the start position,
 orientation kept). Prints one JSON line: per case the durations [s], or the error.
@@ -159,9 +159,13 @@ def main() -> None:
         t0 = time.monotonic()
         robot.move(CartesianMotion(target(spec["goal_b"]), relative_dynamics_factor=factor),
                    asynchronous=True)  # fmt: skip
+        state = robot.current_cartesian_state  # the arm just after the call
         goal = p0 + np.array(spec["goal_b"])
         r = watch_rest(read, goal, t0, None, running, rest)
         robot.join_motion()
+        position = np.ravel(state.pose.end_effector_pose.translation)
+        velocity = np.ravel(state.velocity.end_effector_twist.linear)
+        r["call"] = [(position - goal).tolist(), velocity.tolist()]  # for the report's bound
         return r
 
     for name, case in (("path", path), ("preempt", preempt)):
