@@ -1,7 +1,9 @@
 """Benchmark our non-blocking Cartesian moves side by side with franky-control 2.0.0, both
 against panda-sim (FR3, protocol v10) in real time (``lockstep=False``).
 
-Run: ``python benchmarks/bench_franky_moves.py [--quick] [--runs 5] [--factor 0.2]``.
+Run: ``python benchmarks/bench_franky_moves.py [--quick] [--runs 5] [--factor 0.2]
+[--cpus 1]`` (``--cpus``: the simulator and each library's control loop on those CPUs, the
+setting with which ``bench_panda.py lost`` lost no commands on a VM).
 
 Cases (each run: a fresh simulator per library, the libraries alternating which goes first;
 both start from the start pose at rest and read the start pose from the robot's state):
@@ -71,7 +73,7 @@ sys.path.insert(0, str(HERE))
 from peer_envs import PeerUnavailable, peer_environ, peer_python  # noqa: E402
 from sim_client_franky_moves import watch_rest  # noqa: E402
 
-from panda_py import MotionHandle, Panda  # noqa: E402
+from panda_py import MotionHandle, Panda, checks  # noqa: E402
 from panda_py.libfranka import Frame  # noqa: E402
 from panda_py.robots.params import get_robot  # noqa: E402
 from panda_py.sim import Simulator, free_loopback_host  # noqa: E402
@@ -149,10 +151,11 @@ def running(handle: MotionHandle) -> bool:
 
 
 def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
-    """Both cases with our Panda, in this process (its control process beside it)."""
+    """Both cases with our Panda, in this process (its control process beside it, on the
+    CPUs ``spec["cpus"]`` where given)."""
     factor, rest = spec["factor"], spec["rest_distance"]
     out: dict[str, Any] = {}
-    with Panda(host) as panda:
+    with Panda(host, cpus=spec["cpus"]) as panda:
         q_start = panda.q
         p0 = panda.get_position()
         quat = panda.get_orientation()  # x, y, z, w
@@ -208,8 +211,13 @@ def run_ours(host: str, spec: dict[str, Any]) -> dict[str, Any]:
 
 
 def run_franky(python: Path, host: str, spec: dict[str, Any]) -> dict[str, Any]:
+    """Both cases with franky's client in its venv (the whole process on the CPUs
+    ``spec["cpus"]`` where given: its control thread cannot be told from its others)."""
     cmd = [str(python), str(HERE / "sim_client_franky_moves.py"), host, json.dumps(spec)]
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=peer_environ())
+    cpus = spec["cpus"]
+    pin = None if cpus is None else (lambda: os.sched_setaffinity(0, cpus))
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=peer_environ(),
+                         preexec_fn=pin)  # fmt: skip
     try:
         result: dict[str, Any] = json.loads(out.stdout.strip().splitlines()[-1])
     except (IndexError, json.JSONDecodeError):
@@ -220,7 +228,8 @@ def run_franky(python: Path, host: str, spec: dict[str, Any]) -> dict[str, Any]:
 
 def one_run(library: str, spec: dict[str, Any], python: Path | None) -> dict[str, Any]:
     """A fresh simulator, one library's client, both cases."""
-    with Simulator(host=free_loopback_host(), robot="fr3", lockstep=False, versions=(10,)) as sim:
+    with Simulator(host=free_loopback_host(), robot="fr3", lockstep=False, versions=(10,),
+                   cpus=spec["cpus"]) as sim:  # fmt: skip
         if library == "ours":
             return run_ours(sim.host, spec)
         assert python is not None
@@ -367,6 +376,11 @@ def main() -> None:
         "--max-deviation", type=float, default=0.02,
         help="our path's corner cut at each waypoint [m] (0.02; 0 stops there, as franky)",
     )  # fmt: skip
+    parser.add_argument(
+        "--cpus", type=checks.cpu_set, default=None,
+        help="pin the simulator and each library's control loop to these CPUs (e.g. 1): "
+        "ours its control process, franky its whole client (default: unpinned)",
+    )  # fmt: skip
     parser.add_argument("--no-franky", action="store_true", help="our side only")
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
     args = parser.parse_args()
@@ -385,6 +399,7 @@ def main() -> None:
         "factor": args.factor, "franky_factor": franky_factor, "waypoints": WAYPOINTS,
         "goal_a": GOAL_A, "goal_b": GOAL_B, "preempt_ms": args.preempt_ms,
         "rest_distance": args.rest_mm * 1e-3, "max_deviation": args.max_deviation,
+        "cpus": sorted(args.cpus) if args.cpus else None,
     }  # fmt: skip
     python: Path | None = None
     if not args.no_franky:
@@ -397,7 +412,8 @@ def main() -> None:
         f"bench_franky_moves: {platform.node()}, {os.cpu_count()} CPUs, load average "
         f"{' '.join(f'{x:.2f}' for x in os.getloadavg())}, Python {platform.python_version()}; "
         f"{runs} runs per library, factor {args.factor} (franky {franky_factor}), "
-        f"preempt at {args.preempt_ms:g} ms"
+        f"preempt at {args.preempt_ms:g} ms, "
+        + ("unpinned" if spec["cpus"] is None else f"pinned to CPUs {spec['cpus']}")
     )
     rows: dict[str, list[dict[str, Any]]] = {"ours": [], "franky": []}
     for i in range(runs):
