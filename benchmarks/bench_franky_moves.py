@@ -60,6 +60,7 @@ import platform
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -247,7 +248,7 @@ def summary(values: list[float]) -> str:
             f"worst {a.max():7.0f} ms  (n={a.size})")  # fmt: skip
 
 
-def ms_list(values: list[float | None]) -> str:
+def ms_list(values: Sequence[float | None]) -> str:
     """Milliseconds, "-" for a value not seen."""
     return ", ".join("-" if v is None else f"{v * 1e3:.0f}" for v in values) or "-"
 
@@ -327,9 +328,9 @@ def report(rows: dict[str, list[dict[str, Any]]], spec: dict[str, Any]) -> None:
                                        f_ours * ours_limits.translation_acceleration)  # fmt: skip
                     if b.get("theirs"):
                         line += (f"; fastest possible from its state at the call [ms]: under "
-                                 f"its limits per axis {ms_list(list(b['theirs']))}, under "
-                                 f"ours {ms_list(list(b['ours']))} (our numbers per axis "
-                                 f"{ms_list(list(b['ours_axis']))})")  # fmt: skip
+                                 f"its limits per axis {ms_list(b['theirs'])}, under "
+                                 f"ours {ms_list(b['ours'])} (our numbers per axis "
+                                 f"{ms_list(b['ours_axis'])})")  # fmt: skip
                 if case == "path" and lib == "ours":
                     line += f"; planned trajectory {ms_list([r['planned'] for r in ok])}"
                 print(line)

@@ -102,8 +102,8 @@ class PoseImpedance:
     ``2 damping_ratio sqrt(K)`` assumes a unit mass, which left the translation
     under-damped (the arm's 3-5 kg: ratio ~0.5, it overshot) and the rotation overdamped
     (the wrist's ~0.03 kg m^2: ratio ~6, it crept to its orientation for half a second).
-    ``M`` (links and rotors) is the one of that update too: a load picked up counts within
-    DAMPING_TICKS.
+    The feed-forward's inertia (links and rotors) is the one of that update too (the
+    links' part kept as :attr:`M`): a load picked up counts within DAMPING_TICKS.
 
     After :meth:`torque`, ``err`` (6,) is the pose error [m, rad], ``J_prev`` the
     Jacobian of that tick (its rate is taken from the change of the Jacobian) and

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import os
 import selectors
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -331,8 +332,6 @@ def raise_priority() -> bool:
 def pin(cpus: tuple[int, ...] | None) -> None:
     """Run this process (its threads from now on) on ``cpus`` (checked; None: as is)."""
     if cpus is not None:
-        import os
-
         os.sched_setaffinity(0, cpus)
 
 
