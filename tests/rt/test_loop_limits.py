@@ -12,6 +12,7 @@ import pytest
 from panda_py import fci
 from panda_py import libfranka as lf
 from panda_py.controllers import laws
+from panda_py.controllers.finalize import CUTOFF_FREQUENCY, FILTER_GAIN
 from panda_py.libfranka import Torques
 from panda_py.libfranka._commander import Commander
 from panda_py.libfranka.limits import RateLimits
@@ -21,11 +22,11 @@ from panda_py.rt import child
 
 @pytest.mark.parametrize("version", [5, 10])
 def test_the_rate_limiter_cannot_bind_after_the_loops_saturation(version: int) -> None:
-    assert child.LIMIT_RATE is False and child.CUTOFF_FREQUENCY == 100.0
+    assert child.LIMIT_RATE is False and CUTOFF_FREQUENCY == 100.0
     dialect = fci.dialect(version)
     limits = RateLimits.for_robot(get_robot("fr3" if version >= 6 else "fer"))
-    on = Commander(dialect, limits, True, child.CUTOFF_FREQUENCY)
-    off = Commander(dialect, limits, False, child.CUTOFF_FREQUENCY)
+    on = Commander(dialect, limits, True, CUTOFF_FREQUENCY)
+    off = Commander(dialect, limits, False, CUTOFF_FREQUENCY)
     assert np.allclose(limits.max_torque_rate * 1e-3, laws.DTAU_MAX_PER_TICK)
     rng = np.random.default_rng(version)
     rec = np.zeros((), dialect.state_dtype)
@@ -46,7 +47,7 @@ def test_the_loops_filter_is_libfrankas(version: int) -> None:
 
     dialect = fci.dialect(version)
     limits = RateLimits.for_robot(get_robot("fr3" if version >= 6 else "fer"))
-    libfranka_filters = Commander(dialect, limits, False, child.CUTOFF_FREQUENCY)
+    libfranka_filters = Commander(dialect, limits, False, CUTOFF_FREQUENCY)
     unfiltered = Commander(dialect, limits, False, MAX_CUTOFF_FREQUENCY)
     tau_max = np.array([87.0] * 4 + [12.0] * 3)
     walls = laws.JointWalls(np.full(7, -3.0), np.full(7, 3.0))  # far: no wall torque
@@ -60,7 +61,7 @@ def test_the_loops_filter_is_libfrankas(version: int) -> None:
         tau_J_d = lf.RobotState(dialect, state).tau_J_d  # as the loop reads it (v10: float32)
         tau = tau_J_d + rng.normal(scale=2.0, size=7)
         assert walls.finalize(tau, z, z, tau_J_d, tau_max, raw)
-        assert walls.finalize(tau, z, z, tau_J_d, tau_max, filtered, child.FILTER_GAIN)
+        assert walls.finalize(tau, z, z, tau_J_d, tau_max, filtered, FILTER_GAIN)
         libfranka_filters.torques(Torques(raw), state)
         unfiltered.torques(Torques(filtered), state)
         got = unfiltered.record["tau_J_d"]

@@ -21,12 +21,12 @@ import numpy as np
 
 from panda_py import fci
 from panda_py.controllers import CartesianTarget, JointTarget, TorqueController, laws
+from panda_py.controllers.finalize import FILTER_GAIN
 from panda_py.controllers.model import ControlModel
 from panda_py.fci import ERROR_NAMES, MoveControllerMode, MoveMotionGeneratorMode, RobotMode
 from panda_py.learning.backend import Backend, Snapshot
 from panda_py.libfranka.state import TickState
 from panda_py.robots.params import FRANKA_HAND, START_POSE, get_robot, robot_for_protocol
-from panda_py.rt.child import FILTER_GAIN
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import Command, RobotCore

@@ -28,15 +28,13 @@ import time
 import traceback
 from typing import Any
 
-import numpy as np
-
-from panda_py import kinematics
 from panda_py.controllers import TorqueController, laws
+from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import Tracker, tracker_for
-from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan
-from panda_py.fci import PERIOD
+from panda_py.controllers.plans import MoveResult
+from panda_py.controllers.warmup import warm_up
 from panda_py.libfranka import (
     ControlException,
     FrankaException,
@@ -45,37 +43,30 @@ from panda_py.libfranka import (
     Robot,
     RobotMode,
     RobotState,
-    lowpass_filter,
 )
 from panda_py.libfranka.limits import MAX_CUTOFF_FREQUENCY
 from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
-from panda_py.motion import online
-from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import RobotSpec, get_robot, robot_for_protocol
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
 from panda_py.warmstart import InheritedFd
 
-__all__ = ["ControlServer", "Finalize", "limits_spec_for_version", "main", "warm_up"]
+__all__ = ["ControlServer", "limits_spec_for_version", "main"]
 
 PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
 STATE_WAIT = 0.05  # [s] longest wait between ticks before readOnce takes over the wait
 COUNT_POLL = 100e-6  # [s] how often a request being written is looked for between ticks
-# libfranka's low-pass filter on the torques, as panda-py runs its controllers (100 Hz),
-# applied by the loop's compiled finalize (laws.JointWalls.finalize, the same formula
-# after the same checks) rather than by libfranka's Python command path, so libfranka is
-# asked for no filter. Its rate limiter stays off: the loop's own saturation
-# (laws.DTAU_MAX_PER_TICK, 1 Nm a tick around tau_J_d) is libfranka's torque-rate bound
-# (1000 Nm/s), applied before the filter, which only shrinks the step further; the
-# limiter could never bind, so running it (as panda-py does) would only cost time.
-# tests/rt/test_loop_limits.py holds this.
+# libfranka's rate limiter stays off: the loop's own saturation (laws.DTAU_MAX_PER_TICK,
+# 1 Nm a tick around tau_J_d) is libfranka's torque-rate bound (1000 Nm/s), applied before
+# the low-pass filter (controllers.finalize, which the loop applies itself, so libfranka
+# is asked for none), which only shrinks the step further; the limiter could never bind,
+# so running it (as panda-py does) would only cost time. tests/rt/test_loop_limits.py
+# holds this.
 LIMIT_RATE = False
-CUTOFF_FREQUENCY = 100.0  # [Hz]
-FILTER_GAIN = float(lowpass_filter(PERIOD, 1.0, 0.0, CUTOFF_FREQUENCY))
 # what Panda.get_robot() may run on the robot (between ticks)
 ROBOT_METHODS = frozenset({
     "set_collision_behavior", "set_joint_impedance", "set_cartesian_impedance",
@@ -105,77 +96,6 @@ class _Deferred:
 
 
 DEFERRED = _Deferred()
-
-
-class Finalize:
-    """What follows every law's step each tick, compiled in one call: the joint walls of
-    ``limits``, the torque-rate saturation, the torque limits and libfranka's low-pass
-    filter (``laws.JointWalls.finalize``); refuses non-finite torques. Returns the command's
-    seven torques."""
-
-    def __init__(self, limits: RobotSpec) -> None:
-        self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
-        self.tau_max = np.array(limits.joints.tau_max)
-        self.out = np.zeros(7)  # the command of this tick, finalized
-
-    def __call__(self, tau: Any, state: RobotState) -> list[float]:
-        # contiguous float64: the compiled call has one signature, compiled before the loop
-        values = np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
-        if values.shape != (7,):
-            raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
-        out = self.out
-        if not self.walls.finalize(
-            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
-        ):
-            raise ControlException(
-                f"the controller commanded non-finite torques: {values.tolist()}"
-            )
-        return out.tolist()
-
-
-def warm_up(state: RobotState, model: ControlModel, limits: RobotSpec, finalize: Finalize) -> None:
-    """Run every law once on ``state`` (results discarded) as the loop runs them, so that
-    nothing compiles or loads mid-loop: after connecting, and in the server control
-    processes are forked from (:mod:`panda_py.rt.warm`), so they find it all loaded."""
-    kinematics.warmup()
-    online.warmup()  # the online generators' compiled steps (lead-ins, stops, streams)
-    from panda_py import controllers as c
-
-    for cls in (
-        c.CartesianImpedance,
-        c.JointPosition,
-        c.IntegratedVelocity,
-        c.AppliedTorque,
-        c.AppliedForce,
-        c.Force,
-        c.CartesianTarget,
-        c.JointTarget,
-    ):
-        ctrl = cls()
-        ctrl.dt = PERIOD
-        ctrl.start(state, model)
-        for _ in range(2):  # (the streamed targets' feed-forward starts on the second)
-            ctrl.tick(PERIOD)
-            finalize(ctrl.step(state, model), state)
-    finalize.walls.reset()
-    model.gravity_of(state)
-    q = state.q
-    z = np.zeros((2, 7))
-    joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
-                      OnlineLimits.joints(limits, 1.0))  # fmt: skip
-    p = np.array([state.O_T_EE[12:15]] * 2)
-    quat = np.array([laws.quat_from_matrix(state.O_T_EE)] * 2)
-    six = np.zeros((2, 6))
-    pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1,
-                    OnlineLimits.cartesian(limits, 1.0))  # fmt: skip
-    for plan in (joint, pose):  # and their lead-ins and stops
-        law = tracker_for(plan)
-        law.step(state, model)
-        other = tracker_for(pose if plan is joint else joint)
-        other.handover(law, state, model)
-        other.step(state, model)
-        other.cancel("warm-up")
-        other.step(state, model)
 
 
 class ControlServer:
@@ -482,7 +402,7 @@ class ControlServer:
         finalize = self.finalize
         header = block.header
         self.stopping = self.deferred = False
-        finalize.walls.reset()
+        finalize.reset()
         error: BaseException | None = None
         state: RobotState | None = None
         header[HEADER.RUNNING] = 1

@@ -1,7 +1,7 @@
 """Imported by the server the control processes are forked from
 (:mod:`panda_py.warmstart`): the loop's modules, the compiled kinematics, laws and model
 loaded (or compiled, once after installing), and every law run once as the loop runs them
-after connecting (:func:`panda_py.rt.child.warm_up`) on a state a robot at rest in its
+after connecting (:func:`panda_py.controllers.warmup.warm_up`) on a state a robot at rest in its
 start pose would send, in the first and the newest protocol's layout, so that the kernels'
 signatures for the loop's read-only states are loaded too. A ``Panda`` then connects
 without doing any of it again. Nothing here may fail the server: what does not load here
@@ -16,10 +16,11 @@ try:
 
     from panda_py import fci, kinematics
     from panda_py.controllers import laws
+    from panda_py.controllers.finalize import Finalize
     from panda_py.controllers.model import ControlModel
+    from panda_py.controllers.warmup import warm_up
     from panda_py.libfranka.state import TickState
     from panda_py.robots.params import START_POSE, get_robot
-    from panda_py.rt.child import Finalize, warm_up
 
     laws.warmup()  # (connect's: the laws on writable arrays; warm_up loads the kinematics)
     spec = get_robot("fer")

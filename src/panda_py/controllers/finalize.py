@@ -1,0 +1,56 @@
+"""What follows every law's step each tick, wherever a law runs (the control process's
+loop, the fast training world): the joint walls, the torque-rate saturation, the torque
+limits and libfranka's low-pass filter, compiled in one call
+(:meth:`panda_py.controllers.laws.JointWalls.finalize`).
+
+The filter is libfranka's on the torques as panda-py runs its controllers (100 Hz),
+applied here (the same formula after the same checks) rather than by libfranka's command
+path, so libfranka is asked for no filter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from panda_py.controllers import laws
+from panda_py.fci import PERIOD
+from panda_py.libfranka.errors import ControlException
+from panda_py.libfranka.limits import lowpass_filter
+from panda_py.libfranka.state import RobotState
+from panda_py.robots.params import RobotSpec
+
+__all__ = ["CUTOFF_FREQUENCY", "FILTER_GAIN", "Finalize"]
+
+CUTOFF_FREQUENCY = 100.0  # [Hz] libfranka's low-pass filter, as panda-py runs controllers
+#: the filter's gain per tick at :data:`CUTOFF_FREQUENCY` [-]
+FILTER_GAIN = float(lowpass_filter(PERIOD, 1.0, 0.0, CUTOFF_FREQUENCY))
+
+
+class Finalize:
+    """The finishing of ``limits``' robot: joint walls, torque-rate saturation, torque
+    limits and the low-pass filter; refuses non-finite torques. Called with a law's
+    torques and the tick's state, returns the command's seven torques."""
+
+    def __init__(self, limits: RobotSpec) -> None:
+        self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
+        self.tau_max = np.array(limits.joints.tau_max)
+        self.out = np.zeros(7)  # the command of this tick, finalized
+
+    def reset(self) -> None:
+        """Forget the previous command (a new motion starts)."""
+        self.walls.reset()
+
+    def __call__(self, tau: ArrayLike, state: RobotState) -> list[float]:
+        # contiguous float64: the compiled call has one signature, compiled before the loop
+        values = np.ascontiguousarray(tau, dtype=np.float64).reshape(-1)
+        if values.shape != (7,):
+            raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
+        out = self.out
+        if not self.walls.finalize(
+            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
+        ):
+            raise ControlException(
+                f"the controller commanded non-finite torques: {values.tolist()}"
+            )
+        return out.tolist()
