@@ -16,7 +16,8 @@ from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
-from panda_py.controllers.model import ControlModel
+from panda_py.controllers.law import CompiledTicks
+from panda_py.controllers.model import LOAD_FIELDS, ControlModel
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
 
@@ -48,6 +49,13 @@ _F64 = np.dtype(np.float64)
 _FILTERED_SIZE = 87
 _FUSED_SIGNALS = ("position", "orientation", "q_nullspace", "impedance", "filter_coeff",
                   "nullspace_stiffness")  # fmt: skip
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (the fused steps are compiled for read-only inputs)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
 
 
 def _sqrtm_psd(K: FloatArray) -> FloatArray:
@@ -462,6 +470,24 @@ class CartesianImpedance(TorqueController):
         layout = self._sig_layout
         self._at = np.array([layout[name][0] for name in _FUSED_SIGNALS], dtype=np.int64)
         self._J = np.empty((1, 6, 7))
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """The ticks in :func:`panda_py.rt._tick.cartesian_impedance_ticks`: this law's
+        fused step (where numba runs it) on its own buffers, until the impedance or the
+        damping ratio change (the damping target is computed here)."""
+        if laws.fused() is None or type(model) is not ControlModel or self._Kd_key is None:
+            return None
+        chain, arm = model.kernel_arrays(state)
+        K, ratio = self._Kd_key
+        layout = self._sig_layout
+        key = np.concatenate((K.reshape(36), [ratio]))
+        at = np.array([layout["impedance"][0], layout["damping_ratio"][0]], dtype=np.int64)
+        arrays = (
+            self._values, _readonly(self._values), _readonly(self._at), self._filtered,
+            key, at, _readonly(self._Kd_target), chain, *arm, self._J,
+        )  # fmt: skip
+        return CompiledTicks("cartesian_impedance_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
 
     def step(self, state: Any, model: Any) -> FloatArray:
         # the damping's target depends on the inputs only: redone when they changed

@@ -36,6 +36,8 @@ class Finalize:
         self.walls = laws.JointWalls(limits.joints.q_min, limits.joints.q_max)
         self.tau_max = np.array(limits.joints.tau_max)
         self.out = np.zeros(7)  # the command of this tick, finalized
+        self.dtau_max = laws.DTAU_MAX_PER_TICK  # [Nm] the torque-rate bound per tick
+        self.gain = FILTER_GAIN  # the low-pass filter's gain per tick
 
     def reset(self) -> None:
         """Forget the previous command (a new motion starts)."""
@@ -48,7 +50,7 @@ class Finalize:
             raise ValueError(f"step: expected 7 joint torques [Nm], got shape {values.shape}")
         out = self.out
         if not self.walls.finalize(
-            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, FILTER_GAIN
+            values, state.q, state.dq, state.tau_J_d, self.tau_max, out, self.gain
         ):
             raise ControlException(
                 f"the controller commanded non-finite torques: {values.tolist()}"

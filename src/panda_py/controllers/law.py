@@ -22,12 +22,13 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ControlLaw", "SignalSlot"]
+__all__ = ["CompiledTicks", "ControlLaw", "SignalSlot"]
 
 FloatArray = NDArray[np.float64]
 
@@ -95,3 +96,25 @@ class ControlLaw:
     def result(self, state: Any) -> Any:
         """What the caller waiting for this law gets when it ended (None by default)."""
         return None
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """The law's ticks as a compiled loop runs them (:mod:`panda_py.rt.fastloop`),
+        from ``state`` on (the last one :meth:`step` saw), or None (the default): the loop
+        then calls :meth:`tick`, :meth:`step` and :meth:`published` each tick. A law that
+        returns them keeps running :meth:`step` for the ticks the compiled loop hands
+        back, and must compute the same torques either way."""
+        return None
+
+
+@dataclass(frozen=True)
+class CompiledTicks:
+    """A law's part of a compiled loop's ticks (:meth:`ControlLaw.compiled`): the name of
+    its loop kernel in :mod:`panda_py.rt._tick`, the law's arrays in the kernel's order,
+    and the state's fields those arrays were made for (the end effector, the load: a
+    state in which they changed goes to :meth:`ControlLaw.step`)."""
+
+    kernel: str
+    arrays: tuple[Any, ...]
+    key_fields: tuple[str, ...]
+    #: the law's time and last dt [s], advanced by the kernel (handed back to the law)
+    time: FloatArray

@@ -232,6 +232,11 @@ class JointWalls:
         self._kernel_scale[:] = 1.0
         self._flags[:] = 0
 
+    def kernel_state(self) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+        """What the compiled finishing takes of the walls (``_kernels.finalize_torques``):
+        their table, and their state (scales, flags), updated in place by either path."""
+        return self._table, self._kernel_scale, self._flags
+
     def finalize(self, tau: FloatArray, q: FloatArray, dq: FloatArray, tau_J_d: FloatArray,
                  tau_max: FloatArray, out: FloatArray, gain: float = 1.0) -> bool:  # fmt: skip
         """What the loop does to a law's torques ``tau`` (7,): add the walls, saturate

@@ -11,7 +11,7 @@ See :class:`Robot`, :class:`Gripper`, :class:`Model` and :class:`RobotState`.
 
 from __future__ import annotations
 
-from panda_py.libfranka._active import ActiveControl
+from panda_py.libfranka._active import ActiveControl, TorqueIO
 from panda_py.libfranka.async_control import AsyncPositionControlHandler, TargetStatus
 from panda_py.libfranka.commands import (
     CartesianPose,
@@ -101,6 +101,7 @@ __all__ = [
     "RobotMode",
     "RobotState",
     "TargetStatus",
+    "TorqueIO",
     "Torques",
     "VacuumGripper",
     "VacuumGripperDeviceStatus",

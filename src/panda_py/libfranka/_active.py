@@ -5,17 +5,43 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from panda_py import fci
 from panda_py.libfranka._commander import Commander
 from panda_py.libfranka._connection import RobotConnection
 from panda_py.libfranka._motion import MotionSession
+from panda_py.libfranka._wire import Layout, layout
 from panda_py.libfranka.errors import InvalidOperationException
 from panda_py.libfranka.limits import RateLimits
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import Duration, RealtimeConfig
 
-__all__ = ["ActiveControl", "RobotBase"]
+__all__ = ["ActiveControl", "RobotBase", "TorqueIO"]
+
+
+@dataclass(frozen=True)
+class TorqueIO:
+    """What a compiled torque loop needs of a running motion
+    (:meth:`ActiveControl.torque_io`)."""
+
+    udp: int  #: the robot's UDP socket (connected to the robot), non-blocking
+    command: NDArray[np.uint8]  #: the RobotCommand datagram, its bytes (shared, writable)
+    last_data: bytes  #: the newest state taken (and answered)
+    #: (motion generator mode, controller mode, robot mode) while the motion runs
+    modes: tuple[int, int, int]
+    layout: Layout  #: the fields of the states and the commands, of this protocol version
+
+    @classmethod
+    def unconnected(cls, version: int) -> TorqueIO:
+        """Of protocol ``version``, with no socket (-1) and a zeroed command: what a
+        compiled loop's warm-up runs on (it runs no tick)."""
+        wire = layout(fci.dialect(version))
+        return cls(-1, np.zeros(wire.command_size, np.uint8), b"", (0, 0, 0), wire)
 
 
 class RobotBase:
@@ -78,6 +104,9 @@ class ActiveControl:
         except BaseException:
             self.cancel()
             raise
+        return self._took(data)
+
+    def _took(self, data: bytes) -> tuple[RobotState, Duration]:
         conn = self._robot._conn
         state = self._state_type(conn.dialect, data)
         self._robot._log.append(state)
@@ -86,6 +115,44 @@ class ActiveControl:
         self._last_id = mid
         self._last_data = data
         return state, dt
+
+    # --- a compiled loop's ticks (extensions of ours, for panda_py's control process) -----
+
+    def torque_io(self) -> TorqueIO:
+        """What a compiled loop needs to run this torque motion's ticks itself, reading
+        and answering states on the robot's socket: valid while the motion runs. Tell
+        this object what it did with :meth:`caught_up` or :meth:`read_received`."""
+        self._check()
+        if not self._torque or self._commander.process:
+            raise InvalidOperationException(
+                "libfranka: a compiled loop runs torque control without filter or rate limit"
+            )
+        if self._last_data is None:
+            raise InvalidOperationException("libfranka: call readOnce() before torque_io()")
+        conn = self._robot._conn
+        return TorqueIO(
+            conn.net.state_fileno(), np.frombuffer(self._commander.buffer, np.uint8),
+            self._last_data, self._session.running_modes, conn.layout,
+        )  # fmt: skip
+
+    def caught_up(self, data: bytes) -> RobotState:
+        """A compiled loop answered the states up to ``data``, the last one (it received
+        them on the socket of :meth:`torque_io`): the next ``readOnce`` goes on from it.
+        Returns that state."""
+        self._check()
+        self._robot._conn.took_state(data)
+        return self._took(data)[0]
+
+    def read_received(self, data: bytes) -> tuple[RobotState, Duration]:
+        """``readOnce`` for a state a compiled loop received and left for this loop to
+        answer (it raises, as ``readOnce``, if the robot left the motion)."""
+        self._check()
+        try:
+            self._session.accept(data)
+        except BaseException:
+            self.cancel()
+            raise
+        return self._took(data)
 
     def writeOnce(self, command: Any) -> None:
         """Send ``command`` (of this motion's type) for the last state read."""

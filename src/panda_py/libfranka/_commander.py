@@ -117,6 +117,11 @@ class Commander:
         f = lim.POSE_ROTATION_FACTOR
         self._pose_rotation = (f * L.rotation[0], f * L.rotation[1], f * L.rotation[2])
 
+    @property
+    def process(self) -> bool:
+        """Whether commands are filtered or rate-limited before they are sent."""
+        return self._process
+
     def _velocity_limits(self, q_d: Sequence[float]) -> tuple[list[float], list[float]]:
         """``RateLimits.joint_velocity_limits`` on floats."""
         if not self.limits.position_based:

@@ -173,11 +173,16 @@ class RobotConnection:
         """The newest RobotState datagram newer than the last one (waits up to 1 s); its
         header is in :attr:`last_header`."""
         data = self.net.receive_newest(self.last_id)
+        self.took_state(data)
+        return data
+
+    def took_state(self, data: bytes) -> None:
+        """``data`` is the newest RobotState datagram (received here, or by a compiled
+        loop on this connection's socket): remember it and its header."""
         header = self._header(data)
         self.last_data = data
         self.last_header = header
         self.last_id = header[0]
-        return data
 
     def receive_fresh_state(self) -> bytes:
         """The first RobotState sent after this call (libfranka's ``readOnce``: queued

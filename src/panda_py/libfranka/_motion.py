@@ -135,6 +135,21 @@ class MotionSession:
             self._abort(data)
         return data
 
+    def accept(self, data: bytes) -> None:
+        """As :meth:`receive`, for a state datagram received elsewhere (a compiled loop
+        on the connection's socket): take it as the newest, raise if the motion ended."""
+        conn = self.conn
+        conn.took_state(data)
+        _, mg, ctrl, mode = conn.last_header
+        if mode != _MOVE or mg != self.expect_mg or ctrl != self.expect_ctrl:
+            self._abort(data)
+
+    @property
+    def running_modes(self) -> tuple[int, int, int]:
+        """(motion generator mode, controller mode, robot mode) of the states while this
+        motion runs."""
+        return self.expect_mg, self.expect_ctrl, _MOVE
+
     def send(self, command: bytearray) -> None:
         """Send the RobotCommand datagram ``command`` as the answer to the newest state
         (its ``message_id`` is set here)."""

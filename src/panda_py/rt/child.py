@@ -49,8 +49,10 @@ from panda_py.libfranka.realtime import set_current_thread_to_highest_priority
 from panda_py.libfranka.state import TickState
 from panda_py.libfranka.types import RealtimeConfig
 from panda_py.robots.params import RobotSpec, get_robot, robot_for_protocol
+from panda_py.rt import fastloop
 from panda_py.rt import requests as rq
 from panda_py.rt.channel import Channel, ChannelClosed
+from panda_py.rt.fastloop import FastTicks
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock
 from panda_py.warmstart import InheritedFd
 
@@ -60,6 +62,10 @@ PARENT_CHECK_TICKS = 100  # look for a re-parenting every this many ticks
 IDLE_WAIT = 0.05  # [s] longest idle wait for a state or a request
 STATE_WAIT = 0.05  # [s] longest wait between ticks before readOnce takes over the wait
 COUNT_POLL = 100e-6  # [s] how often a request being written is looked for between ticks
+STATE_WAIT_MS = round(1e3 * STATE_WAIT)  # [ms] the compiled ticks' longest wait for a state
+# Laws that offer compiled ticks (ControlLaw.compiled) run them between the moments the
+# loop must act in Python (rt.fastloop); PANDA_PY_FAST_TICKS=0 runs every tick in Python
+FAST_TICKS = os.environ.get("PANDA_PY_FAST_TICKS", "1") != "0"
 # libfranka's rate limiter stays off: the loop's own saturation (laws.DTAU_MAX_PER_TICK,
 # 1 Nm a tick around tau_J_d) is libfranka's torque-rate bound (1000 Nm/s), applied before
 # the low-pass filter (controllers.finalize, which the loop applies itself, so libfranka
@@ -175,7 +181,9 @@ class ControlServer:
         data = robot.receive_raw_state()
         self.block.publish_state(data)
         # the states the loop's laws get: read-only arrays, compiled for as such
-        warm_up(robot.decode_state(data, TickState), self.model, limits, self.finalize)
+        state = robot.decode_state(data, TickState)
+        warm_up(state, self.model, limits, self.finalize)
+        fastloop.warm_up(state, self.model, self.finalize)
         return rq.Connected(version, robot.robot_spec.name, limits.name)
 
     # --- the idle loop -------------------------------------------------------------------
@@ -408,14 +416,21 @@ class ControlServer:
         header[HEADER.RUNNING] = 1
         self.current = (law, move_rid)
         ticks = 0
+        next_check = PARENT_CHECK_TICKS
         active = None
+        fast: FastTicks | None = None
+        pending: bytes | None = None  # a state the compiled ticks left for Python to answer
         udp, requests = robot.fileno(), chan.fileno()
         try:
             active = robot.start_torque_control(
                 limit_rate=LIMIT_RATE, cutoff_frequency=MAX_CUTOFF_FREQUENCY, state_type=TickState
             )
             while True:
-                state, dt = active.readOnce()
+                if pending is None:
+                    state, dt = active.readOnce()
+                else:
+                    state, dt = active.read_received(pending)
+                    pending = None
                 if ticks == 0 and isinstance(law, Tracker) and law.off_start(state):
                     # planned while another move ran, which ended before it arrived: the
                     # arm is not where the plan starts, so lead in from where it rests
@@ -437,12 +452,31 @@ class ControlServer:
                 law.published()
                 if finished:
                     break
-                law, move_rid = self._await_state(udp, requests, law, move_rid, state)
-                ticks += 1
-                if ticks % PARENT_CHECK_TICKS == 0 and (
-                    self._parent_gone() or chan.peer_closed()  # the user's side is gone
-                ):
-                    self.closing = self.stopping = True
+                while True:  # until the next tick is Python's
+                    law, move_rid = self._await_state(udp, requests, law, move_rid, state)
+                    ticks += 1
+                    if ticks >= next_check:
+                        next_check = ticks + PARENT_CHECK_TICKS
+                        if self._parent_gone() or chan.peer_closed():  # the user's side is gone
+                            self.closing = self.stopping = True
+                    compiled = None
+                    if self.replacement is None and not self.stopping and FAST_TICKS:
+                        compiled = law.compiled(state, model)
+                    if compiled is None:
+                        break
+                    if fast is None:
+                        fast = FastTicks(active.torque_io(), block, finalize, active)
+                    outcome = fast.run(
+                        law, compiled, state.raw, chan=requests, requests_taken=self.requests_taken,
+                        log=self.log if self.logging else None, budget=next_check - ticks,
+                        wait_ms=STATE_WAIT_MS,
+                    )  # fmt: skip
+                    ticks += outcome.ticks
+                    if outcome.then != "wait":
+                        pending = outcome.pending
+                        break
+                    if outcome.state is not None:  # the last state the compiled ticks answered
+                        state = outcome.state
         except BaseException as exc:  # the robot refused to start, or the loop ended
             if active is not None:
                 active.cancel()

@@ -139,6 +139,15 @@ class SharedBlock:
         self._in = self._mv[_IN_OFF : _IN_OFF + 8 * SIGNALS_MAX]
         self._fence = memory_fence()
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """For a compiled loop (:mod:`panda_py.rt._tick`): NumPy views of the header
+        (int64), the state slot's two copies (uint8, ``2 * STATE_MAX``), the controller
+        inputs (float64) and the outputs' two copies (float64, ``(2, OUTPUTS_MAX)``)."""
+        header = np.frombuffer(self._mm, np.int64, HEADER.COUNT, 0)
+        states = np.frombuffer(self._mm, np.uint8, 2 * STATE_MAX, _STATE_OFF[0])
+        outputs = np.frombuffer(self._mm, np.float64, 2 * OUTPUTS_MAX, _OUT_OFF[0])
+        return header, states, self.signals, outputs.reshape(2, OUTPUTS_MAX)
+
     @classmethod
     def create(cls) -> tuple[SharedBlock, int]:
         """A new zeroed block and the descriptor to hand to the other process."""
@@ -343,6 +352,13 @@ class LogRing:
             pos += sub.itemsize
         record = np.dtype({"names": names_out, "formats": formats, "offsets": offsets})
         return record, spans
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """For a compiled loop (:mod:`panda_py.rt._tick`): the ring's bytes (uint8) and
+        the copy spans (int64, one row of source offset, record offset, length each)."""
+        ring = np.frombuffer(self._mm, np.uint8)
+        spans = np.array(self.spans, dtype=np.int64).reshape(-1, 3)
+        return ring, spans
 
     @staticmethod
     def nbytes(size: int, record: np.dtype) -> int:

@@ -21,6 +21,7 @@ try:
     from panda_py.controllers.warmup import warm_up
     from panda_py.libfranka.state import TickState
     from panda_py.robots.params import START_POSE, get_robot
+    from panda_py.rt import fastloop
 
     laws.warmup()  # (connect's: the laws on writable arrays; warm_up loads the kinematics)
     spec = get_robot("fer")
@@ -31,7 +32,10 @@ try:
         record["q"] = record["q_d"] = START_POSE
         record["O_T_EE"] = kinematics.get_kinematics(spec).fk(START_POSE).reshape(16, order="F")
         record["F_T_EE"] = record["EE_T_K"] = np.eye(4).reshape(16)
-        warm_up(TickState(dialect, record.tobytes()), model, spec, Finalize(spec))
+        state = TickState(dialect, record.tobytes())
+        finalize = Finalize(spec)
+        warm_up(state, model, spec, finalize)
+        fastloop.warm_up(state, model, finalize)  # the compiled ticks' kernels
 except Exception:  # (the child does it again, and reports what fails)
     pass
 # the collector of a forked child leaves what is here alone: its passes would touch every

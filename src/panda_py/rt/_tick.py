@@ -1,0 +1,394 @@
+"""The control loop's ticks compiled: numba code that runs whole ticks of a built-in law
+without returning to Python, as a C++ loop would: wait for the robot's state datagram
+(``poll`` on it and on the request channel), take the newest, check the robot still runs
+the motion, decode the fields the law reads, read the user's signals from shared memory
+(the seqlock), run the law, the joint walls, the torque-rate saturation, the torque limits
+and the low-pass filter, encode and send the command, publish the state to shared memory,
+append it to the log ring and publish the law's outputs.
+
+It returns to Python (:mod:`panda_py.rt.fastloop`) for whatever Python must do, with the
+reason in ``io[STATUS]``:
+
+* ``REQUEST``: a request came on the channel (or was counted) while waiting for a state;
+* ``BUDGET``: it ran its budget of ticks (the loop's periodic checks are Python's);
+* ``TIMEOUT``: no state within the wait (Python's receive waits on, and times out);
+* ``PENDING``: a state arrived that Python must answer (the robot left the motion, the
+  end effector or the load changed, the inputs changed what only Python computes); it
+  is in ``buf``, unanswered;
+* ``NONFINITE``: the law's torques (in ``tau``) were not finite; nothing was sent;
+* ``SEND_FAILED``, ``RECEIVE_FAILED``: a system call failed (Python's own call of it
+  reports the error, or succeeds on the retry).
+
+The C library's ``poll``, ``recv`` and ``send`` are called as external symbols that the
+dynamic linker resolves when the compiled code loads (no address is compiled in), so the
+code is cached on disk as every other kernel (:mod:`panda_py.jitcache`). The memory
+fences of the shared memory's seqlock and latches are LLVM fences (``seq_cst``: a compiler
+and a hardware barrier on every machine).
+
+The state's fields arrive as the protocol lays them out (float64 or float32, at byte
+offsets of the state datagram: ``lay``, built from the FCI dialect by
+:func:`panda_py.libfranka.ActiveControl.torque_io`); each is decoded into float64 as
+:class:`~panda_py.libfranka.state.TickState` decodes it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+from panda_py import jitcache
+from panda_py.controllers import laws
+
+_FUSED, _KERNELS = laws.fused(), laws.compiled()
+if _FUSED is None or _KERNELS is None:  # plain Python: the loop runs its Python ticks
+    raise ImportError("the control laws run without numba")
+_cartesian_impedance_step = _FUSED.cartesian_impedance_step
+_finalize_torques = _KERNELS.finalize_torques
+
+__all__ = ["cartesian_impedance_ticks"]
+
+KEY = jitcache.source_key([Path(__file__)]) + _FUSED.KEY[:12]
+
+# io: the kernel's integer words (in and out)
+UDP, CHAN, LAST_ID, MG, CTRL, MOVE, TAKEN, BUDGET, LOGGING, SLOTS, RECORD = range(11)
+WAIT_MS, LENGTH, STATUS, TICKS, IN_SEQ, ANSWERED, STATE_MAX, OUT_N, ERRNO = range(11, 20)
+# (io[ANSWERED]: the length of the last state answered, kept in ``answered``)
+IO_SIZE = 24
+# io[STATUS]
+REQUEST, BUDGET_DONE, TIMEOUT, PENDING, NONFINITE, SEND_FAILED, RECEIVE_FAILED = range(1, 8)
+# lay: byte offsets (and element sizes) in the state datagram and the command
+(L_MG, L_CTRL, L_MODE, L_Q, L_Q_SIZE, L_DQ, L_DQ_SIZE, L_POSE, L_POSE_SIZE, L_TAU_D,
+ L_TAU_D_SIZE, L_CMD_TAU, L_KEY_SPANS) = range(13)  # fmt: skip
+LAY_SIZE = L_KEY_SPANS + 2 * 8  # up to eight spans (offset, length) of the model's key
+# the shared block's header words (panda_py.rt.shm.HEADER)
+H_STATE_SEQ, H_STATE_LEN, H_TICKS, H_OUT_SEQ, H_LOG_COUNT, H_REQUESTS = 0, 1, 2, 6, 7, 8
+H_IN_SEQ = 5
+POLLIN = 1
+MSG_DONTWAIT = 0x40
+
+_I8P = ir.IntType(8).as_pointer()
+
+
+def _call(builder, name, restype, argtypes, args):  # type: ignore[no-untyped-def,unused-ignore]
+    """A call of the C library's ``name``; integer arguments standing for pointers (``ir``
+    pointer types) converted, the result widened to 64 bits."""
+    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(restype, argtypes), name)
+    values = []
+    for value, want in zip(args, argtypes, strict=True):
+        if isinstance(want, ir.PointerType):
+            value = builder.inttoptr(value, want)
+        elif value.type != want:
+            value = builder.trunc(value, want)
+        values.append(value)
+    result = builder.call(fn, values)
+    return result if result.type == _I64 else builder.sext(result, _I64)
+
+
+_I32, _I64 = ir.IntType(32), ir.IntType(64)
+_IO = [_I32, _I8P, _I64, _I32]  # (fd, buffer, length, flags)
+
+
+def _recv_typer(typingctx, fd, buffer, length, flags):  # type: ignore[no-untyped-def,unused-ignore]
+    """``recv(fd, buffer, length, flags)``; ``buffer`` an address."""
+    sig = types.int64(types.int64, types.intp, types.int64, types.int64)
+    return sig, lambda context, builder, s, args: _call(builder, "recv", _I64, _IO, args)
+
+
+_recv: Any = intrinsic(_recv_typer)
+
+
+def _send_typer(typingctx, fd, buffer, length, flags):  # type: ignore[no-untyped-def,unused-ignore]
+    """``send(fd, buffer, length, flags)``; ``buffer`` an address."""
+    sig = types.int64(types.int64, types.intp, types.int64, types.int64)
+    return sig, lambda context, builder, s, args: _call(builder, "send", _I64, _IO, args)
+
+
+_send: Any = intrinsic(_send_typer)
+
+
+def _poll_typer(typingctx, fds, nfds, timeout):  # type: ignore[no-untyped-def,unused-ignore]
+    """``poll(fds, nfds, timeout)``; ``fds`` the address of the ``struct pollfd`` array."""
+    sig = types.int64(types.intp, types.int64, types.int64)
+    return sig, lambda context, builder, s, args: _call(builder, "poll", _I32,
+                                                        [_I8P, _I64, _I32], args)  # fmt: skip
+
+
+_poll: Any = intrinsic(_poll_typer)
+
+
+def _errno_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
+    """The C library's errno of this thread."""
+
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(_I32.as_pointer(), []), "__errno_location"
+        )
+        return builder.sext(builder.load(builder.call(fn, [])), _I64)
+
+    return types.int64(), codegen
+
+
+_errno: Any = intrinsic(_errno_typer)
+
+
+def _fence_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
+    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
+        builder.fence("seq_cst")
+        return context.get_dummy_value()
+
+    return types.void(), codegen
+
+
+_fence: Any = intrinsic(_fence_typer)
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _decode(buf, offset, size, count, tmp, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``count`` floats of ``size`` bytes each at ``offset`` of ``buf`` into ``out``
+    (float64), through the aligned scratch ``tmp``."""
+    raw = tmp.view(np.uint8)
+    n = size * count
+    raw[:n] = buf[offset : offset + n]
+    if size == 8:
+        out[:count] = tmp[:count]
+    else:
+        small = tmp.view(np.float32)
+        for i in range(count):
+            out[i] = np.float64(small[i])
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _receive_newest(io, buf, scratch):  # type: ignore[no-untyped-def,unused-ignore]
+    """Every datagram queued on the robot's socket, the newest one (by message_id) newer
+    than ``io[LAST_ID]`` kept in ``buf`` (its length in ``io[LENGTH]``); its id, or 0 if
+    none was newer, or -1 if a receive failed."""
+    best = 0
+    limit = io[STATE_MAX]
+    first = True
+    while True:
+        n = _recv(io[UDP], scratch.ctypes.data, limit, MSG_DONTWAIT)
+        if n < 0:  # none queued (EAGAIN), or an error, which Python's receive reports
+            return -1 if first else best  # (called once poll said one is there)
+        first = False
+        if n < 8:
+            continue
+        mid = np.int64(scratch[:8].view(np.uint64)[0])
+        if mid > io[LAST_ID] and mid > best:
+            best = mid
+            buf[:n] = scratch[:n]
+            io[LENGTH] = n
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _wait(io, pfd, header):  # type: ignore[no-untyped-def,unused-ignore]
+    """Wait for the robot's next state or a request: 0 when a state is readable, else the
+    status to return with."""
+    if header[H_REQUESTS] > io[TAKEN]:
+        return REQUEST
+    pfd[1] = POLLIN
+    pfd[3] = POLLIN
+    ready = _poll(pfd.ctypes.data, 2, io[WAIT_MS])
+    if ready < 0:
+        return RECEIVE_FAILED  # (EINTR: Python runs its signal handlers, then goes on)
+    if ready == 0:
+        return TIMEOUT
+    if (pfd[3] >> 16) != 0 or header[H_REQUESTS] > io[TAKEN]:
+        return REQUEST
+    return 0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _unchanged(lay, buf, key):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether the state's bytes at the key's spans equal ``key`` (the end effector and
+    the load the model's arrays were made for)."""
+    k = 0
+    for s in range(8):
+        offset, length = lay[L_KEY_SPANS + 2 * s], lay[L_KEY_SPANS + 2 * s + 1]
+        for i in range(length):
+            if buf[offset + i] != key[k + i]:
+                return False
+        k += length
+    return True
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _answer(io, lay, buf, cmd, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """The command for the state in ``buf`` (its message_id, the torques ``tau``) sent."""
+    cmd[:8] = buf[:8]
+    at = lay[L_CMD_TAU]
+    cmd[at : at + 56] = tau.view(np.uint8)
+    n = _send(io[UDP], cmd.ctypes.data, cmd.size, 0)
+    return n == cmd.size
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _publish(io, buf, header, states, ring, spans):  # type: ignore[no-untyped-def,unused-ignore]
+    """The state in ``buf`` into the shared block's latch (two copies) and, if logging,
+    one record of the log ring (``rt.shm.SharedBlock.publish_state``, ``LogRing.append``)."""
+    n = io[LENGTH]
+    half = io[STATE_MAX]
+    header[H_STATE_SEQ] += 1
+    _fence()
+    states[:n] = buf[:n]
+    header[H_STATE_LEN] = n
+    _fence()
+    header[H_STATE_SEQ] += 1
+    _fence()
+    states[half : half + n] = buf[:n]
+    _fence()
+    header[H_TICKS] += 1
+    if io[LOGGING] != 0:
+        count = header[H_LOG_COUNT]
+        base = (count % io[SLOTS]) * io[RECORD]
+        for s in range(spans.shape[0]):
+            src, dst, length = spans[s, 0], spans[s, 1], spans[s, 2]
+            ring[base + dst : base + dst + length] = buf[src : src + length]
+        _fence()
+        header[H_LOG_COUNT] = count + 1
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _outputs(header, outputs, values, n):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's outputs into the shared block's latch (``SharedBlock.write_outputs``)."""
+    header[H_OUT_SEQ] += 1
+    _fence()
+    outputs[0, :n] = values[:n]
+    _fence()
+    header[H_OUT_SEQ] += 1
+    _fence()
+    outputs[1, :n] = values[:n]
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _signals(io, header, signals, scratch, n):  # type: ignore[no-untyped-def,unused-ignore]
+    """The user's inputs, if they changed since ``io[IN_SEQ]`` and are consistent, into
+    ``scratch`` (``SharedBlock.read_signals``); their sequence number, or -1 if the copy
+    was skipped or torn (the law keeps its inputs)."""
+    seq = header[H_IN_SEQ]
+    if seq == io[IN_SEQ] or seq & 1:
+        return -1
+    _fence()
+    scratch[:n] = signals[:n]
+    _fence()
+    if header[H_IN_SEQ] != seq:
+        return -1
+    return seq
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d):  # type: ignore[no-untyped-def,unused-ignore]
+    """The next state taken and decoded: 0, or the status to return with (the state in
+    ``buf`` is then left unanswered where it is PENDING)."""
+    while True:
+        mid = _receive_newest(io, buf, scratch)
+        if mid < 0:
+            return RECEIVE_FAILED
+        if mid > 0:
+            break
+        status = _wait(io, pfd, header)  # nothing newer (a stray datagram): wait again
+        if status != 0:
+            return status
+    if (
+        buf[lay[L_MODE]] != io[MOVE]
+        or buf[lay[L_MG]] != io[MG]
+        or buf[lay[L_CTRL]] != io[CTRL]
+        or not _unchanged(lay, buf, key)
+    ):
+        return PENDING
+    _decode(buf, lay[L_Q], lay[L_Q_SIZE], 7, tmp, q)
+    _decode(buf, lay[L_DQ], lay[L_DQ_SIZE], 7, tmp, dq)
+    _decode(buf, lay[L_POSE], lay[L_POSE_SIZE], 16, tmp, pose)
+    _decode(buf, lay[L_TAU_D], lay[L_TAU_D_SIZE], 7, tmp, tau_J_d)
+    return 0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _advance(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's clock to the state in ``buf``: its time and dt [s] in ``law_t`` (the
+    robot's clock: message_id counts milliseconds, as libfranka's Duration)."""
+    mid = np.int64(buf[:8].view(np.uint64)[0])
+    dt = (mid - io[LAST_ID]) / 1000.0
+    io[LAST_ID] = mid
+    law_t[0] += dt
+    law_t[1] = dt
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, out_values, t,
+            tau, q, dq, tau_J_d, walls, scale, flags, fin, tau_max, command):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
+    """The law's torques ``tau`` finished (walls, rate, limits, filter: ``fin`` holds the
+    rate bound and the filter's gain) into ``command``, sent, the state kept in
+    ``answered``, published and logged, the outputs published (time ``t`` first): 0, or
+    the status to return with."""
+    if not _finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, fin[0],
+                                     tau_max, fin[1], command):  # fmt: skip
+        return NONFINITE
+    if not _answer(io, lay, buf, cmd, command):
+        io[ERRNO] = _errno()
+        return SEND_FAILED
+    n = io[LENGTH]
+    answered[:n] = buf[:n]
+    io[ANSWERED] = n
+    _publish(io, buf, header, states, ring, spans)
+    out_values[0] = t
+    _outputs(header, outputs, out_values, io[OUT_N])
+    return 0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, values_in, at, filtered, kd_key, kd_at, Kd_t, chain, origin, ca, sa, mass, h,
+    inertia, J,
+):  # fmt: skip
+    """Ticks of ``CartesianImpedance`` (``controllers._fused.cartesian_impedance_step``),
+    from waiting for the next state, until a reason to return (``io[STATUS]``; the ticks
+    run in ``io[TICKS]``). The loop's arrays first (see :mod:`panda_py.rt.fastloop`),
+    then the law's (``CartesianImpedance.compiled``): ``values`` (writable) and
+    ``values_in`` (the same memory, read-only, as the step is compiled for) its inputs,
+    refreshed from ``signals`` (through ``new``) when the user changed them, unless the
+    impedance or the damping ratio (at ``kd_at``) differ from ``kd_key`` (the damping
+    target ``Kd_t`` is Python's to compute: PENDING)."""
+    io[TICKS] = 0
+    n_values = values.size
+    while True:
+        status = _wait(io, pfd, header)
+        if status == 0:
+            status = _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose,
+                                 tau_J_d)  # fmt: skip
+        if status == 0:
+            seq = _signals(io, header, signals, new, n_values)
+            if seq >= 0:
+                same = new[kd_at[1]] == kd_key[36]
+                for i in range(36):
+                    same = same and new[kd_at[0] + i] == kd_key[i]
+                if not same:
+                    status = PENDING  # (the inputs stay unread: Python's tick reads them)
+                else:
+                    values[:] = new[:n_values]
+                    io[IN_SEQ] = seq
+        if status != 0:
+            io[STATUS] = status
+            return
+        _advance(io, buf, law_t)
+        _cartesian_impedance_step(values_in, at, filtered, Kd_t, pose_in, q_in, dq_in,
+                                        chain, origin, ca, sa, mass, h, inertia, J,
+                                        tau)  # fmt: skip
+        status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                         out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale, flags,
+                         fin, tau_max, command)  # fmt: skip
+        if status != 0:
+            io[STATUS] = status
+            return
+        io[TICKS] += 1
+        if io[TICKS] >= io[BUDGET]:
+            io[STATUS] = BUDGET_DONE
+            return

@@ -1,0 +1,219 @@
+"""The control loop's compiled ticks (rt/_tick.py, rt/fastloop.py) against the Python tick
+they replace, on states sent over a real UDP socket as a robot sends them: the same
+commands (to 1e-9), the same hand-backs to Python (a request, a changed load or
+impedance, a robot that left the motion, silence), the same errors (non-finite torques),
+the state published and logged as the Python tick publishes and logs it."""
+
+from __future__ import annotations
+
+import dataclasses
+import socket
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from panda_py import fci, kinematics
+from panda_py.controllers import CartesianImpedance
+from panda_py.controllers.finalize import Finalize
+from panda_py.controllers.model import ControlModel
+from panda_py.libfranka import ControlException, RobotMode, TorqueIO
+from panda_py.libfranka.state import TickState
+from panda_py.robots.params import START_POSE, get_robot
+from panda_py.rt import fastloop
+from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock, anonymous_file
+
+pytestmark = pytest.mark.skipif(fastloop.kernels() is None, reason="numba runs the ticks")
+
+MG, CTRL = 5, 2  # the running modes the states carry (any values: the kernel compares)
+MOVE = int(RobotMode.kMove.value)
+SPEC = get_robot("fer")
+MODEL = ControlModel(SPEC)
+KIN = kinematics.get_kinematics(SPEC)
+
+
+def _state(dialect: Any, mid: int, q: np.ndarray, dq: np.ndarray, tau_J_d: np.ndarray,
+           *, mode: int = MOVE, load: float = 0.0) -> bytes:  # fmt: skip
+    r = np.zeros((), dialect.state_dtype)
+    r["message_id"] = mid
+    r["motion_generator_mode"], r["controller_mode"], r["robot_mode"] = MG, CTRL, mode
+    r["q"], r["dq"], r["tau_J_d"], r["q_d"] = q, dq, tau_J_d, q
+    r["O_T_EE"] = KIN.fk(q).reshape(16, order="F")
+    r["F_T_EE"] = r["EE_T_K"] = np.eye(4).reshape(16)
+    r["m_load"] = load
+    return r.tobytes()
+
+
+class Rig:
+    """A robot's UDP socket and the client's, a shared block, and one CartesianImpedance
+    run by the compiled ticks beside its reference run by the Python tick."""
+
+    def __init__(self, version: int) -> None:
+        self.dialect = fci.dialect(version)
+        self.robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.robot.bind(("127.0.0.1", 0))
+        self.client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.client.bind(("127.0.0.1", 0))
+        self.client.connect(self.robot.getsockname())
+        self.robot.connect(self.client.getsockname())
+        self.client.setblocking(False)
+        self.robot.settimeout(2.0)
+        self.block, fd = SharedBlock.create()
+        self.fd = fd
+        self.rng = np.random.default_rng(version)
+        self.mid = 100
+        self.q = np.asarray(START_POSE, dtype=float)
+        self.last = _state(self.dialect, self.mid, self.q, np.zeros(7), np.zeros(7))
+        first = TickState(self.dialect, self.last)
+        self.law = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+        self.ref = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+        self.law.start(first, MODEL)
+        values = self.law.open_slot(self.block)
+        self.handle = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+        self.handle.attach(self.block, values)
+        self.ref.start(TickState(self.dialect, self.last), MODEL)
+        self.fin, self.fin_ref = Finalize(SPEC), Finalize(SPEC)
+        # the first tick is Python's, in the loop as here
+        self.law.step(first, MODEL)
+        self.ref.step(TickState(self.dialect, self.last), MODEL)
+        io = dataclasses.replace(
+            TorqueIO.unconnected(version), udp=self.client.fileno(),
+            last_data=self.last, modes=(MG, CTRL, MOVE),
+        )  # fmt: skip
+        self.io = io
+        self.fast = fastloop.FastTicks(io, self.block, self.fin, None)
+        self.command = np.ndarray((), self.dialect.command_dtype, buffer=io.command)
+
+    def close(self) -> None:
+        del self.fast
+        self.block.close()
+        self.robot.close()
+        self.client.close()
+
+    def next_state(self, **kw: Any) -> bytes:
+        self.mid += 1
+        self.q = self.q + self.rng.normal(0.0, 2e-3, 7)
+        return _state(self.dialect, self.mid, self.q, self.rng.normal(0.0, 0.05, 7),
+                      self.rng.normal(0.0, 2.0, 7), **kw)  # fmt: skip
+
+    def reference(self, data: bytes, dt: float) -> np.ndarray:
+        state = TickState(self.dialect, data)
+        self.ref.tick(dt)
+        return np.asarray(self.fin_ref(self.ref.step(state, MODEL), state))
+
+    def run(self, *, chan: int = -1, budget: int = 1, wait_ms: int = 1000,
+            log: LogRing | None = None) -> fastloop.Outcome:  # fmt: skip
+        compiled = self.law.compiled(TickState(self.dialect, self.last), MODEL)
+        assert compiled is not None
+        return self.fast.run(self.law, compiled, self.last, chan=chan, requests_taken=0,
+                             log=log, budget=budget, wait_ms=wait_ms)  # fmt: skip
+
+    def python_tick(self, data: bytes, dt: float) -> np.ndarray:
+        """What the loop does with a state the compiled ticks hand back."""
+        state = TickState(self.dialect, data)
+        self.law.tick(dt)
+        self.last = data
+        return np.asarray(self.fin(self.law.step(state, MODEL), state))
+
+
+@pytest.fixture(params=[5, 10])
+def rig(request: Any) -> Iterator[Rig]:
+    r = Rig(request.param)
+    yield r
+    r.close()
+
+
+def test_compiled_ticks_send_the_python_ticks_commands(rig: Rig) -> None:
+    targets = {40: 0.05, 90: -0.03}
+    pending = 0
+    for k in range(150):
+        if k in targets:  # the user moves the target: both see it from this tick on
+            x = np.asarray(KIN.fk(START_POSE))[:3, 3] + [0.0, targets[k], 0.0]
+            quat = np.array([1.0, 0.0, 0.0, 0.0])
+            rig.handle.set_control(x, quat)
+            rig.ref.set_control(x, quat)
+        if k == 120:  # a new impedance: the damping target is Python's to compute
+            K = np.diag([500.0, 500.0, 500.0, 20.0, 20.0, 20.0])
+            rig.handle.set_impedance(K)
+            rig.ref.set_impedance(K)
+        data = rig.next_state(load=0.5 if k >= 70 else 0.0)  # a load picked up at 70
+        rig.robot.send(data)
+        outcome = rig.run()
+        expected = rig.reference(data, 1e-3)
+        if outcome.then == "pending":
+            pending += 1
+            assert outcome.pending == data
+            sent = rig.python_tick(data, 1e-3)
+        else:
+            assert outcome.then == "wait" and outcome.ticks == 1
+            reply = rig.robot.recv(4096)
+            rec = np.frombuffer(reply, rig.dialect.command_dtype)[0]
+            assert int(rec["message_id"]) == rig.mid
+            sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+            rig.last = data
+            assert rig.block.read_state() == data  # published as the Python tick does
+        np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+    # handed back: the load (70) and the impedance (120), nothing else
+    assert pending == 2
+    assert rig.law.t == pytest.approx(rig.ref.t) and rig.law.get_time() == pytest.approx(rig.ref.t)
+
+
+def test_a_robot_that_left_the_motion_is_handed_back_unanswered(rig: Rig) -> None:
+    data = rig.next_state(mode=int(RobotMode.kReflex.value))
+    rig.robot.send(data)
+    outcome = rig.run()
+    assert outcome.then == "pending" and outcome.pending == data and outcome.ticks == 0
+
+
+def test_non_finite_torques_raise_and_send_nothing(rig: Rig) -> None:
+    rig.mid += 1
+    r = np.frombuffer(_state(rig.dialect, rig.mid, rig.q, np.zeros(7), np.zeros(7)),
+                      rig.dialect.state_dtype).copy()  # fmt: skip
+    r["q"][0, 3] = np.nan  # (a NaN the sensors could never send: the law's torques are NaN)
+    rig.robot.send(r.tobytes())
+    with pytest.raises(ControlException, match="non-finite torques"):
+        rig.run()
+    rig.robot.settimeout(0.05)
+    with pytest.raises(TimeoutError):
+        rig.robot.recv(4096)
+
+
+def test_a_request_hands_back_before_the_state_is_taken(rig: Rig) -> None:
+    a, b = socket.socketpair()
+    try:
+        b.send(b"x")
+        data = rig.next_state()
+        rig.robot.send(data)
+        outcome = rig.run(chan=a.fileno())
+        assert outcome.then == "wait" and outcome.ticks == 0
+        assert rig.client.recv(4096) == data  # still queued for the loop
+    finally:
+        a.close()
+        b.close()
+
+
+def test_silence_hands_back_to_pythons_receive(rig: Rig) -> None:
+    outcome = rig.run(wait_ms=20)
+    assert outcome.then == "tick" and outcome.ticks == 0
+
+
+def test_queued_states_the_newest_is_answered_and_logged(rig: Rig) -> None:
+    record, spans = LogRing.layout(rig.dialect.state_dtype, LOG_FIELDS)
+    fd = anonymous_file(LogRing.nbytes(10, record))
+    log = LogRing(fd, 10, record, spans)
+    try:
+        states = [rig.next_state() for _ in range(3)]
+        for data in states:
+            rig.robot.send(data)
+        outcome = rig.run(log=log)
+        assert outcome.ticks == 1
+        reply = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+        assert int(reply["message_id"]) == rig.mid  # the newest
+        logged = log.snapshot(rig.block.header)
+        assert len(logged) == 1 and int(rig.block.header[HEADER.LOG_COUNT]) == 1
+        newest = np.frombuffer(states[-1], rig.dialect.state_dtype)[0]
+        np.testing.assert_array_equal(logged["q"][0], newest["q"])
+        assert rig.law.dt == pytest.approx(3e-3)  # the robot's clock: three ticks on
+    finally:
+        log.close()
