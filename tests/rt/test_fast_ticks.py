@@ -15,11 +15,21 @@ import numpy as np
 import pytest
 
 from panda_py import fci, kinematics
-from panda_py.controllers import CartesianImpedance
+from panda_py.controllers import (
+    AppliedTorque,
+    CartesianImpedance,
+    IntegratedVelocity,
+    JointPosition,
+    TorqueController,
+    laws,
+)
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.model import ControlModel
+from panda_py.controllers.moves import tracker_for
+from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.libfranka import ControlException, RobotMode, TorqueIO
 from panda_py.libfranka.state import TickState
+from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import fastloop
 from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, SharedBlock, anonymous_file
@@ -45,11 +55,67 @@ def _state(dialect: Any, mid: int, q: np.ndarray, dq: np.ndarray, tau_J_d: np.nd
     return r.tobytes()
 
 
-class Rig:
-    """A robot's UDP socket and the client's, a shared block, and one CartesianImpedance
-    run by the compiled ticks beside its reference run by the Python tick."""
+def _plan(kind: str, q0: np.ndarray) -> Any:
+    """A plan of 200 ms that moves the arm a little from ``q0``."""
+    n = 201
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    limits = OnlineLimits.joints(SPEC, 1.0)
+    if kind == "JointMove":
+        dq_goal = np.array([0.05, -0.04, 0.03, 0.06, -0.02, 0.04, 0.05])
+        q = q0 + s * dq_goal
+        dq = np.tile(dq_goal / 0.2, (n, 1))
+        return JointPlan(q, dq, np.zeros((n, 7)), np.full(7, 600.0), np.full(7, 50.0), 1e-3,
+                         1e-2, limits)  # fmt: skip
+    T = np.asarray(KIN.fk(q0))
+    p = T[:3, 3] + s * np.array([0.02, -0.03, 0.01])
+    quat = np.tile(laws.quat_from_matrix(T.reshape(16, order="F")), (n, 1))
+    v = np.zeros((n, 6))
+    v[:, :3] = np.array([0.02, -0.03, 0.01]) / 0.2
+    return PosePlan(p, quat, v, np.zeros((n, 6)), q0, np.diag([600.0] * 3 + [30.0] * 3), 1.0,
+                    0.5, 1e-3, 1e-2, 5e-2, OnlineLimits.cartesian(SPEC, 1.0))  # fmt: skip
 
-    def __init__(self, version: int) -> None:
+
+def make(kind: str, state: Any) -> Any:
+    """A law of ``kind`` started on ``state`` (None: a user's handle, not started)."""
+    if kind in ("JointMove", "PoseMove"):
+        return tracker_for(_plan(kind, np.asarray(START_POSE, dtype=float)))
+    if kind == "CartesianImpedance":
+        law = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+    elif kind == "JointPosition":
+        law = JointPosition(filter_coeff=0.2)
+    elif kind == "IntegratedVelocity":
+        law = IntegratedVelocity()
+    else:
+        law = AppliedTorque(damping=np.full(7, 2.0), filter_coeff=0.5)
+    if state is not None:
+        law.start(state, MODEL)
+    return law
+
+
+def _move_input(kind: str, law: Any, k: int) -> None:
+    """The user's new inputs at tick ``k`` (on the handle and on the reference alike)."""
+    if kind == "CartesianImpedance":
+        x = np.asarray(KIN.fk(START_POSE))[:3, 3] + [0.0, 0.05 if k < 90 else -0.03, 0.0]
+        law.set_control(x, np.array([1.0, 0.0, 0.0, 0.0]))
+        if k == 120:  # a new impedance: the damping target is Python's to compute
+            law.set_impedance(np.diag([500.0, 500.0, 500.0, 20.0, 20.0, 20.0]))
+    elif kind == "JointPosition":
+        law.set_control(np.asarray(START_POSE) + 0.02 * (k // 40))
+    elif kind == "IntegratedVelocity":
+        law.set_control(np.full(7, 0.1 if k < 90 else -0.2))
+    elif kind == "AppliedTorque":
+        law.set_control(np.linspace(-1.0, 1.0, 7) * (k // 40))
+
+
+KINDS = ("CartesianImpedance", "JointPosition", "IntegratedVelocity", "AppliedTorque",
+         "JointMove", "PoseMove")  # fmt: skip
+
+
+class Rig:
+    """A robot's UDP socket and the client's, a shared block, and one law run by the
+    compiled ticks beside its reference run by the Python tick."""
+
+    def __init__(self, version: int, kind: str = "CartesianImpedance") -> None:
         self.dialect = fci.dialect(version)
         self.robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.robot.bind(("127.0.0.1", 0))
@@ -66,16 +132,17 @@ class Rig:
         self.q = np.asarray(START_POSE, dtype=float)
         self.last = _state(self.dialect, self.mid, self.q, np.zeros(7), np.zeros(7))
         first = TickState(self.dialect, self.last)
-        self.law = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
-        self.ref = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
-        self.law.start(first, MODEL)
-        values = self.law.open_slot(self.block)
-        self.handle = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
-        self.handle.attach(self.block, values)
-        self.ref.start(TickState(self.dialect, self.last), MODEL)
+        self.law, self.ref = make(kind, first), make(kind, TickState(self.dialect, self.last))
+        self.handle: Any = None
+        if isinstance(self.law, TorqueController):
+            values = self.law.open_slot(self.block)
+            self.handle = make(kind, None)
+            self.handle.attach(self.block, values)
         self.fin, self.fin_ref = Finalize(SPEC), Finalize(SPEC)
         # the first tick is Python's, in the loop as here
+        self.law.tick(0.0)
         self.law.step(first, MODEL)
+        self.ref.tick(0.0)
         self.ref.step(TickState(self.dialect, self.last), MODEL)
         io = dataclasses.replace(
             TorqueIO.unconnected(version), udp=self.client.fileno(),
@@ -114,49 +181,58 @@ class Rig:
         state = TickState(self.dialect, data)
         self.law.tick(dt)
         self.last = data
-        return np.asarray(self.fin(self.law.step(state, MODEL), state))
+        sent = np.asarray(self.fin(self.law.step(state, MODEL), state))
+        self.law.published()
+        return sent
 
 
 @pytest.fixture(params=[5, 10])
 def rig(request: Any) -> Iterator[Rig]:
-    r = Rig(request.param)
+    r = Rig(request.param, "CartesianImpedance")
     yield r
     r.close()
 
 
-def test_compiled_ticks_send_the_python_ticks_commands(rig: Rig) -> None:
-    targets = {40: 0.05, 90: -0.03}
-    pending = 0
-    for k in range(150):
-        if k in targets:  # the user moves the target: both see it from this tick on
-            x = np.asarray(KIN.fk(START_POSE))[:3, 3] + [0.0, targets[k], 0.0]
-            quat = np.array([1.0, 0.0, 0.0, 0.0])
-            rig.handle.set_control(x, quat)
-            rig.ref.set_control(x, quat)
-        if k == 120:  # a new impedance: the damping target is Python's to compute
-            K = np.diag([500.0, 500.0, 500.0, 20.0, 20.0, 20.0])
-            rig.handle.set_impedance(K)
-            rig.ref.set_impedance(K)
-        data = rig.next_state(load=0.5 if k >= 70 else 0.0)  # a load picked up at 70
-        rig.robot.send(data)
-        outcome = rig.run()
-        expected = rig.reference(data, 1e-3)
-        if outcome.then == "pending":
-            pending += 1
-            assert outcome.pending == data
-            sent = rig.python_tick(data, 1e-3)
-        else:
-            assert outcome.then == "wait" and outcome.ticks == 1
-            reply = rig.robot.recv(4096)
-            rec = np.frombuffer(reply, rig.dialect.command_dtype)[0]
-            assert int(rec["message_id"]) == rig.mid
-            sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
-            rig.last = data
-            assert rig.block.read_state() == data  # published as the Python tick does
-        np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
-    # handed back: the load (70) and the impedance (120), nothing else
-    assert pending == 2
-    assert rig.law.t == pytest.approx(rig.ref.t) and rig.law.get_time() == pytest.approx(rig.ref.t)
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("kind", KINDS)
+def test_compiled_ticks_send_the_python_ticks_commands(kind: str, version: int) -> None:
+    rig = Rig(version, kind)
+    try:
+        handed_back = []
+        for k in range(1, 150):
+            if k in (40, 90, 120) and rig.handle is not None:  # the user's new inputs
+                _move_input(kind, rig.handle, k)
+                _move_input(kind, rig.ref, k)
+            data = rig.next_state(load=0.5 if k >= 70 else 0.0)  # a load picked up at 70
+            rig.robot.send(data)
+            outcome = rig.run()
+            expected = rig.reference(data, 1e-3)
+            if outcome.then == "pending":
+                handed_back.append(k)
+                assert outcome.pending == data
+                sent = rig.python_tick(data, 1e-3)
+            else:
+                assert outcome.then == "wait" and outcome.ticks == 1
+                reply = rig.robot.recv(4096)
+                rec = np.frombuffer(reply, rig.dialect.command_dtype)[0]
+                assert int(rec["message_id"]) == rig.mid
+                sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+                rig.last = data
+                assert rig.block.read_state() == data  # published as the Python tick does
+            np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+            if rig.handle is not None:  # what the user reads back
+                np.testing.assert_allclose(rig.handle.get_time(), rig.ref.t, atol=1e-12)
+        # handed back: the load (70) where the law uses the model, a new impedance (120),
+        # a move's trajectory's end (200 ms: from tick 200 on, past this run)
+        expected_back = {
+            "CartesianImpedance": [70, 120], "JointMove": [70], "PoseMove": [70],
+        }.get(kind, [])  # fmt: skip
+        assert handed_back == expected_back
+        assert rig.law.t == pytest.approx(rig.ref.t)
+        if kind == "IntegratedVelocity":
+            np.testing.assert_array_equal(rig.handle.get_qd(), rig.ref.get_qd())
+    finally:
+        rig.close()
 
 
 def test_a_robot_that_left_the_motion_is_handed_back_unanswered(rig: Rig) -> None:

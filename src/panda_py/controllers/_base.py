@@ -205,14 +205,9 @@ class TorqueController(ControlLaw):
         self.dt = dt
 
     def compiled_io(self) -> tuple[FloatArray, FloatArray, int]:
-        """For a compiled loop running this controller's ticks: its inputs (this tick's
-        copy, refreshed in place), its outputs (time first) and the inputs' sequence
-        number of the copy it holds."""
         return self._values, self._out, self._in_seq
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
-        """A compiled loop ran ticks of this controller: its time and last dt [s]
-        (``time``), and the inputs' sequence number of the copy it took last."""
         self.t, self.dt = float(time[0]), float(time[1])
         self._in_seq = in_seq
 

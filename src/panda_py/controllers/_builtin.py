@@ -16,7 +16,7 @@ from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
-from panda_py.controllers.law import CompiledTicks
+from panda_py.controllers.law import CompiledTicks, readonly
 from panda_py.controllers.model import LOAD_FIELDS, ControlModel
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
@@ -51,11 +51,10 @@ _FUSED_SIGNALS = ("position", "orientation", "q_nullspace", "impedance", "filter
                   "nullspace_stiffness")  # fmt: skip
 
 
-def _readonly(a: np.ndarray) -> np.ndarray:
-    """A read-only view of ``a`` (the fused steps are compiled for read-only inputs)."""
-    view = a.view()
-    view.flags.writeable = False
-    return view
+# a compiled law's inputs that nothing guards (CompiledTicks of a law that computes nothing
+# from its inputs in Python)
+_NO_GUARD = np.zeros((0, 2), dtype=np.int64)
+_NO_KEY = np.zeros(0)
 
 
 def _sqrtm_psd(K: FloatArray) -> FloatArray:
@@ -122,6 +121,14 @@ class JointPosition(TorqueController):
         self._q_d, self._dq_d = q.copy(), np.zeros(7)
         self._K, self._D = self._K_t.copy(), self._D_t.copy()
 
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """Its ticks in ``rt._tick.joint_position_ticks``."""
+        L = self._sig_layout
+        at = np.array([L[n][0] for n in ("position", "velocity", "stiffness", "damping",
+                                         "filter_coeff")])  # fmt: skip
+        arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._q_d, self._dq_d, self._K, self._D)
+        return CompiledTicks("joint_position_ticks", arrays, (), np.array([self.t, self.dt]))
+
     def step(self, state: Any, model: Any) -> FloatArray:
         a = self._scalar("filter_coeff")
         laws.ema(self._q_d, self._q_t, a)
@@ -172,6 +179,17 @@ class IntegratedVelocity(TorqueController):
         self._lower = np.array(model.spec.joints.q_min) if hasattr(model, "spec") else None
         self._upper = np.array(model.spec.joints.q_max) if hasattr(model, "spec") else None
         self.set_output("q_d", self._q_d)
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """Its ticks in ``rt._tick.integrated_velocity_ticks``."""
+        if self._lower is None:
+            return None
+        L = self._sig_layout
+        at = np.array([L["velocity"][0], L["stiffness"][0], L["damping"][0],
+                       self._out_layout["q_d"][0]])  # fmt: skip
+        arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._q_d, self._lower, self._upper)
+        return CompiledTicks("integrated_velocity_ticks", arrays, (),
+                             np.array([self.t, self.dt]))  # fmt: skip
 
     def step(self, state: Any, model: Any) -> FloatArray:
         self._q_d += self.dt * self._dq_t
@@ -234,6 +252,13 @@ class AppliedTorque(_Applied):
     def set_control(self, torque: Any) -> None:
         """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
         self._set_input(torque)
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """Its ticks in ``rt._tick.applied_torque_ticks``."""
+        L = self._sig_layout
+        at = np.array([L["torque"][0], L["damping"][0], L["filter_coeff"][0]])
+        arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._in, self._D)
+        return CompiledTicks("applied_torque_ticks", arrays, (), np.array([self.t, self.dt]))
 
     def step(self, state: Any, model: Any) -> FloatArray:
         return self._filtered() - self._D * state.dq
@@ -472,19 +497,19 @@ class CartesianImpedance(TorqueController):
         self._J = np.empty((1, 6, 7))
 
     def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
-        """The ticks in :func:`panda_py.rt._tick.cartesian_impedance_ticks`: this law's
-        fused step (where numba runs it) on its own buffers, until the impedance or the
-        damping ratio change (the damping target is computed here)."""
+        """Its ticks in ``rt._tick.cartesian_impedance_ticks``: the fused step (where numba
+        runs it) on its own buffers, the impedance and the damping ratio guarded (the
+        damping target is computed here)."""
         if laws.fused() is None or type(model) is not ControlModel or self._Kd_key is None:
             return None
         chain, arm = model.kernel_arrays(state)
         K, ratio = self._Kd_key
         layout = self._sig_layout
+        guard = np.array([[layout["impedance"][0], 36], [layout["damping_ratio"][0], 1]])
         key = np.concatenate((K.reshape(36), [ratio]))
-        at = np.array([layout["impedance"][0], layout["damping_ratio"][0]], dtype=np.int64)
         arrays = (
-            self._values, _readonly(self._values), _readonly(self._at), self._filtered,
-            key, at, _readonly(self._Kd_target), chain, *arm, self._J,
+            self._values, guard, key, readonly(self._values), readonly(self._at),
+            self._filtered, readonly(self._Kd_target), chain, *arm, self._J,
         )  # fmt: skip
         return CompiledTicks("cartesian_impedance_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip

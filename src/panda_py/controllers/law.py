@@ -28,7 +28,7 @@ from typing import Any, Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["CompiledTicks", "ControlLaw", "SignalSlot"]
+__all__ = ["CompiledTicks", "ControlLaw", "SignalSlot", "readonly"]
 
 FloatArray = NDArray[np.float64]
 
@@ -104,6 +104,27 @@ class ControlLaw:
         returns them keeps running :meth:`step` for the ticks the compiled loop hands
         back, and must compute the same torques either way."""
         return None
+
+    def compiled_io(self) -> tuple[FloatArray, FloatArray, int]:
+        """For a compiled loop running this law's ticks: its inputs from the user's
+        process (refreshed in place), its outputs (time first) and the inputs' sequence
+        number of the copy it holds; none by default."""
+        return _NONE, _NONE, -1
+
+    def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
+        """A compiled loop ran ticks of this law: its time and last dt [s] (``time``),
+        and the inputs' sequence number of the copy it took last."""
+        self.t, self.dt = float(time[0]), float(time[1])
+
+
+_NONE = np.zeros(0)  # (writable: a compiled loop's kernels take one type)
+
+
+def readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (the fused steps are compiled for read-only inputs)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
 
 
 @dataclass(frozen=True)

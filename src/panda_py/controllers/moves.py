@@ -24,14 +24,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
-from panda_py.controllers.law import ControlLaw
+from panda_py.controllers.law import CompiledTicks, ControlLaw, readonly
+from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
-from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
+from panda_py.controllers.tracking import (
+    DAMPING_TICKS,
+    FRICTION_ERROR_RATE,
+    PoseImpedance,
+    joint_impedance_torque,
+)
 from panda_py.fci import PERIOD
 from panda_py.motion import rotation as rot
 from panda_py.motion.online import LATERAL, OnlineGenerator, OnlineLimits, OnlinePose
 
 __all__ = ["JointMove", "PoseMove", "Tracker", "joint_capped", "joint_capped_peaks", "tracker_for"]
+
+# a move has no inputs from the user's process (its compiled ticks read none)
+_NO_INPUTS = np.zeros(0)
+_NO_GUARD = np.zeros((0, 2), dtype=np.int64)
 
 FloatArray = NDArray[np.float64]
 
@@ -310,6 +320,30 @@ class Tracker(ControlLaw):
     def at_goal(self, state: Any) -> bool:
         raise NotImplementedError
 
+    def _follows_plan(self, model: Any) -> bool:
+        """Whether its ticks are the plan's alone from here until the trajectory's end: no
+        lead-in, stop, blend or condition (those run in Python), numba running the laws."""
+        return (
+            not (self.leading or self.stopping or self.until is not None)
+            and self.previous is None
+            and self.successor is None
+            and self.t_end < math.inf
+            and laws.fused() is not None
+            and type(model) is ControlModel
+        )
+
+    def _times(self) -> FloatArray:
+        """The plan's clock as a compiled loop reads it: the trajectory's end, the law's
+        time at plan time 0, the period, the friction's speed and error rate."""
+        return np.array([self.t_end, self.t0, PERIOD, FRICTION_SPEED, FRICTION_ERROR_RATE])
+
+    def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
+        super().compiled_ran(time, in_seq)
+        self.ref = self._sampled(self.sample())
+
+    def _sampled(self, k: int) -> tuple[FloatArray, ...]:
+        raise NotImplementedError
+
     def _finish(self, result: MoveResult) -> MoveResult:
         result.condition, result.condition_time = self.condition, self.condition_time
         if self.stopping and not self.condition:
@@ -396,8 +430,23 @@ class JointMove(Tracker):
             if not gen.finished and gen.step():
                 self._lead_finished()
             return gen.position, gen.velocity, gen.acceleration
-        k = self.sample()
+        return self._sampled(self.sample())
+
+    def _sampled(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         return self.q[k], self.dq[k], self.ddq[k]
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """While it follows its plan: ``rt._tick.joint_move_ticks``."""
+        if not self._follows_plan(model):
+            return None
+        chain, arm = model.kernel_arrays(state)
+        arrays = (
+            _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self.dq),
+            readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
+            model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
+        )  # fmt: skip
+        return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
 
     def step(self, state: Any, model: Any) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
@@ -539,8 +588,29 @@ class PoseMove(Tracker):
             if not gen.finished and gen.step():
                 self._lead_finished()
             return gen.position, gen.orientation, gen.twist, gen.accel
-        k = self.sample()
+        return self._sampled(self.sample())
+
+    def _sampled(self, k: int) -> tuple[FloatArray, ...]:
         return self.p[k], self.quat[k], self.v[k], self.a[k]
+
+    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+        """While it follows its plan: ``rt._tick.pose_move_ticks``, on its tracking law's
+        buffer (after that law's first tick)."""
+        if not self._follows_plan(model) or self.refine or self.law.J_prev is None:
+            return None
+        chain, arm = model.kernel_arrays(state)
+        self._samples = np.array([self.k0, self.last, self.law.damping_due, DAMPING_TICKS])
+        arrays = (
+            _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
+            readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
+            model.coulomb, self._times(), self._samples,
+        )  # fmt: skip
+        return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
+
+    def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
+        super().compiled_ran(time, in_seq)
+        self.law.compiled_ran(int(self._samples[2]))
 
     def step(self, state: Any, model: Any) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()

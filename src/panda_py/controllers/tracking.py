@@ -166,6 +166,18 @@ class PoseImpedance:
         """The damped pseudo-inverse (7, 6) of the last tick's Jacobian (in the buffer)."""
         return self._view("J_pinv").reshape(7, 6)
 
+    @property
+    def damping_due(self) -> int:
+        """Ticks until the damping is updated (negative: at the next)."""
+        return self._damping_due
+
+    def compiled_ran(self, damping_due: int) -> None:
+        """A compiled loop ran ticks of this law on its buffer (setting its scalars as
+        :meth:`compiled_inputs` does): ``damping_due`` ticks until the next update; the
+        buffer holds the last tick's Jacobian."""
+        self._damping_due = damping_due
+        self.J_prev = self._J0
+
     def compiled_inputs(self, dt: float) -> FloatArray:
         """The buffer the compiled tracking takes (:data:`LAW_LAYOUT`), its scalars set for
         a tick ``dt`` [s] after the previous one; afterwards ``J_prev`` is that tick's

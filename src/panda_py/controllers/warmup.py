@@ -27,7 +27,7 @@ from panda_py.motion import online
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import RobotSpec
 
-__all__ = ["BUILTIN", "warm_up"]
+__all__ = ["BUILTIN", "example_plans", "warm_up"]
 
 #: the built-in torque controllers, each warmed by :func:`warm_up`
 BUILTIN = (
@@ -56,6 +56,20 @@ def warm_up(state: RobotState, model: ControlModel, limits: RobotSpec, finalize:
             finalize(ctrl.step(state, model), state)
     finalize.reset()
     model.gravity_of(state)
+    joint, pose = example_plans(state, limits)
+    for plan in (joint, pose):  # and their lead-ins and stops
+        law = tracker_for(plan)
+        law.step(state, model)
+        other = tracker_for(pose if plan is joint else joint)
+        other.handover(law, state, model)
+        other.step(state, model)
+        other.cancel("warm-up")
+        other.step(state, model)
+
+
+def example_plans(state: RobotState, limits: RobotSpec) -> tuple[JointPlan, PosePlan]:
+    """A joint and a Cartesian plan of two samples that hold the arm where ``state`` has
+    it (what the warm-ups run the moves on)."""
     q = state.q
     z = np.zeros((2, 7))
     joint = JointPlan(np.array([q, q]), z, z, np.ones(7), np.ones(7), 1e-3, 1e-2,
@@ -65,11 +79,4 @@ def warm_up(state: RobotState, model: ControlModel, limits: RobotSpec, finalize:
     six = np.zeros((2, 6))
     pose = PosePlan(p, quat, six, six, q, np.eye(6), 1.0, 1.0, 1e-3, 1e-2, 1e-1,
                     OnlineLimits.cartesian(limits, 1.0))  # fmt: skip
-    for plan in (joint, pose):  # and their lead-ins and stops
-        law = tracker_for(plan)
-        law.step(state, model)
-        other = tracker_for(pose if plan is joint else joint)
-        other.handover(law, state, model)
-        other.step(state, model)
-        other.cancel("warm-up")
-        other.step(state, model)
+    return joint, pose

@@ -49,9 +49,14 @@ _FUSED, _KERNELS = laws.fused(), laws.compiled()
 if _FUSED is None or _KERNELS is None:  # plain Python: the loop runs its Python ticks
     raise ImportError("the control laws run without numba")
 _cartesian_impedance_step = _FUSED.cartesian_impedance_step
+_joint_tracking_step = _FUSED.joint_tracking_step
+_pose_tracking_step = _FUSED.pose_tracking_step
 _finalize_torques = _KERNELS.finalize_torques
 
-__all__ = ["cartesian_impedance_ticks"]
+__all__ = [
+    "applied_torque_ticks", "cartesian_impedance_ticks", "integrated_velocity_ticks",
+    "joint_move_ticks", "joint_position_ticks", "pose_move_ticks",
+]  # fmt: skip
 
 KEY = jitcache.source_key([Path(__file__)]) + _FUSED.KEY[:12]
 
@@ -336,9 +341,64 @@ def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, o
     answered[:n] = buf[:n]
     io[ANSWERED] = n
     _publish(io, buf, header, states, ring, spans)
-    out_values[0] = t
-    _outputs(header, outputs, out_values, io[OUT_N])
+    if io[OUT_N] > 0:
+        out_values[0] = t
+        _outputs(header, outputs, out_values, io[OUT_N])
     return 0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, signals, new,
+           values, guard, guard_key):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
+    """A tick's beginning: wait for the next state, take and decode it, and read the
+    law's inputs ``values`` from ``signals`` (through ``new``) if the user changed them,
+    unless the inputs at ``guard``'s spans (offset, length) differ from ``guard_key`` (what
+    the law computes from them is Python's to compute: PENDING, the inputs left unread).
+    0, or the status to return with."""
+    status = _wait(io, pfd, header)
+    if status == 0:
+        status = _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose,
+                             tau_J_d)  # fmt: skip
+    n = values.size
+    if status != 0 or n == 0:
+        return status
+    seq = _signals(io, header, signals, new, n)
+    if seq < 0:
+        return 0
+    k = 0
+    for g in range(guard.shape[0]):
+        for i in range(guard[g, 1]):
+            if new[guard[g, 0] + i] != guard_key[k]:
+                return PENDING
+            k += 1
+    values[:] = new[:n]
+    io[IN_SEQ] = seq
+    return 0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _next_time(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's time at the state in ``buf`` (not yet advanced: :func:`_advance`)."""
+    mid = np.int64(buf[:8].view(np.uint64)[0])
+    return law_t[0] + (mid - io[LAST_ID]) / 1000.0
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
+    """``controllers.laws.ema``: in place, ``filtered <- alpha target + (1 - alpha)
+    filtered`` (at once for alpha >= 1)."""
+    if alpha >= 1.0:
+        filtered[:] = target
+    else:
+        for i in range(filtered.size):
+            filtered[i] += alpha * (target[i] - filtered[i])
+
+
+# Every loop kernel takes the loop's arrays first, in this order (rt.fastloop.FastTicks),
+# then the law's (its ``compiled()``); each runs ticks from waiting for the next state until
+# a reason to return (io[STATUS]; the ticks run in io[TICKS]). ``q_in``, ``dq_in``,
+# ``pose_in``: read-only views of the decoded q, dq, O_T_EE (the fused steps are compiled
+# for read-only state arrays); ``values``/``values_in`` likewise the law's inputs.
 
 
 @jitcache.keyed_jit(KEY, nogil=True)
@@ -346,49 +406,210 @@ def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
     tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, values_in, at, filtered, kd_key, kd_at, Kd_t, chain, origin, ca, sa, mass, h,
+    values, guard, guard_key, values_in, at, filtered, Kd_t, chain, origin, ca, sa, mass, h,
     inertia, J,
 ):  # fmt: skip
-    """Ticks of ``CartesianImpedance`` (``controllers._fused.cartesian_impedance_step``),
-    from waiting for the next state, until a reason to return (``io[STATUS]``; the ticks
-    run in ``io[TICKS]``). The loop's arrays first (see :mod:`panda_py.rt.fastloop`),
-    then the law's (``CartesianImpedance.compiled``): ``values`` (writable) and
-    ``values_in`` (the same memory, read-only, as the step is compiled for) its inputs,
-    refreshed from ``signals`` (through ``new``) when the user changed them, unless the
-    impedance or the damping ratio (at ``kd_at``) differ from ``kd_key`` (the damping
-    target ``Kd_t`` is Python's to compute: PENDING)."""
+    """``CartesianImpedance`` (``controllers._fused.cartesian_impedance_step``); the
+    impedance and the damping ratio are guarded (the damping target ``Kd_t`` is Python's
+    to compute)."""
     io[TICKS] = 0
-    n_values = values.size
     while True:
-        status = _wait(io, pfd, header)
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
         if status == 0:
-            status = _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose,
-                                 tau_J_d)  # fmt: skip
+            _advance(io, buf, law_t)
+            _cartesian_impedance_step(values_in, at, filtered, Kd_t, pose_in, q_in, dq_in,
+                                      chain, origin, ca, sa, mass, h, inertia, J,
+                                      tau)  # fmt: skip
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
         if status == 0:
-            seq = _signals(io, header, signals, new, n_values)
-            if seq >= 0:
-                same = new[kd_at[1]] == kd_key[36]
-                for i in range(36):
-                    same = same and new[kd_at[0] + i] == kd_key[i]
-                if not same:
-                    status = PENDING  # (the inputs stay unread: Python's tick reads them)
-                else:
-                    values[:] = new[:n_values]
-                    io[IN_SEQ] = seq
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
         if status != 0:
             io[STATUS] = status
             return
-        _advance(io, buf, law_t)
-        _cartesian_impedance_step(values_in, at, filtered, Kd_t, pose_in, q_in, dq_in,
-                                        chain, origin, ca, sa, mass, h, inertia, J,
-                                        tau)  # fmt: skip
-        status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                         out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale, flags,
-                         fin, tau_max, command)  # fmt: skip
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, at, q_d, dq_d, K, D,
+):  # fmt: skip
+    """``JointPosition``: its inputs (at ``at``: position, velocity, stiffness, damping,
+    filter_coeff) filtered into ``q_d``, ``dq_d``, ``K``, ``D``; ``tau = K (q_d - q) +
+    D (dq_d - dq)``."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0:
+            _advance(io, buf, law_t)
+            a = values[at[4]]
+            _ema(q_d, values[at[0] : at[0] + 7], a)
+            _ema(dq_d, values[at[1] : at[1] + 7], a)
+            _ema(K, values[at[2] : at[2] + 7], a)
+            _ema(D, values[at[3] : at[3] + 7], a)
+            for i in range(7):
+                tau[i] = K[i] * (q_d[i] - q[i]) + D[i] * (dq_d[i] - dq[i])
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
         if status != 0:
             io[STATUS] = status
             return
-        io[TICKS] += 1
-        if io[TICKS] >= io[BUDGET]:
-            io[STATUS] = BUDGET_DONE
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, at, q_d, lower, upper,
+):  # fmt: skip
+    """``IntegratedVelocity``: ``q_d += dt dq_d`` within [``lower``, ``upper``] (published
+    at ``at[3]`` of the outputs), ``tau = K (q_d - q) - D dq`` (the inputs at ``at``:
+    velocity, stiffness, damping)."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0:
+            _advance(io, buf, law_t)
+            dt = law_t[1]
+            v, k, d, o = at[0], at[1], at[2], at[3]
+            for i in range(7):
+                x = q_d[i] + dt * values[v + i]
+                q_d[i] = min(max(x, lower[i]), upper[i])  # (np.clip's order)
+                out_values[o + i] = q_d[i]
+                tau[i] = values[k + i] * (q_d[i] - q[i]) - values[d + i] * dq[i]
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, at, applied, D,
+):  # fmt: skip
+    """``AppliedTorque``: its inputs (at ``at``: torque, damping, filter_coeff) filtered
+    into ``applied`` and ``D``; ``tau = applied - D dq``."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0:
+            _advance(io, buf, law_t)
+            a = values[at[2]]
+            _ema(applied, values[at[0] : at[0] + 7], a)
+            _ema(D, values[at[1] : at[1] + 7], a)
+            for i in range(7):
+                tau[i] = applied[i] - D[i] * dq[i]
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, plan_q, plan_dq, plan_ddq, K, D, chain, origin, ca, sa, mass, h,
+    inertia, armature, coulomb, times, samples,
+):  # fmt: skip
+    """A joint move while it follows its plan (``controllers.moves.JointMove``, until its
+    trajectory's end ``times[0]``): the sample at the law's time (``times``: t_end, t0,
+    the period, the friction's speed and error rate; ``samples``: k0, the last), tracked
+    by ``_fused.joint_tracking_step``. A state past the trajectory's end is Python's."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0 and _next_time(io, buf, law_t) > times[0]:
+            status = PENDING  # the trajectory ended: the settling is Python's
+        if status == 0:
+            _advance(io, buf, law_t)
+            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
+                                 coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k], times[3],
+                                 times[4], tau)  # fmt: skip
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+@jitcache.keyed_jit(KEY, nogil=True)
+def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, plan_p, plan_quat, plan_v, plan_a, law, chain, origin, ca, sa,
+    mass, h, inertia, armature, coulomb, times, samples,
+):  # fmt: skip
+    """A Cartesian move while it follows its plan (``controllers.moves.PoseMove``), as
+    :func:`joint_move_ticks`, tracked by ``_fused.pose_tracking_step`` on the tracking
+    law's buffer ``law`` (``tracking.PoseImpedance.compiled_inputs``' scalars set here:
+    ``samples[2]`` counts the ticks until the damping's update, every ``samples[3]``)."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0 and _next_time(io, buf, law_t) > times[0]:
+            status = PENDING  # the trajectory ended: the settling is Python's
+        if status == 0:
+            _advance(io, buf, law_t)
+            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+            samples[2] -= 1  # (PoseImpedance.compiled_inputs)
+            law[0] = law_t[1]
+            law[7] = 1.0  # a previous Jacobian: this law has ticked before
+            if samples[2] < 0:
+                law[6] = 1.0
+                samples[2] = samples[3] - 1
+            else:
+                law[6] = 0.0
+            _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h, inertia,
+                                armature, coulomb, plan_p[k], plan_quat[k], plan_v[k],
+                                plan_a[k], law, tau)  # fmt: skip
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
             return

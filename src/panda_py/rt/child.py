@@ -183,7 +183,7 @@ class ControlServer:
         # the states the loop's laws get: read-only arrays, compiled for as such
         state = robot.decode_state(data, TickState)
         warm_up(state, self.model, limits, self.finalize)
-        fastloop.warm_up(state, self.model, self.finalize)
+        fastloop.warm_up(state, self.model, limits, self.finalize)
         return rq.Connected(version, robot.robot_spec.name, limits.name)
 
     # --- the idle loop -------------------------------------------------------------------

@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from panda_py import progress
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.law import CompiledTicks, ControlLaw
 from panda_py.libfranka import ActiveControl, TorqueIO
 from panda_py.libfranka.errors import ControlException, NetworkException
 from panda_py.libfranka.state import RobotState
+from panda_py.robots.params import RobotSpec
 from panda_py.rt.shm import STATE_MAX, LogRing, SharedBlock
 
 __all__ = ["FastTicks", "Outcome", "kernels", "warm_up"]
@@ -163,7 +165,7 @@ class FastTicks:
         torques, NetworkException for a failed send."""
         tick, io = self.tick, self.io
         kernel = getattr(tick, compiled.kernel)
-        out, in_seq = law.compiled_io()[1:]  # type: ignore[attr-defined]
+        out, in_seq = law.compiled_io()[1:]
         n = len(data)
         self.buf[:n] = np.frombuffer(data, np.uint8)
         self.answered[:n] = self.buf[:n]
@@ -189,7 +191,7 @@ class FastTicks:
             self.command, *compiled.arrays,
         )  # fmt: skip
         ran = int(io[tick.TICKS])
-        law.compiled_ran(compiled.time, int(io[tick.IN_SEQ]))  # type: ignore[attr-defined]
+        law.compiled_ran(compiled.time, int(io[tick.IN_SEQ]))
         state = None
         if ran and self.active is not None:
             state = self.active.caught_up(self.answered[: io[tick.ANSWERED]].tobytes())
@@ -213,27 +215,37 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return view
 
 
-def warm_up(state: RobotState, model: Any, finalize: Finalize) -> None:
+def warm_up(state: RobotState, model: Any, limits: RobotSpec, finalize: Finalize) -> None:
     """Compile (or load) every loop kernel now, not in a tick: each run once on ``state``
-    (a :class:`~panda_py.libfranka.state.TickState`) with no socket to wait on, as the
-    loop runs it (the same argument types)."""
+    (a :class:`~panda_py.libfranka.state.TickState`) with no socket to wait on, after one
+    Python tick of its law, as the loop runs it (the same argument types)."""
     if kernels() is None:
         return
-    from panda_py.controllers.warmup import BUILTIN
+    from panda_py.controllers.moves import tracker_for
+    from panda_py.controllers.warmup import BUILTIN, example_plans
 
     io = TorqueIO.unconnected(state.version)
     block, fd = SharedBlock.create()
     os.close(fd)
     try:
         fast = FastTicks(io, block, finalize, None)
+        laws: list[ControlLaw] = []
         for cls in BUILTIN:
-            law = cls()
-            law.start(state, model)
-            compiled = law.compiled(state, model)
-            if compiled is not None:
-                law.open_slot(block)
-                fast.run(law, compiled, state.raw, chan=-1, requests_taken=0, log=None,
-                         budget=1, wait_ms=0)  # fmt: skip
+            ctrl = cls()
+            ctrl.start(state, model)
+            ctrl.open_slot(block)
+            laws.append(ctrl)
+        laws += [tracker_for(plan) for plan in example_plans(state, limits)]
+        label = "panda_py: compiling the control loop's ticks, once after installing"
+        with progress.work(label, len(laws)) as w:
+            for law in laws:
+                law.tick(0.0)
+                law.step(state, model)
+                compiled = law.compiled(state, model)
+                if compiled is not None:
+                    fast.run(law, compiled, state.raw, chan=-1, requests_taken=0, log=None,
+                             budget=1, wait_ms=0)  # fmt: skip
+                w.advance()
         finalize.reset()
         del fast
     finally:

@@ -35,7 +35,7 @@ try:
         state = TickState(dialect, record.tobytes())
         finalize = Finalize(spec)
         warm_up(state, model, spec, finalize)
-        fastloop.warm_up(state, model, finalize)  # the compiled ticks' kernels
+        fastloop.warm_up(state, model, spec, finalize)  # the compiled ticks' kernels
 except Exception:  # (the child does it again, and reports what fails)
     pass
 # the collector of a forked child leaves what is here alone: its passes would touch every
