@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import socket
+import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -255,18 +256,35 @@ def test_non_finite_torques_raise_and_send_nothing(rig: Rig) -> None:
         rig.robot.recv(4096)
 
 
-def test_a_request_hands_back_before_the_state_is_taken(rig: Rig) -> None:
+def test_a_state_goes_first_then_a_request_hands_back(rig: Rig) -> None:
     a, b = socket.socketpair()
     try:
-        b.send(b"x")
+        b.send(b"x")  # a request waiting on the channel
         data = rig.next_state()
         rig.robot.send(data)
-        outcome = rig.run(chan=a.fileno())
+        outcome = rig.run(chan=a.fileno(), budget=5)
+        assert outcome.then == "wait" and outcome.ticks == 1  # the state was answered
+        reply = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+        assert int(reply["message_id"]) == rig.mid
+        rig.last = data
+        outcome = rig.run(chan=a.fileno(), budget=5)  # the request alone
         assert outcome.then == "wait" and outcome.ticks == 0
-        assert rig.client.recv(4096) == data  # still queued for the loop
     finally:
         a.close()
         b.close()
+
+
+def test_an_error_on_the_robots_socket_hands_back_to_pythons_receive(rig: Rig) -> None:
+    port = rig.robot.getsockname()
+    rig.robot.close()  # the robot is gone: the next datagram sent to it is refused
+    rig.client.send(b"\0" * 8)
+    time.sleep(0.05)
+    outcome = rig.run(wait_ms=200)
+    assert outcome.then == "tick" and outcome.ticks == 0
+    with pytest.raises(OSError):  # what the Python receive then reports
+        rig.client.recv(4096)
+    rig.robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # (for close())
+    assert port
 
 
 def test_silence_hands_back_to_pythons_receive(rig: Rig) -> None:

@@ -192,20 +192,20 @@ def _receive_newest(io, buf, scratch):  # type: ignore[no-untyped-def,unused-ign
 
 @jitcache.keyed_jit(KEY, nogil=True)
 def _wait(io, pfd, header):  # type: ignore[no-untyped-def,unused-ignore]
-    """Wait for the robot's next state or a request: 0 when a state is readable, else the
-    status to return with."""
-    if header[H_REQUESTS] > io[TAKEN]:
-        return REQUEST
+    """Wait for the robot's next state or a request: 0 when a state is readable (a state
+    goes first, as in the loop's Python wait: a request is taken in the gap after it),
+    else the status to return with."""
     pfd[1] = POLLIN
     pfd[3] = POLLIN
     ready = _poll(pfd.ctypes.data, 2, io[WAIT_MS])
     if ready < 0:
+        io[ERRNO] = _errno()
         return RECEIVE_FAILED  # (EINTR: Python runs its signal handlers, then goes on)
-    if ready == 0:
-        return TIMEOUT
+    if (pfd[1] >> 16) != 0:
+        return 0  # (an error on the socket too: the receive reports it)
     if (pfd[3] >> 16) != 0 or header[H_REQUESTS] > io[TAKEN]:
         return REQUEST
-    return 0
+    return TIMEOUT
 
 
 @jitcache.keyed_jit(KEY, nogil=True)
