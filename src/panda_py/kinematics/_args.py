@@ -81,6 +81,22 @@ def parse_ik(
     return T, qi, q7
 
 
+def search_radius(q7_search: object) -> float:
+    """``q7_search`` [rad] checked: a number >= 0, ``math.inf`` for joint 7's whole range."""
+    try:
+        if isinstance(q7_search, bool):
+            raise TypeError
+        v = float(q7_search)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"q7_search: expected a number >= 0 [rad], got {q7_search!r}") from exc
+    if not v >= 0.0:  # (NaN too)
+        raise ValueError(
+            "q7_search: expected a finite number >= 0 [rad] or math.inf (joint 7's whole "
+            f"range), got {q7_search!r}"
+        )
+    return v
+
+
 def raise_invalid(T: FloatArray, qi: FloatArray, q7: FloatArray, k: int) -> None:
     """The ValueError for pose k, which a kernel found not to be a finite rigid transform
     or to have a non-finite q_init or q_7 (the first of these, in that order)."""
