@@ -129,6 +129,27 @@ def test_the_search_stays_within_its_radius_and_joint_7s_limits(jit) -> None:
     )
 
 
+def test_the_parallel_kernel_gives_the_serial_answers(jit, monkeypatch: pytest.MonkeyPatch) -> None:
+    Q, T = reachable_poses(300, seed=8)
+    T[::13, :3, 3] *= 3.0
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 10**9)
+    serial = kin_mod.ik(T, q7_search=math.inf), kin_mod.ik_full(T, Q, 0.0, q7_search=1.0)
+    # a search counts as SEARCH_ROW_COST rows: 300 poses go parallel from a threshold below
+    monkeypatch.setattr(_backend, "PARALLEL_MIN_ROWS", 300 * _backend.SEARCH_ROW_COST)
+    calls = []
+    original = _backend._run
+
+    def spy(serial_kernel, parallel_kernel, n, *args):
+        calls.append(n)
+        original(serial_kernel, parallel_kernel, n, *args)
+
+    monkeypatch.setattr(_backend, "_run", spy)
+    parallel = kin_mod.ik(T, q7_search=math.inf), kin_mod.ik_full(T, Q, 0.0, q7_search=1.0)
+    assert calls == [300 * _backend.SEARCH_ROW_COST] * 2
+    for a, b in zip(serial, parallel, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_unreachable_poses_are_nan_with_the_reason_at_q_7(jit) -> None:
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.3)
