@@ -241,8 +241,9 @@ with position [m] (3,) and quaternion (x, y, z, w) (4,); each also by keyword. `
 q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r`` [rad]
 solves at the q7 nearest q_7 within r (``q_7 +- k * Q7_SEARCH_STEP``, + first) that has a
 solution in q_init's case, NaN if none; ``q7_search=math.inf`` searches joint 7's whole
-range (an unknown q7; q_7 then only says where to start); ``robot`` ("fer", "fr3", ...)
-the joint limits; ``F_T_EE`` another end effector.
+range (an unknown q7; q_7 then only says where to start, e.g. ``q_init[6]`` to stay near
+the current configuration); ``robot`` ("fer", "fr3", ...) the joint limits; ``F_T_EE``
+another end effector.
 """
 
 ik_full = _make_ik(_DEFAULT, full=True)
