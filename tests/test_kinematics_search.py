@@ -259,5 +259,5 @@ def test_without_the_jit_in_a_fresh_process() -> None:
 
 def test_warmup_compiles_the_search_kernels(jit) -> None:
     assert kin_mod.warmup() is True
-    for name in ("ik_search_one", "ik_full_search_one", "ik_batch"):
+    for name in ("ik_one", "ik_full_one", "ik_batch", "ik_batch_par"):
         assert getattr(jit, name).signatures, name

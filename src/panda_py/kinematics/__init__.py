@@ -174,15 +174,13 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
     P, start, empty, ndarray = kin._P, kin._start, np.empty, np.ndarray
     shape = (4, 7) if full else 7
     kernel_name = "ik_full_one" if full else "ik_one"
-    search_name = "ik_full_search_one" if full else "ik_search_one"
-    kernel: Any = None  # the numba kernels, once loaded
-    search_kernel: Any = None
+    kernel: Any = None  # the numba kernel, once loaded
     scalar = kin._ik_fast  # the pure path's single-pose solver
 
     def ik(
         O_T_EE: Any = _NOARG, q_init: Any = _NOARG, q_7: Any = _NOARG, /, *more: Any, **kw: Any
     ) -> FloatArray:
-        nonlocal kernel, search_kernel
+        nonlocal kernel
         fast = type(O_T_EE) is ndarray and O_T_EE.ndim == 2 and not more
         qi, q7, radius = q_init, q_7, 0.0
         if kw and fast:  # q_init, q_7, q7_search by keyword (once each): the same fast path
@@ -204,18 +202,12 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
             if jit is not None and (
                 O_T_EE.dtype is F64 and (qi is start or (type(qi) is ndarray and qi.dtype is F64))
             ):
+                if kernel is None:
+                    kernel = jit.single(kernel_name)
                 out = empty(shape)
                 try:
-                    if radius:
-                        if search_kernel is None:
-                            search_kernel = jit.single(search_name)
-                        if search_kernel(P, O_T_EE, qi, q7, radius, out):
-                            return out
-                    else:
-                        if kernel is None:
-                            kernel = jit.single(kernel_name)
-                        if kernel(P, O_T_EE, qi, q7, out):
-                            return out
+                    if kernel(P, O_T_EE, qi, q7, radius, out):
+                        return out
                 except (TypeError, ValueError):  # not float64 arrays / a number
                     pass
             elif jit is None:

@@ -311,25 +311,24 @@ def search_q7(
     else ``q7 +- k * Q7_SEARCH_STEP`` for k = 1, 2, ... (+ before -) while ``k * step``
     is within ``radius`` [rad] (which may be infinite) and the candidate within joint 7's
     limits; ``q7`` if none has one. Each candidate costs one branch of :func:`solve`."""
-    if radius <= 0.0 or solve(
-        P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7, q1_init, row, False
-    )[0][0] == OK:  # fmt: skip
+    if radius <= 0.0:
         return q7
     lo, hi = P.q_min[6], P.q_max[6]
     # beyond this distance no candidate lies within joint 7's limits (+ a rounding margin)
     span = max(q7 - lo, hi - q7) + 1e-12
-    k = 1
+    # candidate i: q7 (i = 0), q7 + step, q7 - step, q7 + 2 step, ... (one loop, one call
+    # of solve: each call site is compiled into every kernel in full)
+    i = 0
     while True:
-        d = k * Q7_SEARCH_STEP
+        d = ((i + 1) >> 1) * Q7_SEARCH_STEP
         if d > radius + 1e-12 or d > span:
             return q7
-        for c in (q7 + d, q7 - d):
-            if lo <= c <= hi and solve(
-                P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, c, q1_init,
-                row, False,
-            )[0][0] == OK:  # fmt: skip
-                return c
-        k += 1
+        c = q7 + d if i & 1 else q7 - d
+        if lo <= c <= hi and solve(
+            P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, c, q1_init, row, False
+        )[0][0] == OK:  # fmt: skip
+            return c
+        i += 1
 
 
 def ik_range(

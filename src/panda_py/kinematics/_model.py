@@ -295,11 +295,8 @@ class Kinematics:
         if jit is not None:
             out = np.empty((4, 7) if full else 7)
             try:
-                if radius > 0.0:
-                    kernel = jit.single("ik_full_search_one" if full else "ik_search_one")
-                    if kernel(self._P, O_T_EE, qi, q_7, radius, out):
-                        return out
-                elif jit.single("ik_full_one" if full else "ik_one")(self._P, O_T_EE, qi, q_7, out):
+                kernel = jit.single("ik_full_one" if full else "ik_one")
+                if kernel(self._P, O_T_EE, qi, q_7, radius, out):
                     return out
             except (TypeError, ValueError):  # not a number / of the wrong shape
                 pass

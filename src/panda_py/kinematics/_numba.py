@@ -157,28 +157,17 @@ register_jitable(**_OPTS)(_ik_single)
 
 
 @_jit(**_OPTS)
-def ik_one(A: Any, T: Any, qi: Any, q7: float, out: Any) -> bool:
-    """One pose T (4, 4), q_init qi (7,), q7: the solution in q_init's case into out (7,)
-    (NaN if none). False if the input is not finite and rigid or has the wrong shape."""
-    return _ik_single(A, T, qi, q7, 0.0, False, out.reshape((1, 7)))
-
-
-@_jit(**_OPTS)
-def ik_full_one(A: Any, T: Any, qi: Any, q7: float, out: Any) -> bool:
-    """As :func:`ik_one`, all four branches into out (4, 7)."""
-    return _ik_single(A, T, qi, q7, 0.0, True, out)
-
-
-@_jit(**_OPTS)
-def ik_search_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
-    """As :func:`ik_one` at the q7 nearest q7 within ``radius`` [rad] with a solution in
-    q_init's case (``_ik.search_q7``)."""
+def ik_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
+    """One pose T (4, 4), q_init qi (7,), q7 (``radius`` > 0 [rad]: the q7 nearest it
+    within radius with a solution in q_init's case, ``_ik.search_q7``): the solution in
+    q_init's case into out (7,) (NaN if none). False if the input is not finite and rigid
+    or has the wrong shape."""
     return _ik_single(A, T, qi, q7, radius, False, out.reshape((1, 7)))
 
 
 @_jit(**_OPTS)
-def ik_full_search_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
-    """As :func:`ik_search_one`, all four branches (at the q7 found) into out (4, 7)."""
+def ik_full_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
+    """As :func:`ik_one`, all four branches (at the q7 found) into out (4, 7)."""
     return _ik_single(A, T, qi, q7, radius, True, out)
 
 
@@ -226,10 +215,8 @@ _VA, _MA = _f8[:], _f8[:, :]  # any layout
 # instead of compiling for it, so their callers check only the dtype.
 _SINGLE: dict[str, list[Any]] = {
     "fk_one": [_b1(_V, _V, _M), _b1(_VA, _V, _M)],
-    "ik_one": [_b1(_V, _M, _V, _f8, _V), _b1(_V, _MA, _VA, _f8, _V)],
-    "ik_full_one": [_b1(_V, _M, _V, _f8, _M), _b1(_V, _MA, _VA, _f8, _M)],
-    "ik_search_one": [_b1(_V, _M, _V, _f8, _f8, _V), _b1(_V, _MA, _VA, _f8, _f8, _V)],
-    "ik_full_search_one": [_b1(_V, _M, _V, _f8, _f8, _M), _b1(_V, _MA, _VA, _f8, _f8, _M)],
+    "ik_one": [_b1(_V, _M, _V, _f8, _f8, _V), _b1(_V, _MA, _VA, _f8, _f8, _V)],
+    "ik_full_one": [_b1(_V, _M, _V, _f8, _f8, _M), _b1(_V, _MA, _VA, _f8, _f8, _M)],
 }
 # The batch kernels' callers pass exactly these types (other ones compile on first use).
 _BATCH: dict[str, list[Any]] = {
@@ -265,7 +252,7 @@ def _compile(names: list[str], what: str) -> None:
 
 
 def single(name: str) -> Any:
-    """The single-call kernel ``name`` (fk_one, ik_one, ik_full_one, ...), compiled (or
+    """The single-call kernel ``name`` (fk_one, ik_one, ik_full_one), compiled (or
     loaded from the cache) on first use for its signatures only."""
     if name not in _READY:
         _compile([name], name.removesuffix("_one"))
