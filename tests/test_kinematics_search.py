@@ -150,6 +150,34 @@ def test_the_parallel_kernel_gives_the_serial_answers(jit, monkeypatch: pytest.M
         np.testing.assert_array_equal(a, b)
 
 
+def test_every_way_of_calling_takes_the_search(jit) -> None:
+    q = np.array([0.3, 0.2, -0.4, -1.9, 0.5, 1.8, 2.85])
+    T = kin_mod.fk(q)
+    R = T[:3, :3]
+    w = math.sqrt(1 + np.trace(R)) / 2
+    quat = np.array([(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w),
+                     (R[1, 0] - R[0, 1]) / (4 * w), w])  # fmt: skip
+    a = kin_mod.ik(T, q, 2.95, q7_search=math.inf)
+    assert np.isfinite(a).all() and a[6] == pytest.approx(2.89)
+    for b in (
+        kin_mod.ik(T, q_init=q, q_7=2.95, q7_search=math.inf),
+        kin_mod.ik(O_T_EE=T, q_init=q, q_7=2.95, q7_search=math.inf),
+        kin_mod.ik(T, q, 2.95, q7_search=10),  # an int radius: the general path
+        kin_mod.ik(T.tolist(), q.tolist(), 2.95, q7_search=math.inf),
+        Kinematics().ik(T, q, 2.95, q7_search=math.inf),
+        kin_mod.ik_result(T, q, 2.95, q7_search=math.inf).q,
+    ):
+        np.testing.assert_array_equal(b, a)
+    for b in (
+        kin_mod.ik(T[:3, 3], quat, q, 2.95, q7_search=math.inf),
+        kin_mod.ik(position=T[:3, 3], orientation=quat, q_init=q, q_7=2.95, q7_search=math.inf),
+    ):
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(
+        kin_mod.ik_full(T, q, 2.95, q7_search=math.inf), kin_mod.ik_full(T, q, a[6])
+    )
+
+
 def test_unreachable_poses_are_nan_with_the_reason_at_q_7(jit) -> None:
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.3)
