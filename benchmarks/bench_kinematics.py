@@ -24,8 +24,9 @@ ik with an unknown q7 (``--search-only`` runs just this case): ``--search-poses`
 ``ik(O_T_EE, q7_search=math.inf)`` (q_init START_POSE, the search from q_7 = pi/4 over
 joint 7's whole range), single and batched (one call over all poses); the peer: frankik
 1.0.1's ``FrankaKinematics("panda").inverse(O_T_F, q0=START_POSE)`` (its default q7
-sampling, 61 q7 within 20 deg of q0's), given the flange pose ``O_T_EE F_T_EE^-1``
-exactly (its own hand offset rounds 1/sqrt(2) to 0.707), in its own virtual environment.
+sampling, 61 q7 within 20 deg of q0's; and, as thorough as ours, its sampling set to
+joint 7's whole range in our step), given the flange pose ``O_T_EE F_T_EE^-1`` exactly
+(its own hand offset rounds 1/sqrt(2) to 0.707), in its own virtual environment.
 Per pose: each call timed alone ``--search-passes`` times, the pose's median over them;
 printed the median, p99 and worst over the poses [us]; batched, the total over the poses
 per pass. Found: a finite answer within the joint limits whose ``fk`` matches the pose
@@ -151,14 +152,19 @@ TF = [np.array(T) for T in args["TF"]]
 q0 = np.array(args["q0"])
 n, passes = len(TF), args["passes"]
 inverse = kin.inverse
-answers = [inverse(T, q0) for T in TF]
+whole = {"q7_sample_interval": args["interval"], "q7_sample_size": args["size"]}
+def answers(**kw):
+    out = (inverse(T, q0, **kw) for T in TF)
+    return [None if q is None else [float(x) for x in q] for q in out]
 def loop():
     for T in TF:
         inverse(T, q0)
 print(json.dumps({
-    "q": [None if q is None else [float(x) for x in q] for q in answers],
+    "q": answers(),
     "single": per_pose(lambda i: inverse(TF[i], q0), n, passes),
     "loop": per_pass(loop, n, passes),
+    "q_whole": answers(**whole),
+    "whole": per_pose(lambda i: inverse(TF[i], q0, **whole), n, max(1, passes // 5)),
 }))
 """
 )
@@ -173,6 +179,11 @@ def _found(kin: Any, Q: np.ndarray, T: np.ndarray) -> int:
     ok &= ((Qf >= lo) & (Qf <= hi)).all(axis=1)
     ok &= np.abs(kin.fk(Qf) - T).max(axis=(1, 2)) <= FOUND_TOL
     return int(ok.sum())
+
+
+def _nan_rows(answers: list[list[float] | None]) -> np.ndarray:
+    """frankik's answers (None where it found none) as (N, 7), NaN rows for None."""
+    return np.array([[math.nan] * 7 if q is None else q for q in answers])
 
 
 def search_figures(args: argparse.Namespace) -> None:
@@ -198,7 +209,12 @@ def search_figures(args: argparse.Namespace) -> None:
     except (ImportError, PeerUnavailable) as exc:
         print(f"frankik unavailable, no peer figures: {exc}")
         python = None
-    payload = json.dumps({"TF": TF.tolist(), "q0": list(START_POSE), "passes": passes})
+    # frankik over joint 7's whole range in our step: its interval [deg] and samples
+    q7_range = FER.joints.q_max[6] - FER.joints.q_min[6]
+    payload = json.dumps({
+        "TF": TF.tolist(), "q0": list(START_POSE), "passes": passes,
+        "interval": math.degrees(q7_range), "size": round(q7_range / kin.Q7_SEARCH_STEP),
+    })  # fmt: skip
     ik, inf = kin.ik, math.inf
     rows: list[tuple[str, list[float], int]] = []
     for rep in range(args.repeat):
@@ -218,17 +234,20 @@ def search_figures(args: argparse.Namespace) -> None:
                 env=peer_environ(),
             )
             res = json.loads(out.stdout)
-            Qp = np.array([[math.nan] * 7 if q is None else q for q in res["q"]])
-            found = _found(kin, Qp, T)
+            found = _found(kin, _nan_rows(res["q"]), T)
             rows.append((f"frankik 1.0.1    #{rep + 1}", res["single"], found))
             rows.append((f"frankik loop     #{rep + 1}", res["loop"], found))
+            found = _found(kin, _nan_rows(res["q_whole"]), T)
+            rows.append((f"frankik whole q7 #{rep + 1}", res["whole"], found))
     print(
         f"\nik with an unknown q7: {n} poses, fk of configurations uniform within the FER's "
         f"joint limits (seed {args.search_seed}), q_init START_POSE; [us per pose]"
     )
     print(
         "single: over the poses, each pose's median over the passes; batched (ours, one call) "
-        "and loop (frankik's, no batch API): over the passes, each the pass's total / poses"
+        "and loop (frankik's, no batch API): over the passes, each the pass's total / poses; "
+        "frankik whole q7: q7_sample_interval/_size set to joint 7's whole range in "
+        f"{kin.Q7_SEARCH_STEP} rad steps (a fifth of the passes)"
     )
     print(f"{'':<22}{'mean':>8}{'median':>8}{'p99':>8}{'worst':>8}   found/{n} "
           f"(fk within {FOUND_TOL:g})")  # fmt: skip
