@@ -232,7 +232,8 @@ with position [m] (3,) and quaternion (x, y, z, w) (4,); each also by keyword. `
 [rad] is the redundancy parameter. Batches: O_T_EE (N, 4, 4) (or (N, 3) and (N, 4)),
 q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r`` [rad]
 solves at the q7 nearest q_7 within r (``q_7 +- k * Q7_SEARCH_STEP``, + first) that has a
-solution in q_init's case, NaN if none; ``q7_search=math.inf`` searches joint 7's whole
+solution in q_init's case, NaN if none (a pose whose solutions lie in a q7 interval
+narrower than the step may be missed); ``q7_search=math.inf`` searches joint 7's whole
 range (an unknown q7; q_7 then only says where to start, e.g. ``q_init[6]`` to stay near
 the current configuration); ``robot`` ("fer", "fr3", ...) the joint limits; ``F_T_EE``
 another end effector.
