@@ -28,9 +28,11 @@ sampling, 61 q7 within 20 deg of q0's; and, as thorough as ours, its sampling se
 joint 7's whole range in our step), given the flange pose ``O_T_EE F_T_EE^-1`` exactly
 (its own hand offset rounds 1/sqrt(2) to 0.707), in its own virtual environment.
 Per pose: each call timed alone ``--search-passes`` times, the pose's median over them;
-printed the median, p99 and worst over the poses [us]; batched, the total over the poses
-per pass. Found: a finite answer within the joint limits whose ``fk`` matches the pose
-within ``FOUND_TOL`` in every entry (translation [m], rotation [-]), out of the poses.
+printed the mean, median, p99 and worst over the poses [us]; batched (and frankik's loop),
+a pass's CPU time (``time.thread_time``: the pass takes milliseconds, and its wall time on
+a shared machine counts other jobs' turns) / poses, over the passes. Found: a finite
+answer within the joint limits whose ``fk`` matches the pose within ``FOUND_TOL`` in every
+entry (translation [m], rotation [-]), out of the poses.
 """
 
 from __future__ import annotations
@@ -113,8 +115,11 @@ print(json.dumps(res))
 # tolerance the package's tests hold fk(ik(T)) to (tests/test_kinematics*.py).
 FOUND_TOL = 1e-9
 
-# Per-pose timing, run here and in the peer's interpreter: each call of fn(i) timed alone,
-# `passes` times over all poses; each pose's median over the passes [s].
+# Timing run here and in the peer's interpreter. per_pose: each call of fn(i) timed alone,
+# `passes` times over all poses; each pose's median over the passes [s] (a call of tens of
+# us rarely loses the core, and the median drops those that did). per_pass: fn() over all
+# poses, its thread's CPU time / poses [s]: a pass takes milliseconds, and on a shared
+# machine its wall time counts the other jobs' turns on the cores.
 SEARCH_TIMING = """
 import time
 def per_pose(fn, n, passes):
@@ -131,7 +136,7 @@ def per_pose(fn, n, passes):
 
 def per_pass(fn, n, passes):
     fn()
-    clock = time.perf_counter
+    clock = time.thread_time
     out = []
     for _ in range(passes):
         t0 = clock()
@@ -245,17 +250,17 @@ def search_figures(args: argparse.Namespace) -> None:
     )
     print(
         "single: over the poses, each pose's median over the passes; batched (ours, one call) "
-        "and loop (frankik's, no batch API): over the passes, each the pass's total / poses; "
+        "and loop (frankik's, no batch API): over the passes, each the pass's CPU time / poses; "
         "frankik whole q7: q7_sample_interval/_size set to joint 7's whole range in "
         f"{kin.Q7_SEARCH_STEP} rad steps (a fifth of the passes)"
     )
-    print(f"{'':<22}{'mean':>8}{'median':>8}{'p99':>8}{'worst':>8}   found/{n} "
+    print(f"{'':<22}{'mean':>9}{'median':>9}{'p99':>9}{'worst':>9}   found/{n} "
           f"(fk within {FOUND_TOL:g})")  # fmt: skip
     medians: dict[str, list[float]] = {}
     for name, t, found in sorted(rows, key=lambda r: r[0]):
         m, p, w = _stats(t)
         medians.setdefault(name.split("#")[0].strip(), []).append(m)
-        print(f"{name:<22}{np.mean(t) * 1e6:8.2f}{m:8.2f}{p:8.2f}{w:8.2f}   {found}")
+        print(f"{name:<22}{np.mean(t) * 1e6:9.1f}{m:9.1f}{p:9.1f}{w:9.1f}   {found}")
     if python is not None:
         for ours, theirs in (("ours single", "frankik 1.0.1"), ("ours batched", "frankik loop")):
             ratios = " ".join(
