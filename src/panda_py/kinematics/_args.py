@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import checks
 from panda_py.kinematics import _ik, _input
 from panda_py.robots.params import START_POSE
 
@@ -83,18 +84,10 @@ def parse_ik(
 
 def search_radius(q7_search: object) -> float:
     """``q7_search`` [rad] checked: a number >= 0, ``math.inf`` for joint 7's whole range."""
-    try:
-        if isinstance(q7_search, bool):
-            raise TypeError
-        v = float(q7_search)  # type: ignore[arg-type]
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"q7_search: expected a number >= 0 [rad], got {q7_search!r}") from exc
-    if not v >= 0.0:  # (NaN too)
-        raise ValueError(
-            "q7_search: expected a finite number >= 0 [rad] or math.inf (joint 7's whole "
-            f"range), got {q7_search!r}"
-        )
-    return v
+    if isinstance(q7_search, float) and q7_search == math.inf:
+        return math.inf
+    unit = "[rad] (or math.inf: joint 7's whole range)"
+    return checks.number("q7_search", q7_search, unit, low=0.0)
 
 
 def raise_invalid(T: FloatArray, qi: FloatArray, q7: FloatArray, k: int) -> None:
