@@ -20,6 +20,8 @@ PEERS: dict[str, list[str]] = {
     "franky-sim": ["franky-sim==1.0.4"],  # the reference protocol-level simulator
     # panda-gym's PyBullet PandaReach-v3: benchmarks/bench_learning.py's peer
     "panda-gym": ["panda-gym==3.0.7", "pybullet==3.2.7"],
+    # the analytical ik with a q7 search: benchmarks/bench_kinematics.py --search's peer
+    "frankik": ["frankik==1.0.1"],
 }
 
 

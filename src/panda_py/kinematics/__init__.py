@@ -11,10 +11,12 @@ behaviour), in pure Python and NumPy:
   solution in the same case as ``q_init``, NaN if it has none. ``ik_full``: all four
   (4, 7), NaN rows where a branch has none.
 * Beyond panda-py: ``ik_result`` says why there is no solution (:class:`IKStatus`);
-  ``q7_search=r`` tries q7 within r [rad] of ``q_7`` (nearest first) when ``q_7`` has
-  none; every function takes a batch (N, 7) configurations or (N, 4, 4) poses and returns
-  (N, ...) arrays; ``robot="fr3"`` (or a :class:`Kinematics` object) selects the joint
-  limits, ``F_T_EE=`` another end effector.
+  ``q7_search=r`` tries q7 within r [rad] of ``q_7`` (nearest first, in steps of
+  ``Q7_SEARCH_STEP``) when ``q_7`` has none, ``q7_search=math.inf`` joint 7's whole range
+  (an unknown q7; one compiled loop over the candidates); every function takes a batch
+  (N, 7) configurations or (N, 4, 4) poses and returns (N, ...) arrays; ``robot="fr3"``
+  (or a :class:`Kinematics` object) selects the joint limits, ``F_T_EE=`` another end
+  effector.
 
 The arithmetic is written once, in scalar Python (``_fk``, ``_ik``), and runs compiled by
 numba (a regular dependency where numba ships wheels; ``_numba``, loaded on the first call,
@@ -180,11 +182,16 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
     ) -> FloatArray:
         nonlocal kernel
         fast = type(O_T_EE) is ndarray and O_T_EE.ndim == 2 and not more
-        qi, q7 = q_init, q_7
-        if kw and fast:  # q_init, q_7 by keyword (each given once): the same fast path
+        qi, q7, radius = q_init, q_7, 0.0
+        if kw and fast:  # q_init, q_7, q7_search by keyword (once each): the same fast path
             qi, q7 = kw.get("q_init", qi), kw.get("q_7", q7)
-            fast = len(kw) == ("q_init" in kw) + ("q_7" in kw) and (
-                (q_init is _NOARG or "q_init" not in kw) and (q_7 is _NOARG or "q_7" not in kw)
+            radius = kw.get("q7_search", 0.0)
+            fast = (
+                len(kw) == ("q_init" in kw) + ("q_7" in kw) + ("q7_search" in kw)
+                and (q_init is _NOARG or "q_init" not in kw)
+                and (q_7 is _NOARG or "q_7" not in kw)
+                and type(radius) is float
+                and radius >= 0.0  # (the general path words the error)
             )
         if fast:
             q7 = DEFAULT_Q7 if q7 is _NOARG else q7
@@ -199,12 +206,12 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
                     kernel = jit.single(kernel_name)
                 out = empty(shape)
                 try:
-                    if kernel(P, O_T_EE, qi, q7, out):
+                    if kernel(P, O_T_EE, qi, q7, radius, out):
                         return out
                 except (TypeError, ValueError):  # not float64 arrays / a number
                     pass
             elif jit is None:
-                q = scalar(O_T_EE, None if qi is start else qi, q7, full=full)
+                q = scalar(O_T_EE, None if qi is start else qi, q7, full=full, radius=radius)
                 if q is not None:
                     return q
         args = tuple(a for a in (O_T_EE, q_init, q_7) if a is not _NOARG) + more
@@ -224,8 +231,12 @@ NaN if that case has no solution within the joint limits.
 with position [m] (3,) and quaternion (x, y, z, w) (4,); each also by keyword. ``q_7``
 [rad] is the redundancy parameter. Batches: O_T_EE (N, 4, 4) (or (N, 3) and (N, 4)),
 q_init (7,) or (N, 7), q_7 scalar or (N,) -> (N, 7). Keywords: ``q7_search=r`` [rad]
-tries the nearest q7 within r of q_7 with a solution; ``robot`` ("fer", "fr3", ...) the
-joint limits; ``F_T_EE`` another end effector.
+solves at the q7 nearest q_7 within r (``q_7 +- k * Q7_SEARCH_STEP``, + first) that has a
+solution in q_init's case, NaN if none (a pose whose solutions lie in a q7 interval
+narrower than the step may be missed); ``q7_search=math.inf`` searches joint 7's whole
+range (an unknown q7; q_7 then only says where to start, e.g. ``q_init[6]`` to stay near
+the current configuration); ``robot`` ("fer", "fr3", ...) the joint limits; ``F_T_EE``
+another end effector.
 """
 
 ik_full = _make_ik(_DEFAULT, full=True)
@@ -233,7 +244,8 @@ ik_full.__name__ = ik_full.__qualname__ = "ik_full"
 ik_full.__doc__ = """All four He-Liu solutions (4, 7) [rad] (NaN rows where a branch has none),
 rows ordered as panda-py's: (q6 branch with cos(q5) < 0, q2 >= 0), (.., q2 < 0),
 (cos(q5) >= 0, q2 >= 0), (.., q2 < 0). Arguments as :func:`ik`; a batch gives
-(N, 4, 7)."""
+(N, 4, 7). With ``q7_search``: all four at the q7 that :func:`ik` would pick (found for
+q_init's case)."""
 
 
 def ik_result(*args: Any, robot: Any = "fer", F_T_EE: Any = None, **kwargs: Any) -> IKResult:

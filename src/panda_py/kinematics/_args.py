@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import checks
 from panda_py.kinematics import _ik, _input
 from panda_py.robots.params import START_POSE
 
@@ -79,6 +80,14 @@ def parse_ik(
         "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad", check=False
     )
     return T, qi, q7
+
+
+def search_radius(q7_search: object) -> float:
+    """``q7_search`` [rad] checked: a number >= 0, ``math.inf`` for joint 7's whole range."""
+    if isinstance(q7_search, float) and q7_search == math.inf:
+        return math.inf
+    unit = "[rad] (or math.inf: joint 7's whole range)"
+    return checks.number("q7_search", q7_search, unit, low=0.0)
 
 
 def raise_invalid(T: FloatArray, qi: FloatArray, q7: FloatArray, k: int) -> None:

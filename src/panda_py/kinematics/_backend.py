@@ -65,6 +65,10 @@ def warmup() -> bool:
 # 10,000 rows took 0.8 us per row in parallel against 0.12 serially, 100,000 rows the
 # same either way. So only batches whose serial run takes several ms go parallel.
 PARALLEL_MIN_ROWS = 65536 if (os.cpu_count() or 1) > 1 else 2**62
+# A pose with a q7 search (``_ik.search_q7``) counts as this many rows [-] toward
+# PARALLEL_MIN_ROWS: the ~10 us a whole-range search takes on average against ~0.15 us for
+# one solution.
+SEARCH_ROW_COST = 64
 # One parallel launch at a time (numba's fallback threading layer aborts on concurrent
 # launches; a second caller takes the serial kernel instead of waiting), and none in a
 # forked child (GNU OpenMP, numba's default layer on Linux, is not fork-safe).
@@ -73,7 +77,8 @@ _PAR_PID = os.getpid()
 
 
 def _run(serial: Any, parallel: Any, n: int, *args: Any) -> None:
-    """A JIT batch kernel over n rows: the parallel variant where it pays and is safe."""
+    """A JIT batch kernel over n rows (or their cost in rows): the parallel variant where
+    it pays and is safe."""
     if n >= PARALLEL_MIN_ROWS and os.getpid() == _PAR_PID and _PAR_LOCK.acquire(blocking=False):
         try:
             parallel(*args)
@@ -129,18 +134,24 @@ def ik(
     T: NDArray[np.float64],
     QI: NDArray[np.float64],
     q7: NDArray[np.float64],
+    radius: float,
     full: bool,
     qout: NDArray[np.float64],
     stout: NDArray[np.int8],
+    q7out: NDArray[np.float64],
 ) -> None:
     """``_ik.ik_range`` over all poses of T (N, 4, 4); QI (N or 1, 7), q7 (N or 1,),
-    qout (4N or N, 7), stout (4N or N,)."""
+    radius [rad] of the q7 search (0: none), qout (4N or N, 7), stout (4N or N,), q7out
+    (N,)."""
     j = jit()
+    n = T.shape[0]
     if j is None:
         with _plain_errstate():
-            _ik.ik_range(A.tolist(), T, QI, q7, full, qout, stout, 0, T.shape[0])
+            _ik.ik_range(A.tolist(), T, QI, q7, radius, full, qout, stout, q7out, 0, n)
     else:
-        _run(j.ik_batch, j.ik_batch_par, T.shape[0], A, T, QI, q7, full, qout, stout)
+        # A search costs tens of solutions per pose: it pays to go parallel from fewer rows.
+        work = n * SEARCH_ROW_COST if radius > 0.0 else n
+        _run(j.ik_batch, j.ik_batch_par, work, A, T, QI, q7, radius, full, qout, stout, q7out)
 
 
 def follow(

@@ -23,10 +23,11 @@ is returned.
 
 The solver is written once, in scalar Python that numba compiles as it is (:mod:`._numba`,
 the default where numba is installed) or Python runs plain (``PANDA_PY_NO_JIT=1``, or no
-numba): :func:`solve` for one pose, :func:`ik_range` the loop over a batch that every
-kernel, single or batched, serial or parallel, runs. Its parameters are an
-:class:`IKParams` read by name; the kernels take them packed in a float64 array
-(:func:`pack_ik_params`), which a numba call passes far faster than a named tuple.
+numba): :func:`solve` for one pose, :func:`search_q7` the walk over q7 to the nearest one
+with a solution, :func:`ik_range` the loop over a batch that every kernel, single or
+batched, serial or parallel, runs. Its parameters are an :class:`IKParams` read by name;
+the kernels take them packed in a float64 array (:func:`pack_ik_params`), which a numba
+call passes far faster than a named tuple.
 """
 
 from __future__ import annotations
@@ -53,6 +54,8 @@ INVALID = -1
 SHOULDER_SINGULAR_TOL = 1e-10
 # Below this distance [m] of the shoulder from the joint-6 axis, q6 is undefined.
 WRIST_SINGULAR_TOL = 1e-10
+# The q7 search's step [rad]: candidates q_7 +- k * step, nearest first.
+Q7_SEARCH_STEP = 0.01
 # A matrix whose rotation part is this far [-] from orthonormal (unit orthogonal x and y
 # columns, z = x cross y) or whose last row is this far from (0, 0, 0, 1) is not a rigid
 # transform.
@@ -299,15 +302,46 @@ def solve(
     return row0, branch(P, arm, 1, q4, q7), branch(P, other, 0, q4, q7), branch(P, other, 1, q4, q7)
 
 
+def search_q7(
+    P: IKParams, r00: float, r01: float, r02: float, r10: float, r11: float, r12: float,
+    r20: float, r21: float, r22: float, px: float, py: float, pz: float, q7: float,
+    q1_init: float, row: int, radius: float,
+) -> float:  # fmt: skip
+    """The q7 [rad] nearest ``q7`` at which branch ``row`` has a solution: ``q7`` itself,
+    else ``q7 +- k * Q7_SEARCH_STEP`` for k = 1, 2, ... (+ before -) while ``k * step``
+    is within ``radius`` [rad] (which may be infinite) and the candidate within joint 7's
+    limits; ``q7`` if none has one. Each candidate costs one branch of :func:`solve`."""
+    if radius <= 0.0:
+        return q7
+    lo, hi = P.q_min[6], P.q_max[6]
+    # beyond this distance no candidate lies within joint 7's limits (+ a rounding margin)
+    span = max(q7 - lo, hi - q7) + 1e-12
+    # candidate i: q7 (i = 0), q7 + step, q7 - step, q7 + 2 step, ... (one loop, one call
+    # of solve: each call site is compiled into every kernel in full)
+    i = 0
+    while True:
+        d = ((i + 1) >> 1) * Q7_SEARCH_STEP
+        if d > radius + 1e-12 or d > span:
+            return q7
+        c = q7 + d if i & 1 else q7 - d
+        if lo <= c <= hi and solve(
+            P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, c, q1_init, row, False
+        )[0][0] == OK:  # fmt: skip
+            return c
+        i += 1
+
+
 def ik_range(
-    A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout: Any, k0: int, k1: int
-) -> None:
+    A: Any, T: Any, QI: Any, q7: Any, radius: float, full: bool, qout: Any, stout: Any,
+    q7out: Any, k0: int, k1: int,
+) -> None:  # fmt: skip
     """Poses k0..k1-1 of T (N, 4, 4), with q_init QI[k] (QI (N, 7) or (1, 7)) and q7[k]
     (q7 (N,) or (1,)); A the packed :class:`IKParams`: all four branches (``full``) into
     rows 4k..4k+3 of qout (4N, 7) and stout (4N,), or the one in q_init's case into row k
-    of qout (N, 7), stout (N,). A pose that is not a finite rigid transform, or whose
-    q_init or q7 is not finite, gets the status :data:`INVALID` in its first row and is
-    not solved."""
+    of qout (N, 7), stout (N,); the q7 solved for into q7out[k] (N,). ``radius`` [rad] > 0
+    first searches the q7 nearest q7[k] with a solution in q_init's case
+    (:func:`search_q7`). A pose that is not a finite rigid transform, or whose q_init or q7
+    is not finite, gets the status :data:`INVALID` in its first row and is not solved."""
     P = unpack_ik_params(A)
     m7 = q7.shape[0]
     mq = QI.shape[0]
@@ -343,7 +377,13 @@ def ik_range(
         if not (err <= ROTATION_TOL and s - s == 0.0):
             stout[base] = INVALID
             continue
-        first = 0 if full else case_row(q2i, q5i)
+        row = case_row(q2i, q5i)
+        if radius > 0.0:
+            q7k = search_q7(
+                P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7k, q1i, row, radius
+            )
+        q7out[k] = q7k
+        first = 0 if full else row
         rows = solve(
             P, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7k, q1i, first, full
         )

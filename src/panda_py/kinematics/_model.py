@@ -25,7 +25,7 @@ from panda_py.robots.params import FRANKA_HAND, START_POSE, RobotSpec, get_robot
 
 __all__ = ["DEFAULT_Q7", "Q7_SEARCH_STEP", "IKResult", "IKStatus", "Kinematics", "hand_F_T_EE"]
 
-Q7_SEARCH_STEP = 0.01
+Q7_SEARCH_STEP = _ik.Q7_SEARCH_STEP
 """The step [rad] of the ``q_7`` search (``q7_search``): candidates ``q_7 +- k * step``, nearest
 first."""
 # A flange-to-EE transform whose rotation is this close [-] to a z rotation and whose
@@ -255,26 +255,33 @@ class Kinematics:
 
     def ik(self, *args: Any, **kwargs: Any) -> FloatArray:
         """See :func:`panda_py.kinematics.ik`."""
-        if not kwargs and 1 <= len(args) <= 3:
-            q = self._ik_fast(*args)
+        if 1 <= len(args) <= 3 and (not kwargs or kwargs.keys() == {"q7_search"}):
+            q = self._ik_fast(*args, radius=kwargs.get("q7_search", 0.0))
             if q is not None:
                 return q
         return self._ik_general(False, *args, **kwargs)
 
     def ik_full(self, *args: Any, **kwargs: Any) -> FloatArray:
         """See :func:`panda_py.kinematics.ik_full`."""
-        if not kwargs and 1 <= len(args) <= 3:
-            q = self._ik_fast(*args, full=True)
+        if 1 <= len(args) <= 3 and (not kwargs or kwargs.keys() == {"q7_search"}):
+            q = self._ik_fast(*args, full=True, radius=kwargs.get("q7_search", 0.0))
             if q is not None:
                 return q
         return self._ik_general(True, *args, **kwargs)
 
     def _ik_fast(
-        self, O_T_EE: Any, q_init: Any = None, q_7: Any = DEFAULT_Q7, *, full: bool = False
+        self,
+        O_T_EE: Any,
+        q_init: Any = None,
+        q_7: Any = DEFAULT_Q7,
+        *,
+        full: bool = False,
+        radius: Any = 0.0,
     ) -> FloatArray | None:
-        """One 4x4 float64 pose, a float64 q_init (or None) and a real q_7: the solution,
-        or None for the general path (which also words the error for bad input)."""
-        if self._EE_T_F is not None:
+        """One 4x4 float64 pose, a float64 q_init (or None), a real q_7 and a float q7
+        search radius >= 0 [rad]: the solution, or None for the general path (which also
+        words the error for bad input)."""
+        if self._EE_T_F is not None or not (type(radius) is float and radius >= 0.0):
             return None
         qi = self._start if q_init is None else q_init
         if not (
@@ -288,7 +295,8 @@ class Kinematics:
         if jit is not None:
             out = np.empty((4, 7) if full else 7)
             try:
-                if jit.single("ik_full_one" if full else "ik_one")(self._P, O_T_EE, qi, q_7, out):
+                kernel = jit.single("ik_full_one" if full else "ik_one")
+                if kernel(self._P, O_T_EE, qi, q_7, radius, out):
                     return out
             except (TypeError, ValueError):  # not a number / of the wrong shape
                 pass
@@ -302,7 +310,13 @@ class Kinematics:
         s = q7 + q1 + q2 + q3 + q4 + q5 + q6 + q7i
         if not (err <= _ik.ROTATION_TOL and s - s == 0.0):
             return None
-        first = 0 if full else _ik.case_row(q2, q5)
+        row = _ik.case_row(q2, q5)
+        if radius > 0.0:
+            q7 = _ik.search_q7(
+                self._ik_params, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7, q1,
+                row, radius,
+            )  # fmt: skip
+        first = 0 if full else row
         rows = _ik.solve(
             self._ik_params, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, q7, q1,
             first, full,
@@ -327,19 +341,18 @@ class Kinematics:
         q7_search: float = 0.0,
     ) -> FloatArray:
         """ik (full: ik_full) with every overload and keyword, single or batched."""
-        search = _input.nonnegative("q7_search", q7_search, "rad")
+        search = _args.search_radius(q7_search)
         T, qi, q7 = _args.parse_ik(args, O_T_EE, position, orientation, q_init, q_7)
-        if search > 0.0:
-            r = self._result(T, qi, q7, search)
-            return r.solutions if full else r.q
-        return self._solve(T, qi, q7, full)[0]
+        return self._solve(T, qi, q7, full, search)[0]
 
     def _solve(
-        self, T: FloatArray, qi: FloatArray, q7: FloatArray, full: bool
-    ) -> tuple[FloatArray, NDArray[np.int8]]:
-        """Solutions and statuses of T (4, 4) or (N, 4, 4), q_init (7,) or (N, 7), q7 () or
-        (N,): (7,) and () (``full``: (4, 7) and (4,)), with a leading N for a batch. A
-        ValueError names the first pose, q_init or q7 that is not valid."""
+        self, T: FloatArray, qi: FloatArray, q7: FloatArray, full: bool, search: float = 0.0
+    ) -> tuple[FloatArray, NDArray[np.int8], FloatArray]:
+        """Solutions, statuses and the q7 solved for of T (4, 4) or (N, 4, 4), q_init (7,)
+        or (N, 7), q7 () or (N,): (7,), () and () (``full``: (4, 7), (4,) and ()), with a
+        leading N for a batch; ``search`` > 0 [rad]: at the q7 nearest q7 within it with a
+        solution in q_init's case (``_ik.search_q7``). A ValueError names the first pose,
+        q_init or q7 that is not valid."""
         single = T.ndim == 2
         Tb = np.ascontiguousarray(T.reshape(-1, 4, 4), dtype=np.float64)
         n = Tb.shape[0]
@@ -351,15 +364,16 @@ class Kinematics:
         m = 4 * n if full else n
         qout = np.empty((m, 7))
         st = np.empty(m, dtype=np.int8)
+        q7out = np.empty(n)
         QI = np.ascontiguousarray(qi.reshape(-1, 7), dtype=np.float64)
         Q7 = np.ascontiguousarray(q7.reshape(-1), dtype=np.float64)
-        _backend.ik(self._P, Tb, QI, Q7, full, qout, st)
+        _backend.ik(self._P, Tb, QI, Q7, search, full, qout, st, q7out)
         first = st[::4] if full else st
         if n and first.min() < 0:
             _args.raise_invalid(T, qi, q7, int(np.argmax(first < 0)))
         sols = qout.reshape((n, 4, 7) if full else (n, 7))
         stats = st.reshape((n, 4) if full else (n,))
-        return (sols[0], stats[0]) if single else (sols, stats)
+        return (sols[0], stats[0], q7out[0]) if single else (sols, stats, q7out)
 
     def ik_result(
         self,
@@ -372,39 +386,22 @@ class Kinematics:
         q7_search: float = 0.0,
     ) -> IKResult:
         """Solve and explain; arguments as :func:`panda_py.kinematics.ik`."""
-        search = _input.nonnegative("q7_search", q7_search, "rad")
+        search = _args.search_radius(q7_search)
         T, qi, q7 = _args.parse_ik(args, O_T_EE, position, orientation, q_init, q_7)
         return self._result(T, qi, q7, search)
 
     def _result(self, T: FloatArray, qi: FloatArray, q7: FloatArray, search: float) -> IKResult:
         batch = T.ndim == 3
-        sols, stats = self._solve(T, qi, q7, True)
-        Tb = T.reshape(-1, 4, 4)
+        sols, stats, q7_used = self._solve(T, qi, q7, True, search)
         if not batch:
             sols, stats = sols[None], stats[None]
         n = sols.shape[0]
         qi_b = np.broadcast_to(qi, (n, 7))
-        q7_b = np.broadcast_to(q7, (n,)).astype(np.float64)
         q2s, q5s = qi_b[:, 1].tolist(), qi_b[:, 4].tolist()
         rows = np.array([_ik.case_row(a, b) for a, b in zip(q2s, q5s, strict=True)], dtype=np.int64)
         idx = np.arange(n)
-        q = sols[idx, rows].copy()
-        status = stats[idx, rows].copy()
-        q7_used = q7_b.copy()
-        if search > 0.0:
-            for offset in _search_offsets(search):
-                todo = np.flatnonzero(status != IKStatus.OK)
-                if todo.size == 0:
-                    break
-                q7c = q7_b[todo] + offset
-                s2, st2 = self._solve(Tb[todo], qi_b[todo], q7c, True)
-                r = rows[todo]
-                found = st2[np.arange(todo.size), r] == IKStatus.OK
-                hit = todo[found]
-                q[hit] = s2[found, r[found]]
-                status[hit] = IKStatus.OK
-                sols[hit], stats[hit] = s2[found], st2[found]
-                q7_used[hit] = q7c[found]
+        q = sols[idx, rows]
+        status = stats[idx, rows]
         if batch:
             return IKResult(q, status, sols, stats, q7_used)
         return IKResult(
@@ -412,15 +409,5 @@ class Kinematics:
             IKStatus(int(status[0])),
             sols[0],
             tuple(IKStatus(int(s)) for s in stats[0]),
-            float(q7_used[0]),
+            float(q7_used),
         )
-
-
-def _search_offsets(radius: float) -> list[float]:
-    """q7 offsets [rad] to try, nearest first: +step, -step, +2 step, ..."""
-    out: list[float] = []
-    k = 1
-    while k * Q7_SEARCH_STEP <= radius + 1e-12:
-        out += [k * Q7_SEARCH_STEP, -k * Q7_SEARCH_STEP]
-        k += 1
-    return out

@@ -54,6 +54,7 @@ for _fn in (
     _scalar.flip, _fk.unpack_chain, _fk.link, _fk.tail, _fk.ee_pose, _fk._column,
     _fk.jacobian_columns, _ik.unpack_ik_params,
     _ik.rigid_error, _ik.case_row, _ik.pose_part, _ik.arm_part, _ik.branch, _ik.solve,
+    _ik.search_q7,
 ):  # fmt: skip
     register_jitable(**_ARITH)(_fn)
 for _fn in (
@@ -139,16 +140,16 @@ def jacobian_one(q: Any, C: Any, body: bool, out: Any) -> bool:
     return True
 
 
-def _ik_single(A: Any, T: Any, qi: Any, q7: float, full: bool, Q: Any) -> bool:
+def _ik_single(A: Any, T: Any, qi: Any, q7: float, radius: float, full: bool, Q: Any) -> bool:
     if T.shape[0] != 4 or T.shape[1] != 4 or qi.shape[0] != 7:
         return False
     st = np.empty(4 if full else 1, dtype=np.int8)
-    q7a = np.empty(1)
+    q7a = np.empty(2)  # [0]: q7 given, [1]: q7 solved for
     q7a[0] = q7
     # (copies only where T or qi is not C-contiguous: decided at compile time)
     QI = np.ascontiguousarray(qi).reshape((1, 7))
     T3 = np.ascontiguousarray(T).reshape((1, 4, 4))
-    _ik.ik_range(A, T3, QI, q7a, full, Q, st, 0, 1)
+    _ik.ik_range(A, T3, QI, q7a[:1], radius, full, Q, st, q7a[1:], 0, 1)
     return st[0] != _ik.INVALID
 
 
@@ -156,31 +157,40 @@ register_jitable(**_OPTS)(_ik_single)
 
 
 @_jit(**_OPTS)
-def ik_one(A: Any, T: Any, qi: Any, q7: float, out: Any) -> bool:
-    """One pose T (4, 4), q_init qi (7,), q7: the solution in q_init's case into out (7,)
-    (NaN if none). False if the input is not finite and rigid or has the wrong shape."""
-    return _ik_single(A, T, qi, q7, False, out.reshape((1, 7)))
+def ik_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
+    """One pose T (4, 4), q_init qi (7,), q7 (``radius`` > 0 [rad]: the q7 nearest it
+    within radius with a solution in q_init's case, ``_ik.search_q7``): the solution in
+    q_init's case into out (7,) (NaN if none). False if the input is not finite and rigid
+    or has the wrong shape."""
+    return _ik_single(A, T, qi, q7, radius, False, out.reshape((1, 7)))
 
 
 @_jit(**_OPTS)
-def ik_full_one(A: Any, T: Any, qi: Any, q7: float, out: Any) -> bool:
-    """As :func:`ik_one`, all four branches into out (4, 7)."""
-    return _ik_single(A, T, qi, q7, True, out)
+def ik_full_one(A: Any, T: Any, qi: Any, q7: float, radius: float, out: Any) -> bool:
+    """As :func:`ik_one`, all four branches (at the q7 found) into out (4, 7)."""
+    return _ik_single(A, T, qi, q7, radius, True, out)
 
 
 @_jit(**_OPTS)
-def ik_batch(A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout: Any) -> None:
+def ik_batch(
+    A: Any, T: Any, QI: Any, q7: Any, radius: float, full: bool, qout: Any, stout: Any,
+    q7out: Any,
+) -> None:  # fmt: skip
     """``_ik.ik_range`` over all poses of T (N, 4, 4)."""
-    _ik.ik_range(A, T, QI, q7, full, qout, stout, 0, T.shape[0])
+    _ik.ik_range(A, T, QI, q7, radius, full, qout, stout, q7out, 0, T.shape[0])
 
 
 @_jit(parallel=True, **_OPTS)
-def ik_batch_par(A: Any, T: Any, QI: Any, q7: Any, full: bool, qout: Any, stout: Any) -> None:
+def ik_batch_par(
+    A: Any, T: Any, QI: Any, q7: Any, radius: float, full: bool, qout: Any, stout: Any,
+    q7out: Any,
+) -> None:  # fmt: skip
     """:func:`ik_batch` on all cores (the same arithmetic per pose)."""
     n = T.shape[0]
     for c in numba.prange((n + _PAR_CHUNK - 1) // _PAR_CHUNK):
         k0 = np.int64(c) * _PAR_CHUNK
-        _ik.ik_range(A, T, QI, q7, full, qout, stout, k0, min(k0 + _PAR_CHUNK, n))
+        k1 = min(k0 + _PAR_CHUNK, n)
+        _ik.ik_range(A, T, QI, q7, radius, full, qout, stout, q7out, k0, k1)
 
 
 @_jit(**_OPTS)
@@ -205,8 +215,8 @@ _VA, _MA = _f8[:], _f8[:, :]  # any layout
 # instead of compiling for it, so their callers check only the dtype.
 _SINGLE: dict[str, list[Any]] = {
     "fk_one": [_b1(_V, _V, _M), _b1(_VA, _V, _M)],
-    "ik_one": [_b1(_V, _M, _V, _f8, _V), _b1(_V, _MA, _VA, _f8, _V)],
-    "ik_full_one": [_b1(_V, _M, _V, _f8, _M), _b1(_V, _MA, _VA, _f8, _M)],
+    "ik_one": [_b1(_V, _M, _V, _f8, _f8, _V), _b1(_V, _MA, _VA, _f8, _f8, _V)],
+    "ik_full_one": [_b1(_V, _M, _V, _f8, _f8, _M), _b1(_V, _MA, _VA, _f8, _f8, _M)],
 }
 # The batch kernels' callers pass exactly these types (other ones compile on first use).
 _BATCH: dict[str, list[Any]] = {
@@ -215,8 +225,8 @@ _BATCH: dict[str, list[Any]] = {
     "frames_batch": [(_M, _V, _f8[:, :, :, ::1])],
     "jacobian_batch": [(_M, _V, _b1, _M3)],
     "jacobian_one": [(_V, _V, _b1, _M3)],
-    "ik_batch": [(_V, _M3, _M, _V, _b1, _M, _i1[::1])],
-    "ik_batch_par": [(_V, _M3, _M, _V, _b1, _M, _i1[::1])],
+    "ik_batch": [(_V, _M3, _M, _V, _f8, _b1, _M, _i1[::1], _V)],
+    "ik_batch_par": [(_V, _M3, _M, _V, _f8, _b1, _M, _i1[::1], _V)],
     "rigid_batch": [(_M3, _V)],
     "follow_batch": [(_M3, _V, _V, _f8, numba.int64, _M)],
 }
