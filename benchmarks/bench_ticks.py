@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import socket
 import time
 from typing import Any
@@ -104,6 +105,7 @@ def run(n: int, repeat: int) -> None:
         robot.connect(client.getsockname())
         client.setblocking(False)
         block, fd = SharedBlock.create()
+        os.close(fd)
         try:
             for name, law in _laws(first, model, spec).items():
                 fin = Finalize(spec)
