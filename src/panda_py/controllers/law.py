@@ -4,26 +4,34 @@ user feeds or a move tracking a planned trajectory.
 The loop (:mod:`panda_py.rt.child`) drives every law the same way::
 
     law.start(state, model)              # once, with the state it starts from
+    law.begin(state, model)              # at its first tick
     every tick (1 ms):
         law.tick(dt)                     # the robot's clock, and the inputs of this tick
         tau = law.step(state, model)     # joint torques [Nm] (gravity is the robot's)
-        ... walls, rate saturation, limits; the command is sent ...
+        ... walls, rate saturation, limits ...
+        if law.finished(state) and (after := law.next_law(state, model)):
+            law = after                  # it goes on (a guarded move's then)
+        ... the command is sent (the last one if the law finished) ...
         law.published()                  # after the command: publish outputs
-        if law.finished(state): break
     law.stop(state, model)               # once, with the last state
     law.result(state)                    # what a caller waiting for the law gets
 
-and never asks which kind of law it runs. The laws' inputs from the user's process arrive
-through a :class:`SignalSlot` (the shared memory's seqlock and latch,
+A move that replaces the running one mid-motion takes over with ``new.replace(law,
+state, model)`` (:attr:`ControlLaw.replaceable` laws); ``law.cancel(reason)`` brings it to
+rest. Between the ticks Python must run, the loop runs the ticks a law offers compiled
+(:meth:`ControlLaw.compiled`), with the same results. The loop never asks which kind
+of law it runs. The laws' inputs from the user's process arrive through a
+:class:`SignalSlot` (the shared memory's seqlock and latch,
 :class:`panda_py.rt.shm.SharedBlock`), handed to the law as an object.
 """
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,6 +80,31 @@ class ControlLaw:
 
     def start(self, state: Any, model: Any) -> None:
         """Called once, before the first tick, with the state the law starts from."""
+
+    #: whether a move may replace it mid-motion (:meth:`replace`): the moves
+    replaceable: ClassVar[bool] = False
+    #: [s] how long its reference lasts (a move's; a controller runs until stopped)
+    duration: float = math.inf
+
+    def begin(self, state: Any, model: Any) -> None:
+        """Called at its first tick, before :meth:`tick`, with that tick's state (a move
+        planned while another ran, which ended meanwhile, leads in from where the arm
+        rests)."""
+
+    def replace(self, previous: ControlLaw, state: Any, model: Any) -> None:
+        """Take over from ``previous`` mid-motion, from this tick's ``state`` (laws that
+        are :attr:`replaceable` only)."""
+        raise TypeError(f"{self.name} cannot take over from a running {previous.name}")
+
+    def next_law(self, state: Any, model: Any) -> ControlLaw | None:
+        """After the tick that finished it: the law that goes on in its place, already
+        taken over (a guarded move's ``then`` once its condition held), or None: the
+        motion ends."""
+        return None
+
+    def cancel(self, reason: str) -> None:
+        """Come to rest as gently as the limits allow and end (a move); ``reason`` says
+        why in its result. A controller ends when it is stopped instead."""
 
     def tick(self, dt: float) -> None:
         """Called first in every tick with the time since the previous one [s]."""

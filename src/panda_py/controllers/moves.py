@@ -204,6 +204,29 @@ class Tracker(ControlLaw):
         self.blend_start = 0.0  # [s] where in BLEND_TIME its blend began (see _blend_from)
         self.ref: tuple[FloatArray, ...] = ()  # this tick's reference (the subclass's space)
 
+    replaceable = True
+
+    def begin(self, state: Any, model: Any) -> None:
+        """Planned while another move ran, which ended before it arrived: the arm is not
+        where the plan starts, so lead in from where it rests."""
+        if self.off_start(state):
+            self.handover(None, state, model)
+
+    def replace(self, previous: ControlLaw, state: Any, model: Any) -> None:
+        if not isinstance(previous, Tracker):
+            raise TypeError(f"a move takes over from a move, not from a {previous.name}")
+        self.handover(previous, state, model)
+
+    def next_law(self, state: Any, model: Any) -> ControlLaw | None:
+        """Once its condition held: the move ``then`` asked for, taken over from here."""
+        successor = self.successor
+        if successor is None:
+            return None
+        successor.handover(self, state, model)
+        successor.condition = self.condition
+        successor.condition_time = self.condition_time
+        return successor
+
     def sample(self) -> int:
         """The plan's sample at this tick."""
         return min(self.k0 + round((self.t - self.t0) / PERIOD), self.last)

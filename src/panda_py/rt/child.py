@@ -32,7 +32,7 @@ from panda_py.controllers import TorqueController, laws
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import Tracker, tracker_for
+from panda_py.controllers.moves import tracker_for
 from panda_py.controllers.plans import MoveResult
 from panda_py.controllers.warmup import warm_up
 from panda_py.libfranka import (
@@ -121,7 +121,7 @@ class ControlServer:
         self.pending: tuple[ControlLaw, int | None] | None = None  # (law, move's request id)
         # while the loop runs: its law and the id of the move request it answers
         self.current: tuple[ControlLaw, int | None] | None = None
-        self.replacement: tuple[Tracker, int] | None = None  # a move replacing the current
+        self.replacement: tuple[ControlLaw, int] | None = None  # a move replacing the current
         self.deferred = False  # its hand-over was put off one tick (a state was queued)
         self.stopping = False
         self.stop_waiters: list[int] = []
@@ -289,7 +289,7 @@ class ControlServer:
             law.then = request.then
         if running:
             current = self.current
-            if current is None or not isinstance(current[0], Tracker):
+            if current is None or not current[0].replaceable:
                 raise InvalidOperationException("move: not while a controller runs (stop it first)")
             if self.replacement is not None:  # two in one tick: the newer wins
                 self._answer_replaced(self.replacement[0], self.replacement[1], None,
@@ -304,7 +304,6 @@ class ControlServer:
         if not running or current is None or current[1] != request.move:
             return False
         law = current[0]
-        assert isinstance(law, Tracker)
         law.cancel(f"cancelled after {law.t:.3f} s")
         return True
 
@@ -431,20 +430,15 @@ class ControlServer:
                 else:
                     state, dt = active.read_received(pending)
                     pending = None
-                if ticks == 0 and isinstance(law, Tracker) and law.off_start(state):
-                    # planned while another move ran, which ended before it arrived: the
-                    # arm is not where the plan starts, so lead in from where it rests
-                    law.handover(None, state, model)
+                if ticks == 0:
+                    law.begin(state, model)
                 law.tick(dt.to_sec())
                 tau = finalize(law.step(state, model), state)
                 finished = self.stopping or law.finished(state)
-                if finished and not self.stopping and isinstance(law, Tracker):
-                    successor = law.successor
-                    if successor is not None:  # its condition held: go on with the next
-                        successor.handover(law, state, model)
-                        successor.condition = law.condition
-                        successor.condition_time = law.condition_time
-                        law = successor
+                if finished and not self.stopping:
+                    after = law.next_law(state, model)
+                    if after is not None:  # (a guarded move's then) it goes on
+                        law = after
                         self.current = (law, move_rid)
                         finished = False
                 active.write_torques(tau, finished)
@@ -500,7 +494,7 @@ class ControlServer:
         # turn False finds it in raise_error() (a replacement that starts next runs on)
         if self.pending is None:
             header[HEADER.RUNNING] = 0
-        if move_rid is not None and isinstance(law, Tracker):
+        if move_rid is not None:
             self._finish_move(law, move_rid, error)
         for rid in self.stop_waiters:
             self.reply(rid, True, None)
@@ -510,10 +504,10 @@ class ControlServer:
         self, law: ControlLaw, move_rid: int | None, state: RobotState
     ) -> tuple[ControlLaw, int | None]:
         """Hand over from the running move to the one that replaces it, mid-motion."""
-        assert self.replacement is not None and isinstance(law, Tracker)
+        assert self.replacement is not None
         new, rid = self.replacement
         self.replacement = None
-        new.handover(law, state, self.model)
+        new.replace(law, state, self.model)
         handed_over = time.monotonic()  # the new move's reference is the one in effect
         if move_rid is not None:
             self._answer_replaced(law, move_rid, state, handed_over)
@@ -521,7 +515,7 @@ class ControlServer:
         return new, rid
 
     def _answer_replaced(
-        self, law: Tracker, rid: int, state: RobotState | None, end_time: float
+        self, law: ControlLaw, rid: int, state: RobotState | None, end_time: float
     ) -> None:
         """Answer a move that another replaced at ``end_time`` (judged on this tick's
         state)."""
@@ -534,7 +528,7 @@ class ControlServer:
         result.end_time = end_time
         self.reply(rid, True, result)
 
-    def _finish_move(self, law: Tracker, rid: int, error: BaseException | None) -> None:
+    def _finish_move(self, law: ControlLaw, rid: int, error: BaseException | None) -> None:
         end_time = time.monotonic()
         try:
             state = self._fresh_state()
