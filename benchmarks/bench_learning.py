@@ -112,7 +112,7 @@ def mj_step_bound(env, ticks: int = 4000) -> float:  # type: ignore[no-untyped-d
     import mujoco
 
     backend = env.unwrapped.backend
-    physics = backend.robot.physics if hasattr(backend, "robot") else backend.physics
+    physics = backend.robot.physics
     m, d = physics.model, mujoco.MjData(physics.model)
     mujoco.mj_copyData(d, m, physics.data)
     c0 = time.process_time()

@@ -457,6 +457,9 @@ def main() -> None:
     parser.add_argument("--no-pylibfranka", action="store_true", help="skip pylibfranka")
     parser.add_argument("--profile", action="store_true", help="add the tick profile")
     parser.add_argument("--profile-only", action="store_true", help="only the tick profile")
+    parser.add_argument(
+        "--lockstep-only", action="store_true", help="only panda-sim's lockstep cases"
+    )
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
     parser.add_argument("--idle", type=float, default=None, metavar="SECONDS",
                         help="only the idle simulators (no client), this long each")  # fmt: skip
@@ -533,10 +536,16 @@ def main() -> None:
         except Exception as exc:  # one broken case must not lose the others
             row = {"mode": mode, "sim": "?", "client": client, "error": repr(exc)}
         rows.append(row)
-        print(f"{row['sim']}: " + (f"RTF {row['rtf']:.3f}" if "rtf" in row else "ERROR"))
+        line = f"RTF {row['rtf']:.3f}" if "rtf" in row else "ERROR"
+        if "rtf" in row and row["rtf"] > 0:  # the simulator's CPU per simulated ms
+            per_tick = 1e3 * row["sim_cpu_share"] / row["rtf"]
+            line += f", simulator CPU {per_tick:.0f} us/tick (<= {1e3 / per_tick:.1f}x real time)"
+        print(f"{row['sim']}: " + line)
 
+    if args.lockstep_only:
+        franky = False
     print("Running:")
-    for client in clients:
+    for client in clients if not args.lockstep_only else ():
         run("realtime", panda_sim(args.robot, False), client, duration)
         if franky:
             run("realtime", franky_sim(), client, duration)

@@ -43,7 +43,6 @@ _pose_target_step = _FUSED.pose_target_step
 _joint_tracking_step = _FUSED.joint_tracking_step
 _sample = _ONLINE.sample
 _torque_tick = sim.torque_tick
-_measured_ok = sim.measured_ok
 _ROBOT = int(sim.Tick.ROBOT)
 
 
@@ -89,13 +88,11 @@ def read_state(sb, at, single, q, dq, O_T_EE, tau_J_d):  # type: ignore[no-untyp
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _before_tick(s, check):  # type: ignore[no-untyped-def,unused-ignore]
-    """Whether the next tick runs as compiled: the targets do not go stale in it and the
-    robot's checks on the measured state pass (else the reference runs it whole)."""
+def _before_tick(s):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether the next tick runs as compiled: the targets do not go stale in it (else
+    the reference runs it whole: the law's news)."""
     t = s[S_T] + s[S_DT]
-    if s[S_STALE] == 0.0 and t - s[S_T_TARGET] > s[S_TIMEOUT]:
-        return False
-    return _measured_ok(*check)
+    return not (s[S_STALE] == 0.0 and t - s[S_T_TARGET] > s[S_TIMEOUT])
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -126,7 +123,7 @@ def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot):  # type: ignore[no-
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot, check
+    n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot
 ):  # fmt: skip
     """Up to ``n`` ticks of ``CartesianTarget`` (its fused step,
     ``_fused.pose_target_step``) on the robot: (ticks completed, :class:`Stop`).
@@ -135,14 +132,14 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     tracking's buffer; ``arm``: the chain, the arm's parameters, armature, Coulomb
     friction; ``reads``: the state buffer, offsets, float32 flags; ``walls``: the
     finishing's table, its state and the torque limits; ``buf``: q, dq, O_T_EE,
-    tau_J_d, tau, cmd; ``robot``, ``check``: the robot's compiled tick's arguments."""
+    tau_J_d, tau, cmd; ``robot``: the robot's compiled tick's arguments."""
     traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel = gen
     chain, origin, ca, sa, mass, h, inertia, armature, coulomb = arm
     sb, at, single = reads
     q, dq, O_T_EE, tau_J_d, tau, cmd = buf
     scalars = law[0:8]
     for k in range(n):
-        if not _before_tick(s, check):
+        if not _before_tick(s):
             return k, _WHOLE
         read_state(sb, at, single, q, dq, O_T_EE, tau_J_d)
         s[S_T] += s[S_DT]  # ctrl.tick
@@ -172,7 +169,7 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    n, s, gen, gains, arm, target, out, reads, walls, buf, robot, check
+    n, s, gen, gains, arm, target, out, reads, walls, buf, robot
 ):  # fmt: skip
     """Up to ``n`` ticks of ``JointTarget`` (its generator's compiled step, the joint
     impedance with its feed-forward, ``_fused.joint_tracking_step``, its outputs) on the
@@ -186,7 +183,7 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     q, dq, O_T_EE, tau_J_d, tau, cmd = buf
     o = int(s[S_OUT])
     for k in range(n):
-        if not _before_tick(s, check):
+        if not _before_tick(s):
             return k, _WHOLE
         read_state(sb, at, single, q, dq, O_T_EE, tau_J_d)
         s[S_T] += s[S_DT]

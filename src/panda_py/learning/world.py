@@ -59,7 +59,7 @@ class FastWorld(Backend):
     deterministic = True
 
     def __init__(self, robot: str = "fer", *, compiled: bool = True) -> None:
-        self.robot = InProcessRobot(robot)
+        self.robot = InProcessRobot(robot, compiled=compiled)
         self.spec = self.robot.spec
         self.spec_name = self.spec.name
         self.version = self.robot.version
@@ -303,29 +303,28 @@ class _CompiledLoop:
         ctrl: Any = running
         if not self._ready(ctrl):
             return
-        entered = self.robot.enter()
-        if entered is None:
+        args = self.robot.enter(world.robot.hand)
+        if args is None:
             return
-        args, check = entered
         k, s = self._k, self._s
         self._load(ctrl)
         if self._kind is CartesianTarget:
             ticks, stop = self._call(k.pose_target_ticks, n, s, ctrl._tick,
-                                              ctrl._gen.sampling(), ctrl._law.buffer,
-                                              (self._chain, *self._arm), ctrl._target,
-                                              ctrl._out, self._reads, self._walls, self._buf,
-                                              args, check)  # fmt: skip
+                                     ctrl._gen.sampling(), ctrl._law.buffer,
+                                     (self._chain, *self._arm), ctrl._target, ctrl._out,
+                                     self._reads, self._walls, self._buf, args)  # fmt: skip
         else:
             g = ctrl._gen
             gen = (g._packed, g.position, g.velocity, g.acceleration)
             ticks, stop = self._call(k.joint_target_ticks, n, s, gen,
-                                               (ctrl.stiffness, ctrl.damping),
-                                               self._arm, ctrl.signal("q"), ctrl._out,
-                                               self._reads, self._walls, self._buf, args,
-                                               check)  # fmt: skip
+                                     (ctrl.stiffness, ctrl.damping), self._arm,
+                                     ctrl.signal("q"), ctrl._out, self._reads, self._walls,
+                                     self._buf, args)  # fmt: skip
         self._save(ctrl)
         self.compiled_ticks += ticks
-        self.robot.leave(ticks, stop if stop in (k.Stop.FILL, k.Stop.CONTACTS) else 0)
+        world.robot.ticks += ticks
+        self.robot.leave(ticks, stop if stop in (k.Stop.FILL, k.Stop.CONTACTS) else 0,
+                         world.robot.hand)  # fmt: skip
         if stop == k.Stop.ROBOT:  # the law ran; the robot's part of the tick in Python
             world._robot_tick(self._buf[5].copy())
         elif stop == k.Stop.NON_FINITE:

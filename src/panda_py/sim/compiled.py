@@ -36,7 +36,7 @@ _KIN = kinematics.compiled_kernels()
 if _KIN is None:  # plain Python: the robot ticks in NumPy
     raise ImportError("the kinematics run without numba")
 
-__all__ = ["MAX_CONTACTS", "Tick", "contact_views", "libmujoco_path", "measured_ok", "torque_tick"]
+__all__ = ["MAX_CONTACTS", "Tick", "contact_views", "libmujoco_path", "torque_tick"]
 
 
 def libmujoco_path() -> Path:
@@ -170,18 +170,11 @@ G_KP, G_KD, G_MAX_FORCE, G_FORCE_STEP, G_DT = 0, 1, 2, 3, 4  # (G_DT: DT [s])
 
 
 @jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def measured_ok(qpos, qvel, q0, v0, q_lo, q_hi, dq_hi):  # type: ignore[no-untyped-def,unused-ignore]
-    """The robot's checks on the measured state pass (no joint beyond its limits or too
-    fast): a tick may start compiled (it changes nothing)."""
-    return _measured_in_limits(qpos[q0 : q0 + 7], qvel[v0 : v0 + 7], q_lo, q_hi, dq_hi)
-
-
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     tau, ints, hand, gains, qpos, qvel, q0, v0, ctrl, applied, tau_applied, gravcomp,
     contacts, xmat, sb, off, tau_J_d, tau_max, dtau_step, tau_ext, q_hold, jq, jdq, jddq,
     jdddq, upper, lower, cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, success, fk,
-    chain, links, const, scratch,
+    chain, links, const, scratch, measured,
 ):  # fmt: skip
     """The robot's tick with the torque command ``tau`` (7,) [Nm], as
     :meth:`RobotCore.tick` in a running external-controller motion, or a :class:`Tick`
@@ -193,8 +186,14 @@ def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     ``contacts``: :func:`contact_views`' and which geoms are the robot's (uint8);
     the rest: the physics' arrays (MuJoCo's own), the state buffer, the core's arrays
     and the commanded joint signal (``jq`` .. ``jdddq``, updated), ``fk`` (2, 4, 4) and
-    ``scratch`` (4, 7) buffers."""
-    # -- the command's checks (RobotCore._accept), before anything changes -------------
+    ``scratch`` (4, 7) buffers; ``measured``: the measured state's limits (q_min, q_max,
+    |dq| max with the robot's tolerance)."""
+    # -- the checks, before anything changes: the measured state's (RobotCore._motion_tick
+    # after the command's: where they fail the reference reflexes), the command's
+    # (RobotCore._accept)
+    q_lo, q_hi, dq_hi = measured
+    if not _measured_in_limits(qpos[q0 : q0 + 7], qvel[v0 : v0 + 7], q_lo, q_hi, dq_hi):
+        return _ROBOT
     if not _torque_in_limits(tau, tau_J_d, tau_max, dtau_step):
         return _ROBOT
     velocity = ints[I_JOINT_GENERATOR] != 0

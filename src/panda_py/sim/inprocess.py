@@ -21,22 +21,19 @@ import numpy as np
 from panda_py import fci
 from panda_py.fci import (
     ERROR_NAMES,
-    ControllerMode,
-    MotionGeneratorMode,
     MoveControllerMode,
     MoveMotionGeneratorMode,
     MoveStatus,
     RobotMode,
 )
 from panda_py.robots.params import FRANKA_HAND, START_POSE, get_robot
-from panda_py.sim import gripper
+from panda_py.sim.fast_tick import CompiledTick, compiled_tick
 from panda_py.sim.gripper import GripperCore
-from panda_py.sim.physics import DT, Physics
+from panda_py.sim.physics import Physics
 from panda_py.sim.robot import Command, RobotCore
-from panda_py.sim.safety import joint_limit_vectors
 from panda_py.sim.wire import StateWire
 
-__all__ = ["CompiledTick", "InProcessRobot"]
+__all__ = ["InProcessRobot"]
 
 # A Move's maximum deviations, as libfranka sends them for a torque loop (any positive)
 _DEVIATIONS = np.array([10.0, 3.12, 2.0 * math.pi])
@@ -47,9 +44,11 @@ class InProcessRobot:
     the 4 cm cube, at rest at ``q`` [rad], ticked in this process (:meth:`tick`, 1 ms of
     simulated time each, as fast as the computer goes); deterministic: the same requests
     and torques give the same states, bit for bit. It speaks the newest protocol version
-    its robot's systems do (:attr:`version`, :attr:`dialect`)."""
+    its robot's systems do (:attr:`version`, :attr:`dialect`). ``compiled``: the
+    common tick of a torque motion compiled where numba runs (False: the Python
+    reference always; the two give the same states)."""
 
-    def __init__(self, robot: str = "fer", *, q: Any = START_POSE) -> None:
+    def __init__(self, robot: str = "fer", *, q: Any = START_POSE, compiled: bool = True) -> None:
         spec = self.spec = get_robot(robot)
         self.version = max(spec.protocol_versions)
         self.dialect = fci.dialect(self.version)
@@ -64,12 +63,9 @@ class InProcessRobot:
             motion_generation_finished=False, tau_J_d=np.zeros(7), torque_command_finished=False,
         )  # fmt: skip
         self.ticks = 0  # [ms] the robot's clock
-        self._compiled: CompiledTick | None = None
-        if self.core.compiled:
-            try:
-                self._compiled = CompiledTick(self)
-            except ImportError:  # numba without the parts the whole tick needs
-                self._compiled = None
+        self._compiled = compiled_tick(self.core) if compiled else None
+        if self._compiled is not None:
+            self._compiled.warm(self.hand)
 
     # --- the state ----------------------------------------------------------------------
 
@@ -180,7 +176,12 @@ class InProcessRobot:
         [Nm] (None: none this tick; ignored outside a motion), then the physics."""
         core, hand = self.core, self.hand
         command = None
-        if tau is not None and core.robot_mode == RobotMode.MOVE:
+        moving = core.robot_mode == RobotMode.MOVE
+        fast = self._compiled
+        if tau is not None and moving and fast is not None and fast.command(tau, hand):
+            self.ticks += 1
+            return
+        if tau is not None and moving:
             command = self._command
             command.message_id = self.ticks
             command.tau_J_d[:] = tau
@@ -194,103 +195,3 @@ class InProcessRobot:
         """The robot's common tick compiled (:func:`panda_py.sim.compiled.torque_tick`),
         or None where it runs in Python only (no numba, ``PANDA_PY_NO_JIT=1``)."""
         return self._compiled
-
-
-class CompiledTick:
-    """The compiled tick of one :class:`InProcessRobot`, for a caller's compiled loop:
-    :meth:`enter` says whether the next ticks may run compiled and gives the kernel's
-    arguments after the torques (``torque_tick(tau, *args)``); :meth:`leave` takes the
-    robot back after ``ticks`` compiled ticks and the last one's status, doing the part
-    the kernel left (the state's fill) -- a ``ROBOT`` or ``WHOLE`` status leaves the
-    caller to run that tick by :meth:`InProcessRobot.tick`."""
-
-    def __init__(self, robot: InProcessRobot) -> None:
-        from panda_py.sim import compiled
-
-        self._k = compiled
-        self.kernel = compiled.torque_tick
-        self.measured_ok = compiled.measured_ok
-        self._robot = robot
-        ph = robot.physics
-        core = robot.core
-        self.ints = np.zeros(compiled.INTS, dtype=np.int64)
-        self.ints[compiled.I_MODEL] = ph.model._address
-        self.ints[compiled.I_DATA] = ph.data._address
-        self.ints[compiled.I_FINGER_ACT] = ph.finger_act
-        self.ints[compiled.I_FINGER_Q] = ph.finger_q
-        self.ints[compiled.I_FINGER_Q2] = ph.finger_q2
-        self.ints[compiled.I_FINGER_V] = ph.finger_v
-        self.hand = np.zeros(compiled.HAND)
-        self.gains = np.array((*gripper.SERVO_GAINS, gripper.FORCE_RATE * DT, DT))
-        robot_geom = np.asarray(ph.robot_geoms, dtype=np.uint8)
-        self._contacts = (*compiled.contact_views(ph.model, ph.data), robot_geom)
-        self._fk = np.zeros((2, 4, 4))
-        self._scratch = np.zeros((4, 7))
-        self._off = np.array([core.state_offsets[n][0] for n in compiled.FILL_FIELDS],
-                             dtype=np.int64)  # fmt: skip
-        self._upper, self._lower = joint_limit_vectors(core.spec)
-        self._moving = {MotionGeneratorMode.NONE: 0,
-                        MotionGeneratorMode.JOINT_VELOCITY: compiled.MOVING_JOINT}  # fmt: skip
-
-    def enter(self) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
-        """Where the next ticks may run compiled (a torque-controlled motion under way,
-        its first command accepted, the hand holding, nothing touching the robot): the
-        kernel's arguments after the torques, and :func:`~panda_py.sim.compiled.measured_ok`'s
-        (whether a tick may start compiled); else None (tick in Python)."""
-        robot = self._robot
-        core, hand, ph = robot.core, robot.hand, robot.physics
-        mg = core.mg_mode
-        if (
-            core.robot_mode != RobotMode.MOVE
-            or core.ctrl_mode != ControllerMode.EXTERNAL_CONTROLLER
-            or mg not in self._moving
-            or core.first_command
-            or core.async_gen is not None
-            or core.contact_active
-            or hand.action is not None
-            or not core.compiled_fill_ready()
-        ):
-            return None
-        k, ints, h = self._k, self.ints, self.hand
-        ints[k.I_FLAGS] = self._moving[mg]
-        ints[k.I_JOINT_GENERATOR] = int(mg == MotionGeneratorMode.JOINT_VELOCITY)
-        ints[k.I_RECEIVED] = core.received_total
-        ints[k.I_SUCCESS_COUNT] = core.success_count
-        ints[k.I_SUCCESS_I] = core.success_i
-        h[k.H_HOLD] = hand.hold_width
-        h[k.H_FORCE] = hand.force
-        h[k.H_GRASP_FORCE] = math.nan if hand.grasp is None else hand.grasp.force
-        h[k.H_MAX_WIDTH] = hand.max_width
-        joint, cart, d = core.joint, core.cart, ph.data
-        v0 = ph.v0
-        links, const = core.compiled_fill_constants()
-        check = (d.qpos, d.qvel, ph.q0, v0, *core.measured_limits())
-        return (
-            ints, h, self.gains, d.qpos, d.qvel, ph.q0, v0, d.ctrl, ph.applied_arm,
-            ph.tau_applied, ph.gravity_torque(), self._contacts, d.xmat,
-            core.state_buffer, self._off, core.tau_J_d, core.tau_max, core.dtau_step,
-            core.tau_ext, core.q_hold, joint.q, joint.dq, joint.ddq, joint.dddq, self._upper,
-            self._lower, cart.T, cart.v, cart.a, core.elbow_c, core.delbow_c, core.ddelbow_c,
-            np.frombuffer(core.success, dtype=np.uint8), self._fk, core.chain_constants(),
-            links, const, self._scratch,
-        ), check  # fmt: skip
-
-    def leave(self, ticks: int, status: int) -> None:
-        """Take the robot back after ``ticks`` ticks the kernel completed (counting one
-        it left the fill of) and the last call's ``status``: the counters and the hand's
-        force back, and the fill's part it left done here."""
-        if ticks == 0:
-            return
-        robot, k = self._robot, self._k
-        core, ints = robot.core, self.ints
-        core.received_total = int(ints[k.I_RECEIVED])
-        core.success_count = int(ints[k.I_SUCCESS_COUNT])
-        core.success_i = int(ints[k.I_SUCCESS_I])
-        core.success_rate = core.success_count / len(core.success)
-        core.consecutive_lost = 0
-        robot.hand.force = core.finger_force = float(self.hand[k.H_FORCE])
-        robot.ticks += ticks
-        if status == k.Tick.FILL:
-            core.fill_state()
-        elif status == k.Tick.CONTACTS:
-            core.fill_contacts()
