@@ -27,6 +27,8 @@ def _compiled() -> None:
     try:
         if world._fast is None:
             pytest.skip("the fast world runs without numba here (PANDA_PY_NO_JIT or none)")
+        # its warm-up ran both controllers compiled: nothing loads in an episode's step
+        assert world._fast.compiled_ticks >= 30
     finally:
         world.close()
 

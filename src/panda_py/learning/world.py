@@ -93,7 +93,10 @@ class FastWorld(Backend):
             ctrl.set_target(*target)
             self.advance(self.ticks + 20)
             self.stop()
-        self.home(q, None)
+            # (powered up again before the next: a motion started on the tick another
+            # stopped reads that one's last torques in the state, which the robot has
+            # zeroed, and its first command is refused as a torque jump)
+            self.home(q, None)
 
     # --- the loop ---------------------------------------------------------------------
 
