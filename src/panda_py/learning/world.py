@@ -34,7 +34,7 @@ from panda_py.learning.backend import Backend, Snapshot
 from panda_py.libfranka.errors import ControlException
 from panda_py.libfranka.state import TickState
 from panda_py.robots.params import FRANKA_HAND, START_POSE, robot_for_protocol
-from panda_py.sim.inprocess import InProcessRobot
+from panda_py.sim import InProcessRobot
 from panda_py.sim.physics import DT
 
 __all__ = ["FastWorld"]

@@ -76,6 +76,7 @@ class InProcessRobot:
 
     @property
     def robot_mode(self) -> RobotMode:
+        """The robot's mode (idle, move, reflex, ...), as the state reports it."""
         return RobotMode(self.core.robot_mode)
 
     @property
@@ -167,6 +168,7 @@ class InProcessRobot:
 
     @property
     def hand_max_width(self) -> float:
+        """The hand's widest opening [m]."""
         return float(FRANKA_HAND.max_width)
 
     # --- the tick -----------------------------------------------------------------------
