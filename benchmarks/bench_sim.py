@@ -379,6 +379,16 @@ def profile_tick(robot: str, n: int = 3000) -> None:
             samples[i] = clock() - t0
         us = samples * 1e6
         print(f"  {name:46s} {np.median(us):8.1f} {us.mean():8.1f} {np.percentile(us, 99):8.1f}")
+    # CPU time (this process's): what a busy machine's preemptions leave out of the above
+    cpu_runs = []
+    for _ in range(3):
+        c0 = time.process_time()
+        for i in range(n):
+            full_tick(i)
+        cpu_runs.append((time.process_time() - c0) / n * 1e6)
+    print(f"  server tick, all of it: CPU {min(cpu_runs):.1f}-{max(cpu_runs):.1f} us a tick "
+          f"(3 x {n} ticks; <= {1e3 / min(cpu_runs):.1f}-{1e3 / max(cpu_runs):.1f}x real "
+          "time for the simulator alone)")  # fmt: skip
     prof = cProfile.Profile()
     prof.enable()
     for i in range(n):
