@@ -379,6 +379,16 @@ def profile_tick(robot: str, n: int = 3000) -> None:
             samples[i] = clock() - t0
         us = samples * 1e6
         print(f"  {name:46s} {np.median(us):8.1f} {us.mean():8.1f} {np.percentile(us, 99):8.1f}")
+    # CPU time (this process's): what a busy machine's preemptions leave out of the above
+    cpu_runs = []
+    for _ in range(3):
+        c0 = time.process_time()
+        for i in range(n):
+            full_tick(i)
+        cpu_runs.append((time.process_time() - c0) / n * 1e6)
+    print(f"  server tick, all of it: CPU {min(cpu_runs):.1f}-{max(cpu_runs):.1f} us a tick "
+          f"(3 x {n} ticks; <= {1e3 / min(cpu_runs):.1f}-{1e3 / max(cpu_runs):.1f}x real "
+          "time for the simulator alone)")  # fmt: skip
     prof = cProfile.Profile()
     prof.enable()
     for i in range(n):
@@ -457,6 +467,9 @@ def main() -> None:
     parser.add_argument("--no-pylibfranka", action="store_true", help="skip pylibfranka")
     parser.add_argument("--profile", action="store_true", help="add the tick profile")
     parser.add_argument("--profile-only", action="store_true", help="only the tick profile")
+    parser.add_argument(
+        "--lockstep-only", action="store_true", help="only panda-sim's lockstep cases"
+    )
     parser.add_argument("--json", type=Path, default=None, help="write all results here")
     parser.add_argument("--idle", type=float, default=None, metavar="SECONDS",
                         help="only the idle simulators (no client), this long each")  # fmt: skip
@@ -533,10 +546,16 @@ def main() -> None:
         except Exception as exc:  # one broken case must not lose the others
             row = {"mode": mode, "sim": "?", "client": client, "error": repr(exc)}
         rows.append(row)
-        print(f"{row['sim']}: " + (f"RTF {row['rtf']:.3f}" if "rtf" in row else "ERROR"))
+        line = f"RTF {row['rtf']:.3f}" if "rtf" in row else "ERROR"
+        if "rtf" in row and row["rtf"] > 0:  # the simulator's CPU per simulated ms
+            per_tick = 1e3 * row["sim_cpu_share"] / row["rtf"]
+            line += f", simulator CPU {per_tick:.0f} us/tick (<= {1e3 / per_tick:.1f}x real time)"
+        print(f"{row['sim']}: " + line)
 
+    if args.lockstep_only:
+        franky = False
     print("Running:")
-    for client in clients:
+    for client in clients if not args.lockstep_only else ():
         run("realtime", panda_sim(args.robot, False), client, duration)
         if franky:
             run("realtime", franky_sim(), client, duration)

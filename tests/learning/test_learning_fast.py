@@ -241,7 +241,7 @@ def test_the_fast_world_keeps_the_loops_limits_and_the_robots_reflexes() -> None
         steps = []
         while world.failure() is None and world.ticks < 3000:
             world.advance(world.ticks + 1)
-            tau = world.core.state["tau_J_d"].copy()
+            tau = world.robot.tau_J_d
             assert np.all(np.abs(tau) <= tau_max + 1e-9)  # clipped to the joint's limit
             steps.append(tau[0])
         # until the reflex (which drops the command), the torque rose by at most the
@@ -257,7 +257,7 @@ def test_the_fast_world_keeps_the_loops_limits_and_the_robots_reflexes() -> None
         world.start(Shove(float("nan")))
         world.advance(world.ticks + 10)
         assert "non-finite" in world.failure()
-        assert np.isfinite(world.core.state["tau_J_d"]).all()  # nothing non-finite was sent
+        assert np.isfinite(world.robot.tau_J_d).all()  # nothing non-finite was sent
     finally:
         world.close()
 

@@ -1,7 +1,8 @@
 """panda-sim: a simulated Franka (FER or FR3) that speaks the real FCI protocol.
 
 Use :class:`Simulator` from Python, ``panda-sim`` from the shell, or the ``panda_sim``
-pytest fixture (``panda_py.sim.testing``).
+pytest fixture (``panda_py.sim.testing``); :class:`InProcessRobot` is the same robot in
+your own process, ticked by you, without sockets (the fast training world runs on it).
 
 Importing this package is cheap: the names below load on first use (PEP 562), so the
 pytest plugin, which lives in this package and is imported into every pytest session of
@@ -18,16 +19,18 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from panda_py.sim.api import Simulator, SimulatorError, free_loopback_host
     from panda_py.sim.config import SimConfig
+    from panda_py.sim.inprocess import InProcessRobot
 
 # public name -> submodule that defines it
 _LAZY: dict[str, str] = {
+    "InProcessRobot": "panda_py.sim.inprocess",
     "SimConfig": "panda_py.sim.config",
     "Simulator": "panda_py.sim.api",
     "SimulatorError": "panda_py.sim.api",
     "free_loopback_host": "panda_py.sim.api",
 }
 
-__all__ = ["SimConfig", "Simulator", "SimulatorError", "free_loopback_host"]
+__all__ = ["InProcessRobot", "SimConfig", "Simulator", "SimulatorError", "free_loopback_host"]
 
 
 def __getattr__(name: str) -> Any:

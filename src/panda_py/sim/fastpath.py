@@ -29,7 +29,7 @@ class TickKernels:
     def __init__(self, jit: Any, kernels: Any, core: StateAssembly) -> None:
         self._k = self.kernels = kernels
         self._fk_one = jit.single("fk_one")
-        self._chain = core._kin._CF  # the nominal EE's chain, as core._kin.fk uses it
+        self._chain = core._kin.chain_constants  # the nominal EE's chain, as core._kin.fk uses
         self._fk = np.zeros((2, 4, 4))
         self._off = np.array([core.state_offsets[n][0] for n in kernels.FIELDS], dtype=np.int64)
         ph = core.physics
@@ -73,6 +73,10 @@ class TickKernels:
         k.joint_push(*signal, z, k.PUSH_POSITION, DT)  # (the robot's own IK, generator)
         k.joint_limit_bits(*signal, np.zeros(35), z)
         self.joint_tracking(ph, z, z, z, np.ones(7), np.ones(7))
+
+    def fill_constants(self) -> tuple[np.ndarray, np.ndarray]:
+        """The fill kernel's bodies of links 1..6 and its constants."""
+        return self._links, self._const
 
     def fill(self, core: StateAssembly) -> bool:
         """The per-tick state fields; False (nothing written) where the reference must

@@ -33,6 +33,9 @@ _MAX_FORCE = FRANKA_HAND.peak_force  # [N]
 # object) within a tick, faster than any contact could answer
 _FORCE_RATE = 2000.0
 _TEMPERATURE = 31  # [deg C] reported hand temperature
+# the servo's constants, for the compiled tick (panda_py.sim.compiled): KP, KD, force limit
+SERVO_GAINS = (_KP, _KD, _MAX_FORCE)
+FORCE_RATE = _FORCE_RATE
 
 
 @dataclass

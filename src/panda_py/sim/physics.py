@@ -137,6 +137,16 @@ class Physics:
         return self._qvel_arm
 
     @property
+    def robot_geoms(self) -> np.ndarray:
+        """Which of the model's geoms belong to the robot (bool (ngeom,))."""
+        return self._robot_geom
+
+    @property
+    def applied_arm(self) -> np.ndarray:
+        """The arm's applied joint torques in MuJoCo's data [Nm] (a live view)."""
+        return self._applied_arm
+
+    @property
     def time(self) -> float:
         return float(self.data.time)
 

@@ -597,6 +597,50 @@ class RobotCore(RobotSettings, StateAssembly):
         q = self.physics.solve_ik(O_T_F, self.joint.q, q3)
         self.joint.push_position(q)
 
+    # -- for the compiled tick (panda_py.sim.compiled) ---------------------------------
+
+    @property
+    def compiled(self) -> bool:
+        """Whether the tick's arithmetic runs compiled (:mod:`.fastpath`)."""
+        return self._fast is not None
+
+    @property
+    def tau_max(self) -> np.ndarray:
+        """The joints' torque limits [Nm] the commands are checked against."""
+        return self._tau_max
+
+    @property
+    def dtau_step(self) -> np.ndarray:
+        """The largest torque change per tick [Nm] a command may ask (with tolerance)."""
+        return self._dtau_step
+
+    def measured_limits(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The measured state's limits with the robot's tolerance: q_min, q_max [rad],
+        |dq| max [rad/s]."""
+        return self._q_lo, self._q_hi, self._dq_hi
+
+    def chain_constants(self) -> np.ndarray:
+        """The packed kinematic chain to the nominal end effector (O_T_EE's)."""
+        return self._kin.chain_constants
+
+    def compiled_fill_ready(self) -> bool:
+        """Whether the compiled fill may write the next state as the reference would:
+        compiled kernels, NE_T_EE the identity, the motion's fields written once."""
+        return self._fast is not None and self._NE_identity and self._filled_mode == self.mg_mode
+
+    def compiled_fill_constants(self) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled fill's link bodies and constants (``_tick_jit.fill_state``)."""
+        assert self._fast is not None
+        return self._fast.fill_constants()
+
+    def fill_state(self) -> None:
+        """Fill the state's per-tick fields from the physics (after a step)."""
+        self._fill_state()
+
+    def fill_contacts(self) -> None:
+        """The contact fields of the state's fill (after the rest of it)."""
+        self._fill_contacts(self._T_view["O_T_EE"])
+
     # -- physics -----------------------------------------------------------------------
 
     def _apply(self, torque: np.ndarray) -> None:

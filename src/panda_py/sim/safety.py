@@ -116,6 +116,13 @@ class _Limits:
 _LIMITS: dict[int, _Limits] = {}
 
 
+def joint_limit_vectors(spec: RobotSpec) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits as ``_tick_jit.joint_limit_bits`` takes them: (upper (35,): q_max
+    twice, then the |dq|, |ddq|, |dddq| limits, with the checks' slack; q_min (7,))."""
+    limits = _joint_limits(spec)
+    return limits.upper, limits.lower
+
+
 def _joint_limits(spec: RobotSpec) -> _Limits:
     limits = _LIMITS.get(id(spec))
     if limits is None:

@@ -38,12 +38,14 @@ from panda_py.sim.config import LATE_THRESHOLD, SimConfig, Stats
 from panda_py.sim.connections import Client, GripperConnection, RobotConnection
 from panda_py.sim.control import ControlRpc
 from panda_py.sim.desk.link import DeskLink
+from panda_py.sim.fast_tick import compiled_tick
 from panda_py.sim.fci_session import FciSession
 from panda_py.sim.frames import FrameTaps
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.gripper_session import GripperSession
 from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
+from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.robot import RobotCore
 from panda_py.sim.sockets import REQUEST_BUDGET, Sockets
 from panda_py.sim.vacuum import VacuumCore
@@ -82,6 +84,10 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         hand = self.physics.end_effector is EndEffector.HAND
         self.gripper = GripperCore(self.physics) if hand else None
         self.pump = None if hand else VacuumCore(self.physics)
+        # the common tick of a torque motion compiled (None: the Python reference only)
+        self._fast = compiled_tick(self.core) if self.pump is None else None
+        if self._fast is not None:
+            self._fast.warm(self.gripper)
         self.stats = Stats()
         # the simulated Desk's view of this robot (brakes, FCI), read without waiting
         self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
@@ -265,13 +271,14 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         if self.desk is not None:
             self._follow_desk()
         conn = self.robot_conn  # the Desk may have closed it
-        if self.gripper is not None:
-            self.gripper.tick()
-            self.core.finger_force = self.gripper.force
-        if self.pump is not None:
-            self.pump.tick()
         moving = self.core.robot_mode == RobotMode.MOVE
-        self.core.tick(command if moving else None, excused=excused)
+        if not (moving and command is not None and self._compiled_tick(command)):
+            if self.gripper is not None:
+                self.gripper.tick()
+                self.core.finger_force = self.gripper.force
+            if self.pump is not None:
+                self.pump.tick()
+            self.core.tick(command if moving else None, excused=excused)
         self.tick_count += 1
         self.stats.ticks += 1
         if self.frames is not None:
@@ -288,6 +295,20 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             self._flush_gripper()
         else:
             self._flush_vacuum()
+
+    def _compiled_tick(self, command: RobotCommand) -> bool:
+        """The hand's and the robot's tick with ``command`` compiled, where it may run
+        (a torque motion's common tick: the command takes no generator's step and ends
+        nothing); False: nothing done, the reference runs it."""
+        fast = self._fast
+        if (
+            fast is None
+            or command.motion_generation_finished
+            or command.torque_command_finished
+            or command.dq_c.any()  # (a protocol < 7 torque motion's generator: at rest)
+        ):
+            return False
+        return fast.command(command.tau_J_d, self.gripper)
 
     def _dispatch(self, data: tuple[str, Any], mask: int = selectors.EVENT_READ) -> None:
         kind, conn = data
