@@ -26,8 +26,10 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, ClassVar
@@ -383,7 +385,40 @@ def _tree_cpu(pids: set[int]) -> dict[int, float]:
     return out
 
 
-def _our_cpu(sim: Any, seconds: float) -> dict[str, float]:
+STOP_TIMEOUT = 10.0  # [s] for stop_controller, measured in tens of ms when it works
+
+
+def _stop(panda: Any, control: int) -> str | None:
+    """``panda.stop_controller()``; where it has not returned within STOP_TIMEOUT, the
+    control process is killed (the Panda then closes as after a crash) and what happened
+    is returned. Seen on this machine under load: a stop request that arrives while a
+    state is already queued leaves the loop alternating between rt/child.py's
+    _await_state (which returns first for a readable state) and rt/_tick.py's _wait
+    (which returns first for a readable request): neither takes anything, no command is
+    sent, the control process spins at its realtime priority and the call never returns."""
+    failed: list[BaseException] = []
+
+    def stop() -> None:
+        try:
+            panda.stop_controller()
+        except Exception as exc:  # (reported below: the measurement is already taken)
+            failed.append(exc)
+
+    thread = threading.Thread(target=stop, daemon=True)
+    thread.start()
+    thread.join(STOP_TIMEOUT)
+    if not thread.is_alive():
+        return f"stop_controller raised {failed[0]!r}" if failed else None
+    cpu0 = _cpu_clock(control)
+    time.sleep(1.0)
+    spin = _cpu_clock(control) - cpu0
+    os.kill(control, signal.SIGKILL)
+    thread.join(5.0)
+    return (f"stop_controller had not returned after {STOP_TIMEOUT:g} s, the control "
+            f"process spinning ({100 * spin:.0f} % of a core): killed")  # fmt: skip
+
+
+def _our_cpu(sim: Any, seconds: float) -> dict[str, Any]:
     """CPU shares [cores] with CartesianImpedance held at the start pose, the user's
     process setting its target at 100 Hz (as the peers' main threads do), over one window:
     as a user sees it, the whole tree of the user's process (this one) less the simulator's
@@ -409,8 +444,11 @@ def _our_cpu(sim: Any, seconds: float) -> dict[str, float]:
         c1, u1, r1 = _cpu_clock(control), time.process_time(), _tree_cpu(rest)
         s1 = _cpu_clock(sim_pid)
         stats = sim.stats()
-        panda.stop_controller()
-    out = {
+        stuck = _stop(panda, control)
+    if stuck is not None:  # the robot stopped in a reflex when the commands stopped
+        with libfranka.Robot(sim.host) as robot:
+            robot.automatic_error_recovery()
+    out: dict[str, Any] = {
         "control": (c1 - c0) / wall,
         "user": (u1 - u0) / wall,
         "rest": sum(r1[p] - r0[p] for p in r1.keys() & r0.keys()) / wall,
@@ -418,6 +456,7 @@ def _our_cpu(sim: Any, seconds: float) -> dict[str, float]:
         "simulator": (s1 - s0) / wall,
         "received": stats["commands_received"] / wall,
         "lost": stats["commands_lost"],
+        "stuck": stuck,
     }
     out["total"] = out["control"] + out["user"] + out["rest"]
     return out
@@ -480,6 +519,8 @@ def cpu(seconds: float, n: int, rounds: int = 3) -> None:
                   f"it received {ours['received']:.0f} commands/s, lost {ours['lost']})\n"
                   f"    panda-python (its process) {100 * theirs:5.2f} %, "
                   f"ours / panda-python {ours['total'] / theirs:.2f}x")  # fmt: skip
+            if ours["stuck"]:
+                print(f"    after ours' window: {ours['stuck']}")
             for key in ("total", "control", "user", "rest"):
                 rows.setdefault(f"ours, {key}", []).append(ours[key])
             rows.setdefault("panda-python", []).append(theirs)
