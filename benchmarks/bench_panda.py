@@ -444,8 +444,13 @@ def _our_cpu(sim: Any, seconds: float) -> dict[str, Any]:
         c1, u1, r1 = _cpu_clock(control), time.process_time(), _tree_cpu(rest)
         s1 = _cpu_clock(sim_pid)
         stats = sim.stats()
+        error = None
+        try:  # a loop that ended in the window (a reflex under load) measured less than it
+            panda.raise_error()
+        except Exception as exc:
+            error = str(exc)
         stuck = _stop(panda, control)
-    if stuck is not None:  # the robot stopped in a reflex when the commands stopped
+    if stuck is not None or error is not None:  # the robot is left in a reflex
         with libfranka.Robot(sim.host) as robot:
             robot.automatic_error_recovery()
     out: dict[str, Any] = {
@@ -457,6 +462,7 @@ def _our_cpu(sim: Any, seconds: float) -> dict[str, Any]:
         "received": stats["commands_received"] / wall,
         "lost": stats["commands_lost"],
         "stuck": stuck,
+        "error": error,
     }
     out["total"] = out["control"] + out["user"] + out["rest"]
     return out
@@ -509,35 +515,46 @@ def cpu(seconds: float, n: int, rounds: int = 3) -> None:
     with Simulator(free_loopback_host(), robot="fer", versions=(5,)) as sim:
         for r in range(rounds):
             ours = _our_cpu(sim, seconds)
+            sim.reset_stats()  # (the peers' whole runs: a reflex shows as lost commands)
             theirs = _peer("cpu", sim.host, str(seconds))["cpu"]
+            theirs_lost = sim.stats()["commands_lost"]
+            sim.reset_stats()
             rs = _franka_rs(sim.host, seconds)
+            rs_lost = sim.stats()["commands_lost"]
             print(f"  round {r + 1}: ours {100 * ours['total']:5.2f} % = control process "
                   f"{100 * ours['control']:5.2f} % + user's process {100 * ours['user']:4.2f} "
                   f"% + the rest of its tree ({ours['rest_n']} processes) "
                   f"{100 * ours['rest']:4.2f} %;\n"
                   f"    (not counted: the simulator's process {100 * ours['simulator']:5.1f} %; "
                   f"it received {ours['received']:.0f} commands/s, lost {ours['lost']})\n"
-                  f"    panda-python (its process) {100 * theirs:5.2f} %, "
-                  f"ours / panda-python {ours['total'] / theirs:.2f}x")  # fmt: skip
+                  f"    panda-python (its process) {100 * theirs:5.2f} % (its run lost "
+                  f"{theirs_lost} commands), ours / panda-python "
+                  f"{ours['total'] / theirs:.2f}x")  # fmt: skip
             if ours["stuck"]:
                 print(f"    after ours' window: {ours['stuck']}")
-            for key in ("total", "control", "user", "rest"):
-                rows.setdefault(f"ours, {key}", []).append(ours[key])
-            rows.setdefault("panda-python", []).append(theirs)
-            rows.setdefault("ours / panda-python", []).append(ours["total"] / theirs)
-            if "cpu" in rs:
-                rows.setdefault("franka-rs", []).append(rs["cpu"])
-                rows.setdefault("ours / franka-rs", []).append(ours["total"] / rs["cpu"])
+            if ours["error"]:
+                print(f"    ours' loop ended in the window, round left out: {ours['error']}")
+            else:
+                for key in ("total", "control", "user", "rest"):
+                    rows.setdefault(f"ours, {key}", []).append(ours[key])
+                rows.setdefault("panda-python", []).append(theirs)
+                rows.setdefault("ours / panda-python", []).append(ours["total"] / theirs)
+            if "cpu" in rs and not rs["running"]:
+                rs["error"] = "its loop had ended at the window's end"
+            if "cpu" in rs and rs["running"]:
+                if not ours["error"]:
+                    rows.setdefault("franka-rs", []).append(rs["cpu"])
+                    rows.setdefault("ours / franka-rs", []).append(ours["total"] / rs["cpu"])
                 print(f"    franka-rs (its process, {len(rs['threads'])} threads, "
                       f"FCI v{rs['fci_version']}) {100 * rs['cpu']:5.2f} %, ours / franka-rs "
                       f"{ours['total'] / rs['cpu']:.2f}x; its loop saw {rs['robot_time']:.3f} s "
-                      f"of robot time, success rate {rs['success_rate']:.3f}, running "
-                      f"{rs['running']}")  # fmt: skip
+                      f"of robot time, success rate {rs['success_rate']:.3f} (its run lost "
+                      f"{rs_lost} commands)")  # fmt: skip
             else:
-                print(f"    franka-rs: no result: {rs['error']}")
+                print(f"    franka-rs: no result, left out: {rs['error']}")
     if rs.get("controller"):
         print(f"  franka-rs ran: {rs['controller']}; its threads: {', '.join(rs['threads'])}")
-    print(f"  over {rounds} rounds (load average now: {_load()}):")
+    print(f"  over the rounds measured whole (load average now: {_load()}):")
     for label, values in rows.items():
         _spread(label, values, "x" if "/" in label else "%")
     print("  target: ours / panda-python <= 1.0x")
