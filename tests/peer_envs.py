@@ -18,6 +18,8 @@ PEERS: dict[str, list[str]] = {
     "pylibfranka": ["pylibfranka==0.21.3"],  # libfranka 0.21.3, protocol 10
     "franky": ["franky-control==2.0.0"],  # libfranka 0.21.2, protocol 10
     "franky-sim": ["franky-sim==1.0.4"],  # the reference protocol-level simulator
+    # Rust 1 kHz loop behind Python bindings: benchmarks/peer_franka_rs.py
+    "franka-rs": ["franka-rs==0.4.0"],
     # panda-gym's PyBullet PandaReach-v3: benchmarks/bench_learning.py's peer
     "panda-gym": ["panda-gym==3.0.7", "pybullet==3.2.7"],
     # the analytical ik with a q7 search: benchmarks/bench_kinematics.py --search's peer
