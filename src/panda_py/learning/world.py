@@ -262,7 +262,7 @@ class _CompiledLoop:
         self._buf = (np.zeros(7), np.zeros(7), np.zeros(16), np.zeros(7), np.zeros(7),
                      np.zeros(7))  # fmt: skip
         f = world._finalize
-        self._walls = (f.walls._table, f.walls._kernel_scale, f.walls._flags, f.tau_max)
+        self._walls = (*f.walls.kernel_state(), f.tau_max)
         s = self._s = np.zeros(_world_jit.SCALARS)
         s[_world_jit.S_DT] = DT
         s[_world_jit.S_GAIN] = FILTER_GAIN
