@@ -5,6 +5,7 @@ with and without the compiled kernels, on states made here (no simulator)."""
 from __future__ import annotations
 
 import math
+import os
 import types
 
 import numpy as np
@@ -16,6 +17,10 @@ from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import START_POSE, get_robot
 
 KIN = kinematics.get_kinematics("fr3")
+# (numba comes with the package: these compare its kernels, which PANDA_PY_NO_JIT turns off)
+pytestmark = pytest.mark.skipif(
+    os.environ.get("PANDA_PY_NO_JIT", "") not in ("", "0"), reason="PANDA_PY_NO_JIT is set"
+)
 
 
 def _reference(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n):  # type: ignore[no-untyped-def]
