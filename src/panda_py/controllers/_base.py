@@ -204,8 +204,8 @@ class TorqueController(ControlLaw):
         self.t += dt
         self.dt = dt
 
-    def compiled_io(self) -> tuple[FloatArray, FloatArray, int]:
-        return self._values, self._out, self._in_seq
+    def compiled_io(self) -> tuple[FloatArray, int]:
+        return self._out, self._in_seq
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         self.t, self.dt = float(time[0]), float(time[1])

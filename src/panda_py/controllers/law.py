@@ -138,11 +138,11 @@ class ControlLaw:
         back, and must compute the same torques either way."""
         return None
 
-    def compiled_io(self) -> tuple[FloatArray, FloatArray, int]:
-        """For a compiled loop running this law's ticks: its inputs from the user's
-        process (refreshed in place), its outputs (time first) and the inputs' sequence
-        number of the copy it holds; none by default."""
-        return _NONE, _NONE, -1
+    def compiled_io(self) -> tuple[FloatArray, int]:
+        """For a compiled loop running this law's ticks: its outputs (time first) and the
+        sequence number of the copy of its inputs it holds (the inputs themselves are
+        among :meth:`compiled`'s arrays); none by default."""
+        return _NONE, -1
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         """A compiled loop ran ticks of this law: its time and last dt [s] (``time``),

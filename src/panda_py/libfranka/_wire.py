@@ -77,6 +77,7 @@ class Layout:
         sd, cd = dialect.state_dtype, dialect.command_dtype
         self.version = dialect.version
         self.fields: dict[str, Field] = {}
+        self._spans: dict[tuple[str, ...], tuple[tuple[int, int], ...]] = {}
         self.scalars: dict[str, Block] = {}
         #: array field -> (unpack_from, offset, shape if not 1-D)
         self.arrays: dict[str, tuple[Any, int, tuple[int, ...] | None]] = {}
@@ -111,6 +112,28 @@ class Layout:
         self.c_twist = _block(cd, ("O_dP_EE_c",))
         self.c_elbow = _block(cd, ("elbow_c", "valid_elbow"))  # 2 values and a bool
         self.c_tau = _block(cd, ("tau_J_d",))
+
+    def spans(self, names: tuple[str, ...]) -> tuple[tuple[int, int], ...]:
+        """The byte ranges (start, stop) of the state's fields ``names`` in that order,
+        fields that follow each other merged into one range (cached)."""
+        spans = self._spans.get(names)
+        if spans is None:
+            fields = self.fields
+            if not isinstance(names, tuple) or any(n not in fields for n in names):
+                raise ValueError(
+                    f"names: expected a tuple of the state's field names (e.g. ('q', 'dq')), "
+                    f"got {names!r}"
+                )
+            merged: list[tuple[int, int]] = []
+            for n in names:
+                a = fields[n].offset
+                b = a + fields[n].count * fields[n].dtype.itemsize
+                if merged and merged[-1][1] == a:
+                    merged[-1] = (merged[-1][0], b)
+                else:
+                    merged.append((a, b))
+            spans = self._spans[names] = tuple(merged)
+        return spans
 
     def _find_bulk(self) -> None:
         """The run of array fields after the header that share one float dtype and follow

@@ -74,9 +74,6 @@ def combine_load(
     return m_total, c_total, I_total.reshape(9, order="F")
 
 
-_SPANS: dict[tuple[int, tuple[str, ...]], tuple[tuple[int, int], ...]] = {}
-
-
 class RobotState:
     """The robot's state at one 1 ms tick (libfranka's ``franka::RobotState``).
 
@@ -132,25 +129,7 @@ class RobotState:
     def raw_fields(self, names: tuple[str, ...]) -> bytes:
         """The raw bytes of the fields ``names`` (in that order): a cheap key of what
         they hold, e.g. to notice that the load changed without decoding it."""
-        spans = _SPANS.get((self._layout.version, names))
-        if spans is None:
-            fields = self._layout.fields
-            unknown = [n for n in names if n not in fields]
-            if unknown or not isinstance(names, tuple):
-                raise ValueError(
-                    f"names: expected a tuple of the state's field names (e.g. ('q', 'dq')), "
-                    f"got {names!r}"
-                )
-            merged: list[tuple[int, int]] = []
-            for n in names:  # fields that follow each other become one span
-                a = fields[n].offset
-                b = a + fields[n].count * fields[n].dtype.itemsize
-                if merged and merged[-1][1] == a:
-                    merged[-1] = (merged[-1][0], b)
-                else:
-                    merged.append((a, b))
-            spans = tuple(merged)
-            _SPANS[(self._layout.version, names)] = spans
+        spans = self._layout.spans(names)
         data = self._data
         if len(spans) == 1:  # (the load's fields: one slice a tick)
             a, b = spans[0]

@@ -19,7 +19,7 @@ import numpy as np
 
 from panda_py import progress
 from panda_py.controllers.finalize import Finalize
-from panda_py.controllers.law import CompiledTicks, ControlLaw
+from panda_py.controllers.law import CompiledTicks, ControlLaw, readonly
 from panda_py.libfranka import ActiveControl, TorqueIO
 from panda_py.libfranka.errors import ControlException, NetworkException
 from panda_py.libfranka.state import RobotState
@@ -118,7 +118,7 @@ class FastTicks:
                        finalize.tau_max)  # fmt: skip
         self.decoded = (np.zeros(16), np.zeros(7), np.zeros(7), np.zeros(16), np.zeros(7))
         q, dq, pose = self.decoded[1:4]
-        self.views = tuple(_readonly(a) for a in (q, dq, pose))
+        self.views = tuple(readonly(a) for a in (q, dq, pose))
         self.tau = np.zeros(7)
         self.command = finalize.out
         self._ring: tuple[np.ndarray, np.ndarray] = (
@@ -131,27 +131,17 @@ class FastTicks:
         """The spans of ``fields`` in the state, and their bytes in ``data`` (the state the
         law's arrays were made for)."""
         tick, lay = self.tick, self.lay
+        spans = self.layout.spans(fields)
+        if len(spans) > 8:
+            raise ValueError(f"key_fields: at most 8 runs of fields, got {fields}")
         if fields != self._key_fields:
-            spans: list[list[int]] = []
-            for name in fields:
-                f = self.layout.fields[name]
-                start, length = f.offset, f.count * f.dtype.itemsize
-                if spans and spans[-1][0] + spans[-1][1] == start:
-                    spans[-1][1] += length
-                else:
-                    spans.append([start, length])
-            if len(spans) > 8:
-                raise ValueError(f"key_fields: at most 8 runs of fields, got {fields}")
             lay[tick.L_KEY_SPANS :] = 0
-            for i, (start, length) in enumerate(spans):
+            for i, (start, stop) in enumerate(spans):
                 lay[tick.L_KEY_SPANS + 2 * i] = start
-                lay[tick.L_KEY_SPANS + 2 * i + 1] = length
+                lay[tick.L_KEY_SPANS + 2 * i + 1] = stop - start
             self._key_fields = fields
-        k = 0
-        for i in range(8):
-            start, length = lay[tick.L_KEY_SPANS + 2 * i], lay[tick.L_KEY_SPANS + 2 * i + 1]
-            self.key[k : k + length] = np.frombuffer(data, np.uint8, length, start)
-            k += length
+        key = b"".join([data[a:b] for a, b in spans])
+        self.key[: len(key)] = np.frombuffer(key, np.uint8)
 
     def run(
         self, law: ControlLaw, compiled: CompiledTicks, data: bytes, *, chan: int,
@@ -165,7 +155,7 @@ class FastTicks:
         torques, NetworkException for a failed send."""
         tick, io = self.tick, self.io
         kernel = getattr(tick, compiled.kernel)
-        out, in_seq = law.compiled_io()[1:]
+        out, in_seq = law.compiled_io()
         n = len(data)
         self.buf[:n] = np.frombuffer(data, np.uint8)
         self.answered[:n] = self.buf[:n]
@@ -207,12 +197,6 @@ class FastTicks:
         if status == tick.SEND_FAILED:
             raise NetworkException(f"libfranka: UDP send: {os.strerror(int(io[tick.ERRNO]))}")
         return Outcome(ran, "tick", state)  # TIMEOUT, RECEIVE_FAILED: Python's receive goes on
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    view = a.view()
-    view.flags.writeable = False
-    return view
 
 
 def warm_up(state: RobotState, model: Any, limits: RobotSpec, finalize: Finalize) -> None:
