@@ -325,6 +325,36 @@ def test_the_owning_loop_api_takes_raw_states_and_refuses_bad_input(sim_for_vers
             state.raw_fields(("q", "no_such_field"))
 
 
+def test_the_compiled_loops_seam_refuses_what_it_cannot_take(sim_for_version) -> None:
+    """ActiveControl.torque_io / caught_up / read_received (what the control process's
+    compiled ticks use): a motion with a filter, no state read yet, a datagram that is not
+    one are refused by name; a state taken elsewhere is read as readOnce reads it."""
+    from panda_py.libfranka.limits import MAX_CUTOFF_FREQUENCY
+
+    sim = sim_for_version(10)
+    with lf.Robot(sim.host) as robot:
+        with robot.start_torque_control(cutoff_frequency=100.0) as filtered:
+            filtered.readOnce()
+            with pytest.raises(lf.InvalidOperationException, match="without filter"):
+                filtered.torque_io()
+        with robot.start_torque_control(cutoff_frequency=MAX_CUTOFF_FREQUENCY) as active:
+            with pytest.raises(lf.InvalidOperationException, match="readOnce"):
+                active.torque_io()
+            state, _ = active.readOnce()
+            io = active.torque_io()
+            assert io.udp == robot.fileno() and io.last_data == state.raw
+            for bad, got in ((state.raw[:100], "100 bytes"), ([1, 2], "list")):
+                with pytest.raises(
+                    ValueError, match=f"data: expected a state datagram of \\d+ bytes, got {got}"
+                ):
+                    active.caught_up(bad)  # type: ignore[arg-type]
+                with pytest.raises(ValueError, match=f"got {got}"):
+                    active.read_received(bad)  # type: ignore[arg-type]
+            again, dt = active.read_received(state.raw)
+            assert again.raw == state.raw and dt.to_msec() == 0
+            active.write_torques([0.0] * 7)
+
+
 def test_rigid_errors_refuses_what_is_not_a_transform() -> None:
     from panda_py import checks
 

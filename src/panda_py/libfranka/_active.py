@@ -135,11 +135,18 @@ class ActiveControl:
             self._last_data, self._session.running_modes, conn.layout,
         )  # fmt: skip
 
+    def _check_datagram(self, data: object) -> None:
+        size = self._robot._conn.dialect.state_dtype.itemsize
+        if not isinstance(data, bytes) or len(data) != size:
+            got = f"{len(data)} bytes" if isinstance(data, bytes) else type(data).__name__
+            raise ValueError(f"data: expected a state datagram of {size} bytes, got {got}")
+
     def caught_up(self, data: bytes) -> RobotState:
         """A compiled loop answered the states up to ``data``, the last one (it received
         them on the socket of :meth:`torque_io`): the next ``readOnce`` goes on from it.
         Returns that state."""
         self._check()
+        self._check_datagram(data)
         self._robot._conn.took_state(data)
         return self._took(data)[0]
 
@@ -147,6 +154,7 @@ class ActiveControl:
         """``readOnce`` for a state a compiled loop received and left for this loop to
         answer (it raises, as ``readOnce``, if the robot left the motion)."""
         self._check()
+        self._check_datagram(data)
         try:
             self._session.accept(data)
         except BaseException:
