@@ -136,8 +136,8 @@ class ActiveControl:
         )  # fmt: skip
 
     def _check_datagram(self, data: object) -> None:
-        size = self._robot._conn.dialect.state_dtype.itemsize
-        if not isinstance(data, bytes) or len(data) != size:
+        size = self._robot._conn.dialect.state_size
+        if not isinstance(data, bytes) or len(data) < size:  # (as decode_state: no shorter)
             got = f"{len(data)} bytes" if isinstance(data, bytes) else type(data).__name__
             raise ValueError(f"data: expected a state datagram of {size} bytes, got {got}")
 
