@@ -6,7 +6,9 @@ changeable while it runs. Subclass :class:`TorqueController` (declare ``signals`
 implement ``step(state, model) -> tau``) to run a control law of your own at 1 kHz.
 Beyond panda-py, :class:`JointTarget` and :class:`CartesianTarget` follow targets streamed
 at any rate (a policy, teleoperation) smoothly within the robot's limits
-(:mod:`panda_py.controllers.streaming`).
+(:mod:`panda_py.controllers.streaming`), and :class:`HybridJointImpedance` follows joint
+setpoints at once with DROID's soft gains, as polymetis does
+(:mod:`panda_py.controllers.setpoints`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from panda_py.controllers._builtin import (
     IntegratedVelocity,
     JointPosition,
 )
+from panda_py.controllers.setpoints import HybridJointImpedance
 from panda_py.controllers.streaming import CartesianTarget, JointTarget
 
 __all__ = [
@@ -28,6 +31,7 @@ __all__ = [
     "CartesianImpedance",
     "CartesianTarget",
     "Force",
+    "HybridJointImpedance",
     "IntegratedVelocity",
     "JointPosition",
     "JointTarget",

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from panda_py import checks
 from panda_py.controllers.law import ControlLaw, SignalSlot
+from panda_py.libfranka.errors import InvalidOperationException
 
 __all__ = ["TorqueController"]
 
@@ -78,6 +79,7 @@ class TorqueController(ControlLaw):
         self.inputs_changed = True
         self._lock = threading.Lock()
         self._views: dict[str, FloatArray] = {}
+        self._bounds: list[FloatArray] | None = None  # user side: published at start
         self._make_views()
 
     # --- declared data --------------------------------------------------------------
@@ -167,6 +169,7 @@ class TorqueController(ControlLaw):
             self._values[:] = values
             self._out[:] = 0.0
             self._slot = slot
+            self._bounds = None  # the robot's, as this start publishes them
 
     def detach(self) -> None:
         """User side: the controller stopped; keep its last inputs and outputs here, so
@@ -233,6 +236,20 @@ class TorqueController(ControlLaw):
         if block is not None:
             return block.read_outputs(len(self._out))
         return self._out
+
+    def _published_bounds(self, names: tuple[str, ...]) -> list[FloatArray]:
+        """User side: the outputs ``names`` the control process published at start (the
+        robot's bounds a target is checked against; read once a start)."""
+        bounds = self._bounds
+        if bounds is None:
+            bounds = [self.get_output(n) for n in names]
+            if not any(v.any() for v in bounds):
+                raise InvalidOperationException(
+                    f"{type(self).__name__}.set_target: the controller is not running; start "
+                    "it with Panda.start_controller first (its target starts where the arm is)"
+                )
+            self._bounds = bounds
+        return list(bounds)
 
     def get_time(self) -> float:
         """Time since this controller was started [s] (of the robot's clock)."""

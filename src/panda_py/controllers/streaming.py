@@ -35,7 +35,6 @@ from panda_py.controllers._builtin import JOINT_DAMPING, JOINT_STIFFNESS
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import joint_capped
 from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
-from panda_py.libfranka.errors import InvalidOperationException
 from panda_py.motion import rotation
 from panda_py.motion.online import OnlineGenerator, OnlineLimits, OnlinePose
 
@@ -69,28 +68,11 @@ class _Streamed(TorqueController):
         )
         self.timeout = None if timeout is None else checks.timeout("timeout", timeout)
         self._sent = 0  # user side: targets sent
-        self._bounds: Any = None  # user side: what the control process published at start
 
     def __getstate__(self) -> dict[str, Any]:
         state = super().__getstate__()
         state.pop("_gen", None)  # the control process's own (made in start)
         return state
-
-    def attach(self, slot: Any, values: FloatArray) -> None:
-        super().attach(slot, values)
-        self._bounds = None  # the robot's, published by this start
-
-    def _published_bounds(self, names: tuple[str, ...]) -> list[FloatArray]:
-        """The outputs ``names`` the control process published at start (cached)."""
-        if self._bounds is None:
-            values = [self.get_output(n) for n in names]
-            if not any(v.any() for v in values):
-                raise InvalidOperationException(
-                    f"{type(self).__name__}.set_target: the controller is not running; start "
-                    "it with Panda.start_controller first (its target starts where the arm is)"
-                )
-            self._bounds = values
-        return list(self._bounds)
 
     def _send_target(self, values: list[float]) -> None:
         """Write a checked target and the count of targets sent, together."""
