@@ -1,36 +1,42 @@
-"""Deploy a policy the way DROID-trained ones act: chunks of 10 actions (7 joint velocities
-[rad/s] and a gripper command, 0 open, 1 closed) at 15 Hz, 8 of each run open loop before
-the policy is asked again (openpi's ``open_loop_horizon``). Here the "policy" is scripted:
-it steers the joints toward a goal above the table and closes the hand once there, then
-back to the start with the hand open. Each episode, with the camera's images (a simulated
-robot's), is recorded to an HDF5 file in robomimic's layout and read back."""
+"""Deploy a policy the way DROID-trained ones act, under DROID's contract: chunks of 10
+actions (7 normalised joint velocities, 1 = 0.2 rad a step, and a gripper command, 0 open,
+1 closed) at 15 Hz, 8 of each run open loop before the policy is asked again (openpi's
+``open_loop_horizon``), followed as DROID's robots follow them. Here the "policy" is
+scripted: it steers the joints toward a goal above the table and closes the hand once
+there, then back to the start with the hand open. Each episode, with the camera's images
+(a simulated robot's), is recorded to an HDF5 file in robomimic's layout and read back."""
 
 import numpy as np
 from _robot import connect, robot_host
 
 from panda_py.learning import DroidActions, EpisodeWriter, PolicyRunner, read_recording
+from panda_py.learning.droid import DROID_MAX_JOINT_DELTA
 from panda_py.libfranka import Gripper
 
 RATE = 15.0  # [Hz] DROID's
 CHUNK, HORIZON = 10, 8  # actions a chunk, of which run before the next call
-GAIN = 2.0  # [1/s] velocity per radian from the goal
-MAX_VELOCITY = 0.5  # [rad/s]
+STEP = 0.1  # [rad] the largest joint move an action asks for (0.5 normalised)
+# of an action's move, the share DROID's soft controller covers before the next action (a
+# cautious guess: the chunk's later actions ask for the rest of the way from where the
+# arm will be; guessing more leaves the arm short when the chunk ends)
+FOLLOWED = 0.3
 GOAL = np.array([0.35, 0.1, -0.25, -2.0, 0.05, 2.1, 1.0])  # [rad] over the table
 CAMERA = (320, 180)  # [px] DROID's recorded image size (its RLDS release)
 
 
 def reaching_policy(goal, close):
-    """A scripted policy: a chunk of velocities that would take the joints toward
-    ``goal`` if run to the end; with ``close``, the hand closes within 0.03 rad of it
-    (1 = closed), otherwise it opens."""
+    """A scripted policy: a chunk of DROID actions toward ``goal``. Each action is a move
+    from where the arm will be then (DROID integrates from the measured joints): the rest
+    of the way, at most ``STEP``, normalised (1 = 0.2 rad); with ``close``, the hand closes
+    within 0.03 rad of the goal (1 = closed), otherwise it opens."""
 
     def policy(obs):
         q = obs["observation/joint_position"].copy()
         chunk = np.zeros((CHUNK, 8))
         for i in range(CHUNK):
-            v = np.clip(GAIN * (goal - q), -MAX_VELOCITY, MAX_VELOCITY)
-            chunk[i, :7] = v
-            q += v / RATE
+            move = np.clip(goal - q, -STEP, STEP)  # [rad]
+            chunk[i, :7] = move / DROID_MAX_JOINT_DELTA
+            q += FOLLOWED * move
             chunk[i, 7] = float(close and np.abs(goal - q).max() < 0.03)
         return chunk
 
@@ -54,7 +60,7 @@ if __name__ == "__main__":
                                "rate": RATE}}  # fmt: skip
         with (
             EpisodeWriter(args.out, env_args=meta) as recorder,
-            DroidActions(panda, gripper, rate=RATE, speed_factor=0.5, cameras=cameras) as arm,
+            DroidActions(panda, gripper, cameras=cameras) as arm,
         ):
             for prompt, goal, close in (("reach and close", GOAL, True),
                                         ("back and open", start, False)):  # fmt: skip

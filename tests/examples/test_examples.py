@@ -253,11 +253,12 @@ def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
     for n in (0, 1):
         assert number(rf"episode {n} \(.*?\): (\d+) steps at 15 Hz", out) == 60
         calls = number(rf"episode {n} .*?(\d+) policy calls", out)
-        late = number(rf"episode {n} .*?policy calls; late (\d+)", out)
-        # every 8 of 60; a step the loaded machine made late skips actions of its chunk,
-        # which then runs out sooner (the arm stays on the chunk's timeline)
-        assert calls == 8 if late == 0 else 4 <= calls <= 8, out
-        assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.01
+        # every 8 of 60 (openpi's horizon); a late step runs the chunk's next action, as
+        # openpi does, so the calls stay every 8 steps
+        assert calls == 8, out
+        assert number(rf"episode {n} .*?skipped (\d+)", out) == 0  # none folded away
+        # DROID's soft gains hold the arm off the goal by its joints' friction: mrad
+        assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.02
     assert number(r"episode 0 .*, hand (\d+) mm", out) < 5  # closed at the goal
     assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
     assert "recorded 2 episodes" in out and "180x320 frames to episodes.hdf5" in out

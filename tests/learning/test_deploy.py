@@ -1,7 +1,8 @@
-"""DROID's action contract on the lockstep simulator: a chunk of joint velocities moves the
-arm by their integral, joint positions are reached, the gripper command closes and opens
-the hand, a policy that thinks too long has its late steps counted and the chunk kept on
-its timeline, and bad input is refused with nothing sent."""
+"""DROID's action contract on the lockstep simulator, with options off DROID's defaults: a
+chunk of joint velocities moves the arm by their integral, joint positions are reached, the
+gripper command closes and opens the hand, a policy that thinks too long has its late steps
+counted, and bad input is refused with nothing sent. DROID's own numbers are in
+test_droid.py."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 from conftest import Rig
 
+from panda_py.controllers import JointTarget
 from panda_py.learning import ActionSpace, DroidActions, PolicyRunner
 from panda_py.learning.deploy import DROID_MAX_JOINT_DELTA, LIMIT_MARGIN, as_chunk
 from panda_py.libfranka import ControlException, RobotMode
@@ -33,14 +35,23 @@ def settle(rig: Rig, actions: DroidActions, seconds: float = 4.0) -> None:
     seen, end = now + 0.05, now + seconds  # [s] the loop has seen the last target by then
     while (now := robot_s(rig)) < end:
         assert time.monotonic() < deadline, "the robot's clock stopped"
-        if (
-            now > seen
-            and actions.controller.lag < 1e-6
-            and np.abs(rig.panda.get_state().dq).max() < AT_REST
-        ):
+        lag = getattr(actions.controller, "lag", 0.0)  # a JointTarget's reference
+        if now > seen and lag < 1e-6 and np.abs(rig.panda.get_state().dq).max() < AT_REST:
             return
         time.sleep(0.002)
     raise AssertionError(f"not at rest on the target after {seconds} s")
+
+
+def follower(speed_factor: float = 0.2) -> JointTarget:
+    """The smooth follower these tests use (the arm reaches each target exactly)."""
+    return JointTarget(speed_factor, timeout=None)
+
+
+def rad_per_s(rig: Rig, **options: object) -> DroidActions:
+    """Velocities in rad/s integrated from the last target, on the smooth follower: the
+    options these tests take off DROID's defaults, so targets are sums they can check."""
+    options.setdefault("controller", follower(0.5))
+    return DroidActions(rig.panda, normalized=False, from_measured=False, **options)
 
 
 def velocity_chunk(n: int) -> np.ndarray:
@@ -63,9 +74,9 @@ def test_a_velocity_chunk_moves_the_arm_by_its_integral(rig: Rig) -> None:
         seen.append(obs)
         return chunk
 
-    with DroidActions(rig.panda, rig.gripper, speed_factor=0.5, timeout=None) as actions:
+    with rad_per_s(rig, gripper=rig.gripper) as actions:
         start = actions.target.copy()  # where the arm was at the start [rad]
-        stats = PolicyRunner(actions, policy).run(15)
+        stats = PolicyRunner(actions, policy, late="fold").run(15)
         expected = start + chunk[:, :7].sum(axis=0) / RATE
         np.testing.assert_allclose(actions.target, expected, atol=1e-12)
         settle(rig, actions)
@@ -77,18 +88,20 @@ def test_a_velocity_chunk_moves_the_arm_by_its_integral(rig: Rig) -> None:
     np.testing.assert_allclose(obs["observation/joint_position"], q0, atol=1e-6)
     assert obs["observation/gripper_position"].shape == (1,)
     assert obs["observation/gripper_position"][0] < 0.05  # open
+    # DROID's cartesian_position is the flange's (panda_link8), 103.4 mm behind the TCP
     position, (roll, pitch, yaw) = np.split(obs["observation/cartesian_position"], [3])
-    np.testing.assert_allclose(position, T0[:3, 3], atol=1e-5)
+    np.testing.assert_allclose(position, T0[:3, 3] - 0.1034 * T0[:3, 2], atol=1e-5)
     c, s = np.cos, np.sin
     Rx = np.array([[1, 0, 0], [0, c(roll), -s(roll)], [0, s(roll), c(roll)]])
     Ry = np.array([[c(pitch), 0, s(pitch)], [0, 1, 0], [-s(pitch), 0, c(pitch)]])
     Rz = np.array([[c(yaw), -s(yaw), 0], [s(yaw), c(yaw), 0], [0, 0, 1]])
-    np.testing.assert_allclose(Rz @ Ry @ Rx, T0[:3, :3], atol=1e-5)  # extrinsic x-y-z
+    F_T_EE = np.asarray(rig.panda.get_state().F_T_EE).reshape(4, 4).T  # the hand's
+    np.testing.assert_allclose(Rz @ Ry @ Rx, T0[:3, :3] @ F_T_EE[:3, :3].T, atol=1e-5)
 
 
 def test_droid_normalised_velocities_move_a_fifth_of_a_radian_a_step(rig: Rig) -> None:
     action = np.array([0.5, 0, 0, 0, 0, -0.25, 0, 0.0])
-    with DroidActions(rig.panda, normalized=True, speed_factor=0.5, timeout=None) as actions:
+    with DroidActions(rig.panda, from_measured=False, controller=follower(0.5)) as actions:
         start = actions.target.copy()
         for _ in range(3):
             actions.apply(action)
@@ -97,9 +110,9 @@ def test_droid_normalised_velocities_move_a_fifth_of_a_radian_a_step(rig: Rig) -
         settle(rig, actions)
         np.testing.assert_allclose(rig.panda.q, expected, atol=AT_TARGET)
         with pytest.raises(ValueError, match=r"normalised joint velocities .* in \[-1, 1\]"):
-            actions.apply([1.2, 0, 0, 0, 0, 0, 0, 0])
+            actions.check([1.2, 0, 0, 0, 0, 0, 0, 0])
     step = action[0] * DROID_MAX_JOINT_DELTA  # [rad]
-    with DroidActions(rig.panda, normalized=True, from_measured=True, timeout=None) as actions:
+    with DroidActions(rig.panda, controller=follower()) as actions:
         first, second = actions.apply(action), actions.apply(action)
         # each from where the arm is, as DROID's; it has hardly moved between the two
         assert abs(second[0] - first[0]) < 0.1 * step
@@ -108,7 +121,7 @@ def test_droid_normalised_velocities_move_a_fifth_of_a_radian_a_step(rig: Rig) -
 
 
 def test_integrated_targets_stop_short_of_the_joint_limits(rig: Rig) -> None:
-    with DroidActions(rig.panda, normalized=True, timeout=None) as actions:
+    with DroidActions(rig.panda, from_measured=False, controller=follower()) as actions:
         for _ in range(40):  # 8 rad of joint 1, were it not clipped
             target = actions.apply([1.0, 0, 0, 0, 0, 0, 0, 0])
         assert target[0] == pytest.approx(actions.q_max[0] - LIMIT_MARGIN)
@@ -120,8 +133,8 @@ def test_joint_position_actions_reach_their_targets(rig: Rig) -> None:
     q0 = rig.panda.q
     goals = q0 + np.outer(np.linspace(0.1, 1.0, 10), [0.3, -0.2, 0.2, 0.3, -0.3, 0.25, 0.4])
     chunk = np.hstack([goals, np.zeros((10, 1))])
-    with DroidActions(rig.panda, space=ActionSpace.JOINT_POSITION, speed_factor=0.5,
-                      timeout=None) as actions:  # fmt: skip
+    with DroidActions(rig.panda, space=ActionSpace.JOINT_POSITION,
+                      controller=follower(0.5)) as actions:  # fmt: skip
         stats = PolicyRunner(actions, lambda obs: {"actions": chunk}).run(10)
         np.testing.assert_array_equal(actions.target, goals[-1])
         settle(rig, actions)
@@ -132,7 +145,7 @@ def test_joint_position_actions_reach_their_targets(rig: Rig) -> None:
 def test_the_gripper_command_closes_and_opens_the_hand(rig: Rig) -> None:
     gripper = rig.gripper
     hold = np.zeros(8)
-    with DroidActions(rig.panda, gripper) as actions:
+    with DroidActions(rig.panda, gripper, binarize=False) as actions:
         actions.apply(hold)  # 0: open, as it is
         first = actions.gripper_future
         assert first is not None and first.result(timeout=30)
@@ -166,9 +179,9 @@ def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Ri
             time.sleep(0.001)
         return chunk
 
-    with DroidActions(rig.panda, speed_factor=0.5, timeout=None) as actions:
+    with rad_per_s(rig) as actions:
         start = actions.target.copy()
-        stats = PolicyRunner(actions, slow_policy, replan_every=6).run(12)
+        stats = PolicyRunner(actions, slow_policy, replan_every=6, late="fold").run(12)
         assert len(calls) == 2  # every 6 periods
         assert stats.late == 2 and stats.skipped >= 6  # each call skipped 3 periods or more
         # each call's 6 periods: the late ones folded into the step after the call
@@ -178,12 +191,41 @@ def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Ri
     assert max(stats.latency) >= 3.2 / RATE
 
 
+def test_a_slow_policy_has_its_chunk_run_in_order_as_openpi_does(rig: Rig) -> None:
+    chunk = velocity_chunk(12)
+    calls: list[float] = []
+
+    def slow_policy(obs: dict) -> np.ndarray:  # thinks for 3.2 periods of the robot's clock
+        calls.append(obs["time"])
+        until, deadline = obs["time"] + 3.2 / RATE, time.monotonic() + 60
+        while robot_s(rig) < until:
+            assert time.monotonic() < deadline
+            time.sleep(0.001)
+        return chunk
+
+    with rad_per_s(rig) as actions:
+        start = actions.target.copy()
+        stats = PolicyRunner(actions, slow_policy, replan_every=6).run(12)
+        assert len(calls) == 2 and stats.steps == 12
+        # every action ran, one a step, the first six of each chunk: nothing skipped
+        assert stats.skipped == 0 and stats.held == 0 and len(stats.latency) == 12
+        expected = start + 2 * chunk[:6, :7].sum(axis=0) / RATE
+        np.testing.assert_allclose(actions.target, expected, atol=1e-12)
+        # the two steps after a call were late; the ones after them a period apart again
+        assert stats.late == 2
+        assert max(stats.latency) >= 3.2 / RATE
+        assert sorted(stats.latency)[9] < 1.0 / RATE
+        # the run took the 12 periods plus the two calls' delays, as openpi's loop does
+        assert calls[1] - calls[0] >= (6 + 3.2 - 1) / RATE
+    print("\n" + stats.summary())
+
+
 def test_a_chunk_that_runs_out_holds_until_the_next_call(rig: Rig) -> None:
     chunk = np.zeros((3, 8))
     chunk[:, 0] = 0.15  # [rad/s]
-    with DroidActions(rig.panda, timeout=None) as actions:
+    with rad_per_s(rig, controller=follower()) as actions:
         start = actions.target.copy()
-        stats = PolicyRunner(actions, lambda obs: chunk, replan_every=5).run(10)
+        stats = PolicyRunner(actions, lambda obs: chunk, replan_every=5, late="fold").run(10)
         np.testing.assert_allclose(actions.target, start + np.array([6 * 0.01, 0, 0, 0, 0, 0, 0]))
         settle(rig, actions)
     assert stats.policy_calls == 2  # at periods 0 and 5
@@ -205,7 +247,7 @@ def test_a_reflex_mid_run_raises_and_nothing_more_is_sent(rig: Rig) -> None:
                 time.sleep(0.001)
         return np.array([0.1, 0, 0, 0, 0, 0, 0, 0.0])
 
-    with DroidActions(rig.panda, timeout=None) as actions:
+    with rad_per_s(rig, controller=follower()) as actions:
         start = actions.target.copy()
         with pytest.raises(ControlException) as raised:
             PolicyRunner(actions, policy).run(10)
@@ -223,7 +265,7 @@ def test_a_camera_costs_a_lockstep_policy_no_robot_time(rig: Rig) -> None:
     """An image takes milliseconds to draw; a lockstep simulator's time stands still
     meanwhile (its camera holds the next tick), as it does while it waits for commands."""
     simulated, wall = [], []  # [s] robot and wall time across each image
-    with DroidActions(rig.panda, timeout=None, cameras={"front": rig.sim.render}) as actions:
+    with DroidActions(rig.panda, cameras={"front": rig.sim.render}) as actions:
         for _ in range(7):
             t, w = robot_s(rig), time.perf_counter()
             actions.cameras["front"]()
@@ -241,7 +283,7 @@ def test_a_camera_costs_a_lockstep_policy_no_robot_time(rig: Rig) -> None:
 
 
 def test_bad_actions_are_refused_and_nothing_is_sent(rig: Rig) -> None:
-    with DroidActions(rig.panda, rig.gripper, timeout=None) as actions:
+    with rad_per_s(rig, gripper=rig.gripper, out_of_range="raise") as actions:
         target, future = actions.target.copy(), actions.gripper_future
         dq_max = actions.dq_max
         fast = np.zeros(8)
@@ -272,7 +314,7 @@ def test_bad_actions_are_refused_and_nothing_is_sent(rig: Rig) -> None:
         np.testing.assert_array_equal(actions.target, target)
         settle(rig, actions)
         np.testing.assert_allclose(rig.panda.q, target, atol=AT_TARGET)  # nothing moved it
-    with DroidActions(rig.panda, space=ActionSpace.JOINT_POSITION) as actions:
+    with DroidActions(rig.panda, space=ActionSpace.JOINT_POSITION, out_of_range="raise") as actions:
         with pytest.raises(ValueError, match=r"within the joint limits; action 0, joint 1"):
             actions.apply(outside)
     with pytest.raises(ValueError, match="space: expected an ActionSpace"):
@@ -283,6 +325,10 @@ def test_bad_actions_are_refused_and_nothing_is_sent(rig: Rig) -> None:
         DroidActions(rig.panda, grasp_force=500.0)
     with pytest.raises(ValueError, match="normalized: only joint velocities"):
         DroidActions(rig.panda, space=ActionSpace.JOINT_POSITION, normalized=True)
+    with pytest.raises(ValueError, match="out_of_range: expected one of"):
+        DroidActions(rig.panda, out_of_range="ignore")
+    with pytest.raises(ValueError, match=r"controller: expected a joint controller with"):
+        DroidActions(rig.panda, controller=object())
     with pytest.raises(RuntimeError, match="not started"):
         DroidActions(rig.panda).apply(np.zeros(8))
 

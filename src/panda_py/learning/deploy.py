@@ -1,34 +1,43 @@
-"""Deploying a learned policy: DROID's action contract on the streamed-target control.
+"""Deploying a learned policy: DROID's action contract on a Franka.
 
-DROID's robots, and the policies trained on its data (openpi's pi0-FAST-DROID and
-pi0.5-DROID among them), act at 15 Hz with an action of 8 numbers: 7 joint velocities or
-joint positions, then a gripper command in [0, 1], 0 open and 1 closed (droid-dataset/droid,
-``droid/franka/robot.py``: ``create_action_dict`` with the action spaces
-``joint_velocity``/``joint_position`` and the gripper space ``position``; the fingers go
-to ``max_width * (1 - command)``). Such policies emit action CHUNKS, (H, 8) arrays of the
-next H actions, of which the robot runs a few open loop before it asks again (openpi's
-``examples/droid/main.py``: chunks of 10 or 15, ``open_loop_horizon`` 8).
+:class:`DroidActions` executes actions as DROID's robots did when the data its policies
+learned from was recorded (:mod:`panda_py.learning.droid` says where DROID and openpi
+define each convention): normalised joint velocities, 0.2 rad a step at 1, integrated from
+the measured joints at 15 Hz, followed by polymetis's hybrid joint impedance with DROID's
+gains (:class:`~panda_py.controllers.HybridJointImpedance`); the gripper command binarised
+and every value clipped as openpi's DROID client does, the clipped actions counted; the
+observations under openpi's DROID names, the flange's pose as ``cartesian_position``.
+:class:`~panda_py.learning.policy_runner.PolicyRunner` calls a policy
+``observation -> action or chunk`` at the policy rate on the robot's clock and runs its
+chunks.
 
-:class:`DroidActions` maps those actions onto :class:`~panda_py.controllers.JointTarget`
-(a jerk-limited reference toward the newest target at 1 kHz, under joint impedance) and
-the Franka Hand's asynchronous ``move``/``grasp``; :class:`PolicyRunner` calls a policy
-``observation -> action or chunk`` at the policy rate on the robot's clock and executes
-the chunks, one action per period. Every action is checked before anything of it is
-sent: a wrong shape, a NaN, a velocity beyond the robot's limits, a position outside its
-joint limits or a gripper command outside [0, 1] raise ValueError and nothing is sent.
+Options leave DROID's contract where a policy was trained otherwise: joint velocities in
+rad/s (``normalized=False``), joint positions (``space``), targets integrated from the last
+target (``from_measured=False``), a smoother follower (``controller=JointTarget(...)``),
+out-of-range actions refused (``out_of_range="raise"``). Every action is checked before
+anything of it is sent: a wrong shape or a NaN raise ValueError and nothing is sent.
 """
 
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
 
 from panda_py import checks
-from panda_py.controllers import JointTarget, streaming
+from panda_py.controllers import HybridJointImpedance
+from panda_py.learning import droid
+from panda_py.learning.droid import (
+    ACTION_SIZE,
+    DROID_HOME,
+    DROID_MAX_JOINT_DELTA,
+    GRIPPER_CLOSE,
+    GRIPPER_SPEED,
+    POLICY_RATE,
+    as_chunk,
+)
 from panda_py.libfranka import Gripper
 from panda_py.libfranka.gripper import CommandFuture
 from panda_py.panda import Panda
@@ -36,6 +45,7 @@ from panda_py.robots.params import FRANKA_HAND
 
 __all__ = [
     "ACTION_SIZE",
+    "DROID_HOME",
     "DROID_MAX_JOINT_DELTA",
     "GRIPPER_CLOSE",
     "GRIPPER_THRESHOLD",
@@ -46,78 +56,45 @@ __all__ = [
     "as_chunk",
 ]
 
-POLICY_RATE = 15.0  # [Hz] DROID's control frequency (droid/robot_ik/robot_ik_solver.py)
-ACTION_SIZE = 8  # 7 joints, then the gripper
-# [rad] a step's joint move at a normalised velocity of 1: DROID's RobotIKSolver
-# max_joint_delta (joint_velocity_to_delta: delta = velocity * 0.2 per 1/15 s step)
-DROID_MAX_JOINT_DELTA = 0.2
-# A gripper command above this closes the hand (a grasp); openpi's DROID client binarises
-# the policy's gripper output at 0.5 the same way (examples/droid/main.py)
-GRIPPER_CLOSE = 0.5
-# An opening command that moved less than this from the last one sent sends nothing (the
-# hand runs one action at a time: each new one aborts the running one)
+# Without binarising: an opening command that moved less than this from the last one sent
+# sends nothing (the hand runs one action at a time: each new one aborts the running one)
 GRIPPER_THRESHOLD = 0.1
-GRIPPER_SPEED = 0.1  # [m/s] the hand's fastest
 GRASP_FORCE = 20.0  # [N]
 # [rad] integrated velocity targets stay this far inside the joint limits (the robot's
-# reflex trips at the limits; the impedance tracking overshoots the reference a little)
+# reflex trips at the limits; the impedance tracking overshoots the target a little)
 LIMIT_MARGIN = 0.05
+OUT_OF_RANGE = ("clip", "raise")
 
 
 class ActionSpace(enum.Enum):
     """What an action's first 7 numbers are (DROID's names)."""
 
-    JOINT_VELOCITY = "joint_velocity"  # [rad/s], or DROID's normalised [-1, 1]
+    JOINT_VELOCITY = "joint_velocity"  # DROID's normalised [-1, 1], or [rad/s]
     JOINT_POSITION = "joint_position"  # [rad]
-
-
-def as_chunk(actions: Any) -> np.ndarray:
-    """An action (8,) or a chunk (H, 8) as a float (H, 8) array; a mapping with an
-    ``"actions"`` entry (what openpi's policy client returns) gives that entry."""
-    if isinstance(actions, Mapping):
-        if "actions" not in actions:
-            raise ValueError(
-                f"actions: expected an array, or a mapping with an 'actions' entry (as "
-                f"openpi's policies return); got a mapping of {sorted(map(str, actions))}"
-            )
-        actions = actions["actions"]
-    try:
-        chunk = np.array(actions, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(
-            f"actions: expected numbers, an (8,) action or an (H, 8) chunk; got {actions!r}"
-        ) from exc
-    if chunk.ndim == 1:
-        chunk = chunk[None, :]
-    if chunk.ndim != 2 or chunk.shape[1] != ACTION_SIZE or chunk.shape[0] == 0:
-        raise ValueError(
-            f"actions: expected an action of shape ({ACTION_SIZE},) or a chunk (H, "
-            f"{ACTION_SIZE}), H >= 1: 7 joint values and a gripper command; got shape "
-            f"{np.shape(actions)}"
-        )
-    if not np.isfinite(chunk).all():
-        row, col = np.argwhere(~np.isfinite(chunk))[0]
-        raise ValueError(
-            f"actions: expected finite values; action {row} has {chunk[row, col]} at {col}"
-        )
-    return chunk
 
 
 class DroidActions:
     """DROID's action contract on ``panda`` (and its ``gripper``, optional): while
     running (``start``/``stop``, or ``with``), :meth:`apply` turns an action into a joint
-    target for :class:`~panda_py.controllers.JointTarget` and, when the gripper command
-    changes, a hand action.
+    setpoint for the ``controller`` and, when the gripper command changes, a hand action.
 
-    ``space``: joint velocities [rad/s] (``normalized``: DROID's [-1, 1], times
-    :data:`DROID_MAX_JOINT_DELTA` rad a period) integrated at ``rate`` [Hz] from the last
-    target (``from_measured``: from the measured joints, as DROID does; its targets then
-    lag the integral by the tracking error), clipped to the joint limits less
-    :data:`LIMIT_MARGIN`; or joint positions [rad] within the joint limits. The gripper:
-    above :data:`GRIPPER_CLOSE` a grasp with ``grasp_force`` [N], else a move to
-    ``max_width * (1 - command)``; sent when the command crosses that line or moves by
-    ``gripper_threshold``. ``speed_factor`` and ``timeout`` [s] are the JointTarget's: a
-    policy that stops acting brings the arm to rest after ``timeout``.
+    By default, DROID's and openpi's (:mod:`panda_py.learning.droid`): ``space`` joint
+    velocities, ``normalized`` (1 = :data:`DROID_MAX_JOINT_DELTA` rad a period, a vector
+    beyond 1 scaled down by its largest), integrated at ``rate`` [Hz] ``from_measured``
+    joints (else from the last target), clipped to the joint limits less
+    :data:`LIMIT_MARGIN`; the ``controller`` a
+    :class:`~panda_py.controllers.HybridJointImpedance` with DROID's gains (any controller
+    with ``set_target(q)`` will do, e.g. a
+    :class:`~panda_py.controllers.JointTarget`); ``out_of_range`` actions clipped as
+    openpi's client clips them (counted in :attr:`clipped`) or refused (``"raise"``).
+    Joint positions [rad] (``space``) are taken within the joint limits.
+
+    The gripper command (0 open, 1 closed) is binarised at :data:`GRIPPER_CLOSE`
+    (``binarize``, openpi's); closing grasps with ``grasp_force`` [N] (a Franka Hand
+    holds nothing by moving: DROID's Robotiq does), opening moves to
+    ``max_width * (1 - command)`` at DROID's :data:`~panda_py.learning.droid.GRIPPER_SPEED`;
+    without binarising, a new opening command is sent when it moved by
+    ``gripper_threshold``.
 
     ``cameras`` (name -> a call returning an (H, W, 3) uint8 image, e.g.
     ``{"exterior_image_1_left": sim.render}``) add images to :meth:`observation`."""
@@ -129,10 +106,11 @@ class DroidActions:
         *,
         space: ActionSpace = ActionSpace.JOINT_VELOCITY,
         rate: float = POLICY_RATE,
-        normalized: bool = False,
-        from_measured: bool = False,
-        speed_factor: float = streaming.SPEED_FACTOR,
-        timeout: float | None = streaming.TIMEOUT,
+        normalized: bool | None = None,
+        from_measured: bool = True,
+        controller: Any = None,
+        out_of_range: str = "clip",
+        binarize: bool = True,
         grasp_force: float = GRASP_FORCE,
         gripper_threshold: float = GRIPPER_THRESHOLD,
         cameras: Mapping[str, Callable[[], np.ndarray]] | None = None,
@@ -141,33 +119,46 @@ class DroidActions:
             raise ValueError(f"space: expected an ActionSpace {list(ActionSpace)}, got {space!r}")
         if not (isinstance(rate, (int, float)) and 1.0 <= rate <= 1000.0):
             raise ValueError(f"rate: expected a policy rate in 1..1000 Hz, got {rate!r}")
+        if out_of_range not in OUT_OF_RANGE:
+            raise ValueError(f"out_of_range: expected one of {OUT_OF_RANGE}, got {out_of_range!r}")
+        if controller is None:
+            controller = HybridJointImpedance()
+        elif not callable(getattr(controller, "set_target", None)):
+            raise ValueError(
+                f"controller: expected a joint controller with set_target(q) (e.g. "
+                f"HybridJointImpedance, JointTarget), got {controller!r}"
+            )
         gripper_threshold = checks.number(
             "gripper_threshold", gripper_threshold, low=0.0, low_open=True, high=1.0
         )
         grasp_force = checks.number(
             "grasp_force", grasp_force, "[N]", low=0.0, high=FRANKA_HAND.peak_force
         )
-        if normalized and space is not ActionSpace.JOINT_VELOCITY:
+        velocities = space is ActionSpace.JOINT_VELOCITY
+        if normalized and not velocities:
             raise ValueError("normalized: only joint velocities are normalised (DROID's)")
         self.panda, self.gripper = panda, gripper
         self.space, self.rate = space, float(rate)
-        self.normalized, self.from_measured = bool(normalized), bool(from_measured)
+        self.normalized = velocities and normalized is not False
+        self.from_measured = bool(from_measured)
+        self.out_of_range, self.binarize = out_of_range, bool(binarize)
         self.grasp_force = grasp_force
         self.gripper_threshold = float(gripper_threshold)
         self.cameras = dict(cameras or {})
-        self.controller = JointTarget(speed_factor, timeout=timeout)
+        self.controller = controller
         self.q_min = np.asarray(panda.get_joint_limits_lower())
         self.q_max = np.asarray(panda.get_joint_limits_upper())
         self.dq_max = np.asarray(panda.get_model().spec.joints.dq_max)  # [rad/s]
         self.max_width = 0.0  # [m] the hand's, read at start
         self.target: np.ndarray | None = None  # the last joint target sent [rad]
+        self.clipped = 0  # actions with a value clipped (out_of_range="clip"), all told
         self._gripper_sent: float | None = None  # the last gripper command sent
         self.gripper_future: CommandFuture | None = None  # the hand's running action
 
     # --- lifecycle ----------------------------------------------------------------------
 
     def start(self) -> DroidActions:
-        """Start the streamed-target controller where the arm is."""
+        """Start the controller where the arm is."""
         if self.gripper is not None:
             self.max_width = self.gripper.read_once().max_width
             if not self.max_width > 0.0:  # a Franka Hand learns its stroke by homing
@@ -185,6 +176,18 @@ class DroidActions:
             self.target = None
             self.panda.stop_controller()
 
+    def reset(self, speed_factor: float = 0.2) -> None:
+        """DROID's reset (``droid/robot_env.py`` lines 65-73): the hand opened, then the arm
+        moved to :data:`DROID_HOME`; the controller, if it ran, starts again there."""
+        running = self.target is not None
+        self.stop()
+        if self.gripper is not None:
+            width = self.gripper.read_once().max_width
+            self.gripper.move(width, GRIPPER_SPEED)
+        self.panda.move_to_joint_position(DROID_HOME, speed_factor=speed_factor)
+        if running:
+            self.start()
+
     def __enter__(self) -> DroidActions:
         return self.start()
 
@@ -198,10 +201,19 @@ class DroidActions:
         """The policy period [s]."""
         return 1.0 / self.rate
 
+    def _joint_range(self) -> tuple[np.ndarray, np.ndarray, str, str]:
+        """The joints' allowed values: low, high, what they are, their unit."""
+        if self.space is ActionSpace.JOINT_POSITION:
+            return self.q_min, self.q_max, "joint positions within the joint limits", " rad"
+        if self.normalized:
+            high = np.ones(7)
+            return -high, high, "normalised joint velocities (DROID's) in [-1, 1]", ""
+        return -self.dq_max, self.dq_max, "joint velocities within the robot's limits", " rad/s"
+
     def check(self, actions: Any) -> np.ndarray:
         """``actions`` (an (8,) action, an (H, 8) chunk or openpi's ``{"actions": ...}``)
-        checked against this contract, as an (H, 8) array; ValueError (what, expected,
-        given) otherwise. Sends nothing."""
+        checked strictly against this contract, as an (H, 8) array; ValueError (what,
+        expected, given) for anything out of range. Sends nothing."""
         chunk = as_chunk(actions)
         joints, grip = chunk[:, :7], chunk[:, 7]
         bad = np.argwhere((grip < 0.0) | (grip > 1.0))
@@ -211,15 +223,7 @@ class DroidActions:
                 f"actions: expected a gripper command in [0, 1] (0 open, 1 closed) as the "
                 f"8th value; action {i} has {grip[i]}"
             )
-        if self.space is ActionSpace.JOINT_POSITION:
-            low, high, what = self.q_min, self.q_max, "joint positions within the joint limits"
-            unit = " rad"
-        elif self.normalized:
-            high = np.ones(7)
-            low, what, unit = -high, "normalised joint velocities (DROID's) in [-1, 1]", ""
-        else:
-            high = self.dq_max
-            low, what, unit = -high, "joint velocities within the robot's limits", " rad/s"
+        low, high, what, unit = self._joint_range()
         outside = np.argwhere((joints < low) | (joints > high))
         if outside.size:
             i, j = (int(v) for v in outside[0])
@@ -229,10 +233,26 @@ class DroidActions:
             )
         return chunk
 
+    def prepare(self, actions: Any) -> tuple[np.ndarray, int]:
+        """``actions`` as they will run: a wrong shape or a non-finite value raise
+        ValueError; with ``out_of_range="clip"`` the gripper binarised (``binarize``) and
+        every value clipped as openpi's client does (the count of actions clipped
+        returned too, and added to :attr:`clipped`), else checked strictly (:meth:`check`)
+        and binarised. Sends nothing."""
+        if self.out_of_range == "raise":
+            chunk, clipped = self.check(actions), 0
+            if self.binarize:
+                chunk[:, 7] = (chunk[:, 7] > GRIPPER_CLOSE).astype(np.float64)
+        else:
+            low, high, _, _ = self._joint_range()
+            chunk, clipped = droid.conform(as_chunk(actions), low, high, binarize=self.binarize)
+        self.clipped += clipped
+        return chunk, clipped
+
     def apply(self, action: Any) -> np.ndarray:
         """Execute one action (8,) now: the new joint target [rad] is sent (and returned),
         the gripper commanded if its command changed enough."""
-        chunk = self.check(action)
+        chunk, _ = self.prepare(action)
         if chunk.shape[0] != 1:
             raise ValueError(
                 f"action: expected one action of shape ({ACTION_SIZE},), got a chunk of "
@@ -241,8 +261,8 @@ class DroidActions:
         return self.apply_checked(chunk)
 
     def apply_checked(self, rows: np.ndarray) -> np.ndarray:
-        """Execute checked rows (from :meth:`check`) as one step: the last row's target
-        (velocities: all rows' moves summed, e.g. the periods a late step skipped) and its
+        """Execute prepared rows (from :meth:`prepare`) as one step: the last row's target
+        (velocities: all rows' moves summed, e.g. the periods a late step folded in) and its
         gripper command. Returns the joint target sent [rad]."""
         if self.target is None:
             raise RuntimeError("DroidActions: not started (start() or use it in a with)")
@@ -250,13 +270,12 @@ class DroidActions:
         if self.space is ActionSpace.JOINT_POSITION:
             target = last[:7].copy()
         else:
-            scale = DROID_MAX_JOINT_DELTA if self.normalized else self.period
+            if self.normalized:
+                delta = droid.joint_velocity_to_delta(rows[:, :7]).sum(axis=0)
+            else:
+                delta = rows[:, :7].sum(axis=0) * self.period
             base = self.panda.q if self.from_measured else self.target
-            target = np.clip(
-                base + rows[:, :7].sum(axis=0) * scale,
-                self.q_min + LIMIT_MARGIN,
-                self.q_max - LIMIT_MARGIN,
-            )
+            target = np.clip(base + delta, self.q_min + LIMIT_MARGIN, self.q_max - LIMIT_MARGIN)
         self.controller.set_target(target)
         self.target = target
         self._command_gripper(float(last[7]))
@@ -287,16 +306,10 @@ class DroidActions:
         ``observation/joint_position`` (7,) [rad], ``observation/joint_velocity`` (7,)
         [rad/s], ``observation/gripper_position`` (1,) (0 open, 1 closed; DROID's
         ``1 - width / max_width``; 0 without a hand), ``observation/cartesian_position``
-        (6,) (end effector [m] and extrinsic x-y-z Euler angles [rad], DROID's),
+        (6,) (the flange's position [m] and extrinsic x-y-z Euler angles [rad], DROID's
+        ``panda_link8``: :func:`~panda_py.learning.droid.flange_pose`),
         ``observation/<camera>`` images, and ``time`` [s] of the robot's clock."""
         state = self.panda.get_state()
-        T = np.asarray(state.O_T_EE).reshape(4, 4).T
-        R = T[:3, :3]
-        euler = (
-            math.atan2(R[2, 1], R[2, 2]),
-            -math.asin(max(-1.0, min(1.0, R[2, 0]))),
-            math.atan2(R[1, 0], R[0, 0]),
-        )
         if self.gripper is not None:
             closed = 1.0 - self.gripper.read_once().width / self.max_width
         else:
@@ -305,7 +318,7 @@ class DroidActions:
             "observation/joint_position": np.array(state.q),
             "observation/joint_velocity": np.array(state.dq),
             "observation/gripper_position": np.array([min(1.0, max(0.0, closed))]),
-            "observation/cartesian_position": np.concatenate([T[:3, 3], euler]),
+            "observation/cartesian_position": droid.flange_pose(state.O_T_EE, state.F_T_EE),
             "time": state.time.to_sec(),
         }
         for name, camera in self.cameras.items():
