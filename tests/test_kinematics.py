@@ -13,6 +13,7 @@ import pytest
 
 import panda_py
 from panda_py import kinematics as kin_mod
+from panda_py.jit import LOADED
 from panda_py.kinematics import IKStatus, Kinematics, _backend
 from panda_py.robots.params import DH_FRANKA, FER, FR3, FRANKA_HAND, START_POSE
 
@@ -39,12 +40,12 @@ def _numba_backend():
 @pytest.fixture(params=["pure", "numba"], autouse=True)
 def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     if request.param == "pure":
-        monkeypatch.setattr(_backend, "_JIT", None)
+        monkeypatch.setitem(LOADED, _backend.NAME, None)
     else:
         mod, reason = _numba_backend()
         if mod is None:
             pytest.skip(reason)
-        monkeypatch.setattr(_backend, "_JIT", mod)
+        monkeypatch.setitem(LOADED, _backend.NAME, mod)
     return request.param
 
 
@@ -436,9 +437,9 @@ def _both(monkeypatch: pytest.MonkeyPatch, fn):
     mod, reason = _numba_backend()
     if mod is None:
         pytest.skip(reason)
-    monkeypatch.setattr(_backend, "_JIT", None)
+    monkeypatch.setitem(LOADED, _backend.NAME, None)
     pure = fn()
-    monkeypatch.setattr(_backend, "_JIT", mod)
+    monkeypatch.setitem(LOADED, _backend.NAME, mod)
     return pure, fn()
 
 
@@ -593,7 +594,7 @@ def test_jit_is_lazy_optional_and_survives_an_unwritable_cache(backend: str) -> 
         "import sys, numpy as np, panda_py, panda_py.kinematics as k\n"
         "from panda_py.kinematics import _backend\n"
         "print('numba' in sys.modules, end=' ')\n"
-        "k.fk(np.zeros(7)); print(_backend._JIT is not None)"
+        "k.fk(np.zeros(7)); print(_backend.jit() is not None)"
     )
     assert _python(probe) == "False True"  # not imported with panda_py; used on first call
     assert _python(probe, PANDA_PY_NO_JIT="1") == "False False"

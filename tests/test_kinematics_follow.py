@@ -8,6 +8,7 @@ import os
 import numpy as np
 import pytest
 
+from panda_py.jit import LOADED
 from panda_py.kinematics import Kinematics, _backend
 from panda_py.robots.params import START_POSE
 
@@ -17,14 +18,14 @@ START = np.array(START_POSE)
 @pytest.fixture(params=["pure", "numba"], autouse=True)
 def backend(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     if request.param == "pure":
-        monkeypatch.setattr(_backend, "_JIT", None)
+        monkeypatch.setitem(LOADED, _backend.NAME, None)
     else:
         if os.environ.get("PANDA_PY_NO_JIT", "") not in ("", "0"):
             pytest.skip("PANDA_PY_NO_JIT is set")
         pytest.importorskip("numba")
         from panda_py.kinematics import _numba
 
-        monkeypatch.setattr(_backend, "_JIT", _numba)
+        monkeypatch.setitem(LOADED, _backend.NAME, _numba)
     return request.param
 
 
@@ -78,12 +79,12 @@ def test_the_backends_agree(backend: str) -> None:
     kin = Kinematics("fer")
     poses = straight_down(kin, 50)
     compiled = kin.follow(poses, START, damping=0.01, iterations=3)
-    jit = _backend._JIT
+    jit = LOADED[_backend.NAME]
     try:
-        _backend._JIT = None
+        LOADED[_backend.NAME] = None
         plain = kin.follow(poses, START, damping=0.01, iterations=3)
     finally:
-        _backend._JIT = jit
+        LOADED[_backend.NAME] = jit
     np.testing.assert_allclose(compiled, plain, atol=1e-12)
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from panda_py import kinematics as kin_mod
+from panda_py.jit import LOADED
 from panda_py.kinematics import Q7_SEARCH_STEP, IKStatus, Kinematics, _backend
 from panda_py.robots.params import FER, FR3, START_POSE
 
@@ -34,7 +35,7 @@ def _numba():
 def jit(monkeypatch: pytest.MonkeyPatch):
     """The compiled backend (skips where numba is missing)."""
     mod = _numba()
-    monkeypatch.setattr(_backend, "_JIT", mod)
+    monkeypatch.setitem(LOADED, _backend.NAME, mod)
     return mod
 
 
@@ -255,9 +256,9 @@ def test_the_plain_backend_gives_the_same_answers(monkeypatch: pytest.MonkeyPatc
             kin_mod.ik_result(T, q7_search=math.inf).q_7,
         )
 
-    monkeypatch.setattr(_backend, "_JIT", None)
+    monkeypatch.setitem(LOADED, _backend.NAME, None)
     plain = answers()
-    monkeypatch.setattr(_backend, "_JIT", jit)
+    monkeypatch.setitem(LOADED, _backend.NAME, jit)
     fast = answers()
     for a, b in zip(plain, fast, strict=True):
         np.testing.assert_array_equal(np.isnan(a), np.isnan(b))

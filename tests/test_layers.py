@@ -18,7 +18,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "panda_py"
 
 # bottom first; a unit may import the units of lower layers (and itself) only
 LAYERS: list[set[str]] = [
-    {"checks", "fci", "jitcache", "progress", "warmstart"},
+    {"checks", "fci", "jit", "progress", "warmstart"},
     {"robots", "desk"},
     {"constants", "kinematics", "dynamics", "motion"},
     {"libfranka", "sim"},
@@ -106,9 +106,9 @@ def test_the_simulator_and_the_client_do_not_import_each_other(side: str) -> Non
             f"{f}:{line}: {mod}"
             for f, line, me, mod, _ in _imports()
             if me == "sim"
-            # (jitcache: the compile cache the kinematics use too, no client code)
+            # (jit: the compiled modules and their cache, the kinematics use too, no client code)
             and _unit(mod)
-            not in {"sim", "fci", "robots", "kinematics", "checks", "warmstart", "jitcache"}
+            not in {"sim", "fci", "robots", "kinematics", "checks", "warmstart", "jit"}
         ]
     else:
         bad = [

@@ -7,11 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from panda_py import jit
 from panda_py.fci import PERIOD
+from panda_py.jit import LOADED
 from panda_py.motion import rotation
 from panda_py.motion.online import OnlineGenerator, OnlineLimits, OnlinePose
 from panda_py.robots.params import get_robot
 
+ONLINE_JIT = "panda_py.motion._online_jit"  # the compiled steps (jit.LOADED)
 FER = get_robot("fer")
 
 
@@ -223,6 +226,7 @@ def test_the_pose_generators_frames_are_rotations_along_the_motion() -> None:
     np.testing.assert_array_equal(online._frame(np.zeros(3), np.zeros(3)), np.eye(3))
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_compiled_restart_toward_a_pose_equals_the_python_reference(monkeypatch) -> None:
     """OnlinePose's restart toward a new target (a hand-over's reset_toward, a streamed
     target's set_target: frames, start state and goal) is the same compiled as in NumPy,
@@ -236,7 +240,7 @@ def test_the_compiled_restart_toward_a_pose_equals_the_python_reference(monkeypa
     rng = np.random.default_rng(11)
 
     def restart(compiled: bool, *args: np.ndarray) -> tuple[np.ndarray, ...]:
-        monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+        monkeypatch.setitem(LOADED, ONLINE_JIT, kernels if compiled else None)
         gen = OnlinePose(limits)
         gen.reset_toward(*args)
         inp = gen.gen._inp
@@ -263,6 +267,7 @@ def test_the_compiled_restart_toward_a_pose_equals_the_python_reference(monkeypa
             np.testing.assert_allclose(got, want, rtol=1e-12, atol=tol)
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_compiled_pose_output_equals_the_python_reference() -> None:
     """OnlinePose's per-tick output (base-frame position, orientation, twist, acceleration
     from the aligned generator) is the same compiled as in scalar Python, along moves to
@@ -290,6 +295,7 @@ def test_the_compiled_pose_output_equals_the_python_reference() -> None:
     assert checked == 900
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_compiled_steps_sample_exactly_what_ruckig_steps_to(monkeypatch) -> None:
     """Compiled, ruckig steps once after each change of the generator's input, and the
     steps after it sample the trajectory it calculated (``_online_jit.sample``); ruckig's
@@ -307,7 +313,9 @@ def test_the_compiled_steps_sample_exactly_what_ruckig_steps_to(monkeypatch) -> 
         """``gens[0].method(*args)`` through ruckig's update, ``gens[1]``'s compiled."""
         out = []
         for compiled, gen in zip((False, True), gens, strict=True):
-            monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+            monkeypatch.setitem(
+                LOADED, "panda_py.motion._online_jit", kernels if compiled else None
+            )
             out.append(getattr(gen, method)(*args))
         return out
 
@@ -354,6 +362,7 @@ def test_the_compiled_steps_sample_exactly_what_ruckig_steps_to(monkeypatch) -> 
                                            rtol=1e-12, atol=1e-12)  # fmt: skip
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_compiled_new_target_equals_the_python_reference(monkeypatch) -> None:
     """OnlinePose.set_target mid-motion (the anchor moved to the current orientation, the
     rotation vector's rates turned by its right Jacobian, then the restart toward the
@@ -391,18 +400,21 @@ def test_the_compiled_new_target_equals_the_python_reference(monkeypatch) -> Non
         got = []
         for compiled in (False, True):
             gen = moving(seed)
-            monkeypatch.setattr(online, "_KERNELS", kernels if compiled else None)
+            monkeypatch.setitem(
+                LOADED, "panda_py.motion._online_jit", kernels if compiled else None
+            )
             gen.set_target(target, quat, *arrive)
             inp = gen.gen._inp
             got.append([gen._q0, gen._R0, gen._Ft, gen._Fr, np.array(inp.current_position),
                         np.array(inp.current_velocity), np.array(inp.current_acceleration),
                         np.array(inp.target_position), np.array(inp.target_velocity),
                         np.array(inp.target_acceleration)])  # fmt: skip
-            monkeypatch.setattr(online, "_KERNELS", kernels)
+            monkeypatch.setitem(LOADED, ONLINE_JIT, kernels)
         for want, have in zip(*got, strict=True):
             np.testing.assert_allclose(have, want, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_warmup_loads_every_compiled_step() -> None:
     """``online.warmup()`` (the control process runs it before its loop) compiles or loads
     every kernel the generators call, so none compiles in a tick."""

@@ -13,6 +13,7 @@ import pytest
 
 from panda_py import controllers, kinematics
 from panda_py.controllers import laws
+from panda_py.jit import LOADED
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import START_POSE, get_robot
 
@@ -92,7 +93,7 @@ def test_cartesian_impedance_step_is_the_same_either_way(compiled: bool, monkeyp
     q0 = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
     start = _state(q0, np.zeros(7))
     if not compiled:
-        monkeypatch.setattr(laws, "_KERNELS", None)
+        monkeypatch.setitem(LOADED, laws.KERNELS, None)
     ctrl = controllers.CartesianImpedance(filter_coeff=0.5)
     ctrl.start(start, _Model())
     x = start.O_T_EE[12:15] + np.array([0.02, -0.01, 0.03])
@@ -102,7 +103,7 @@ def test_cartesian_impedance_step_is_the_same_either_way(compiled: bool, monkeyp
         s = _state(q0 + rng.normal(size=7) * 0.01, rng.normal(size=7) * 0.1)
         taus.append(ctrl.step(s, _Model()))
     # the plain law on the same filtered inputs, step by step
-    monkeypatch.setattr(laws, "_KERNELS", None)
+    monkeypatch.setitem(LOADED, laws.KERNELS, None)
     rng = np.random.default_rng(4)
     ref_ctrl = controllers.CartesianImpedance(filter_coeff=0.5)
     ref_ctrl.start(start, _Model())
@@ -148,7 +149,7 @@ def test_finalize_filters_alike_compiled_or_not(monkeypatch) -> None:
     assert laws.JointWalls(np.full(7, -9.0), np.full(7, 9.0)).finalize(
         tau, q, dq, tau_J_d, tau_max, compiled, 0.3
     )
-    monkeypatch.setattr(laws, "_KERNELS", None)
+    monkeypatch.setitem(LOADED, laws.KERNELS, None)
     assert laws.JointWalls(np.full(7, -9.0), np.full(7, 9.0)).finalize(
         tau, q, dq, tau_J_d, tau_max, plain, 0.3
     )
@@ -162,7 +163,7 @@ def test_finalize_refuses_a_non_finite_torque_even_one_it_could_saturate(
     bad: float, compiled: bool, monkeypatch
 ) -> None:
     if not compiled:
-        monkeypatch.setattr(laws, "_KERNELS", None)
+        monkeypatch.setitem(LOADED, laws.KERNELS, None)
     walls = laws.JointWalls(np.full(7, -2.0), np.full(7, 2.0))
     tau = np.zeros(7)
     tau[3] = bad
@@ -220,7 +221,7 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
 
     def run(compiled: bool) -> list[np.ndarray]:
         if not compiled:
-            monkeypatch.setattr(laws, "_KERNELS", None)
+            monkeypatch.setitem(LOADED, laws.KERNELS, None)
         else:
             monkeypatch.undo()
         law, out = PoseMove(plan), []
@@ -409,7 +410,7 @@ def test_the_fused_step_equals_the_separate_calls_and_the_numpy_law(path: str, m
         return out
 
     fused = run()
-    monkeypatch.setattr(laws, "_FUSED", None)
+    monkeypatch.setitem(LOADED, laws.FUSED, None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
     assert np.abs(fused[-1]).max() > 1.0  # the target and the load made it work
@@ -514,9 +515,9 @@ def test_the_fused_pose_tracking_equals_the_separate_calls_and_the_numpy_law(
     monkeypatch.setattr(kernels, "pose_target_step", counted)
     fused = run()
     assert len(calls) == len(states) and 0.0 in calls and 1.0 in calls
-    monkeypatch.setattr(laws, "_FUSED", None)
+    monkeypatch.setitem(LOADED, laws.FUSED, None)
     if path == "numpy":
-        monkeypatch.setattr(laws, "_KERNELS", None)
+        monkeypatch.setitem(LOADED, laws.KERNELS, None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)
 
@@ -548,7 +549,7 @@ def test_the_fused_joint_tracking_equals_the_numpy_law(monkeypatch) -> None:  # 
         return out
 
     fused = run()
-    monkeypatch.setattr(laws, "_FUSED", None)
+    monkeypatch.setitem(LOADED, laws.FUSED, None)
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
 

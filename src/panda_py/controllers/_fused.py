@@ -13,7 +13,7 @@ where code runs on cold caches once a millisecond, that Python cost more than th
 arithmetic).
 
 Compiled with the kinematics' and the dynamics' kernels inside, so cached under a key over
-all of their sources (:mod:`panda_py.jitcache`): an edit to any of them compiles afresh.
+all of their sources (:mod:`panda_py.jit.cache`): an edit to any of them compiles afresh.
 Imported on first use (:func:`panda_py.controllers.laws.fused`) unless
 ``PANDA_PY_NO_JIT=1`` or numba is missing.
 """
@@ -26,8 +26,9 @@ from pathlib import Path
 import numpy as np
 from numba import types
 
-from panda_py import dynamics, jitcache, kinematics
+from panda_py import dynamics, kinematics
 from panda_py.controllers import _kernels, tracking
+from panda_py.jit import cache
 from panda_py.motion import online
 
 _KIN = kinematics.compiled_kernels()
@@ -41,7 +42,7 @@ __all__ = [
     "warmup",
 ]  # fmt: skip
 
-KEY = jitcache.source_key([
+KEY = cache.source_key([
     Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__), Path(tracking.__file__),
     Path(_ONLINE.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
 ])  # fmt: skip
@@ -61,7 +62,7 @@ _ERR, _PINV, _J, _JP = _L["err"][0], _L["J_pinv"][0], _L["J"][0], _L["J_prev"][0
 _M = _L["M"][0]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _jacobian_or_nan(q, chain, J, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """The Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7); False, and NaN
     torques in ``tau``, where ``q`` is not finite."""
@@ -72,7 +73,7 @@ def _jacobian_or_nan(q, chain, J, tau):  # type: ignore[no-untyped-def,unused-ig
     return False
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """``tau += C(q, dq) dq`` of the arm ``origin ... inertia``."""
     coriolis = np.empty(7)
@@ -81,7 +82,7 @@ def _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau):  # type: ignore
         tau[i] += coriolis[i]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
     values, at, filtered, Kd_t, O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, J, tau
 ):  # fmt: skip
@@ -112,7 +113,7 @@ def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
     _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia, armature, coulomb, p_d, quat_d,
     v_d, a_d, law, tau,
@@ -148,7 +149,7 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_step(  # type: ignore[no-untyped-def,unused-ignore]
     tick, traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel, O_T_EE, q, dq,
     chain, origin, ca, sa, mass, h, inertia, armature, coulomb, law, target, out, tau,
@@ -170,7 +171,7 @@ def pose_target_step(  # type: ignore[no-untyped-def,unused-ignore]
                     out, int(tick[4]))  # fmt: skip
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D, q_d, dq_d, ddq_d,
     friction_speed, error_rate, tau,

@@ -4,17 +4,18 @@ microseconds, where the same NumPy expressions take 50-60 us. The plain version 
 :mod:`.laws` stays the reference (tests hold them together).
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
-per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
+per machine and cached on disk under a key over this file (:mod:`panda_py.jit.cache`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from panda_py import jitcache
+from panda_py.jit import cache
 
 __all__ = [
     "cartesian_impedance_torque",
@@ -27,13 +28,13 @@ __all__ = [
     "pose_tracking_torque",
 ]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
-KEY = jitcache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__)])
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: ignore[no-untyped-def,unused-ignore]
     """``controllers.moves.joint_capped``'s factors with the generator's frames: the
     largest scales (<= 1) of the Cartesian velocity (``vt``, ``vr``: the norms' limits of
@@ -63,7 +64,7 @@ def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: 
     return sv, sa
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
     """Unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
     tr = R[0, 0] + R[1, 1] + R[2, 2]
@@ -96,7 +97,7 @@ def _quat_from_rotation(R, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[k] /= n
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _cholesky(A, L):  # type: ignore[no-untyped-def,unused-ignore]
     """The lower triangle ``L`` (n, n; its upper part left as it is) of the symmetric
     positive definite ``A = L L^T``."""
@@ -112,7 +113,7 @@ def _cholesky(A, L):  # type: ignore[no-untyped-def,unused-ignore]
                 L[i, j] = s / L[j, j]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _forward_solve(L, B, Y):  # type: ignore[no-untyped-def,unused-ignore]
     """``Y = L^-1 B`` (n, m) for the lower triangular ``L`` (n, n), by forward
     substitution."""
@@ -125,7 +126,7 @@ def _forward_solve(L, B, Y):  # type: ignore[no-untyped-def,unused-ignore]
             Y[i, c] = s / L[i, i]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
     definite): the damped pseudo-inverse of J^T."""
@@ -150,7 +151,7 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
             out[i, c] = s / L[i, i]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
     """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
     ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
@@ -210,14 +211,14 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
         tau[i] = acc
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, np.zeros(6), K, Kd, q_n, k_n, tau,
                      np.empty(6), np.empty((7, 6)))  # fmt: skip
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max, gain, out):  # type: ignore[no-untyped-def,unused-ignore]
     """What the loop does to every law's torques, in one call: panda-py's joint walls
     (``laws.JointWalls.torques``, the reference: ``walls`` holds per joint lower, upper,
@@ -286,7 +287,7 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
     return finite
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     O_T_EE, J, J_prev, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
     coulomb, friction_speed, error_rate, tau, err, J_pinv,
@@ -326,7 +327,7 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
         tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
     f = filtered.reshape(-1)
     t = target.reshape(-1)
@@ -338,7 +339,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
             f[i] += alpha * (t[i] - f[i])
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # type: ignore[no-untyped-def,unused-ignore]
     """``CartesianImpedance``'s input filter in place (the reference: laws.ema on the
     stiffness, damping, position and nullspace pose, laws.slerp on the orientation)."""
@@ -366,7 +367,7 @@ def pose_filter(alpha, K, K_t, Kd, Kd_t, p, p_t, q_n, q_n_t, quat, quat_t):  # t
     quat[0], quat[1], quat[2], quat[3] = o0 / n, o1 / n, o2 / n, o3 / n
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _symmetric_eigen(A, w, V):  # type: ignore[no-untyped-def,unused-ignore]
     """Eigenvalues into ``w`` (n,) and eigenvectors (columns) into ``V`` (n, n) of the
     symmetric ``A`` (n, n; overwritten), by cyclic Jacobi rotations until the off-diagonal
@@ -415,7 +416,7 @@ def _symmetric_eigen(A, w, V):  # type: ignore[no-untyped-def,unused-ignore]
         w[i] = A[i, i]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _product(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A B`` (written out: numba's ``@`` calls BLAS, dearer for these sizes)."""
     for i in range(A.shape[0]):
@@ -426,7 +427,7 @@ def _product(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
             out[i, j] = acc
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _sandwich(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A B A`` for 6x6 ``A``, ``B``."""
     T = np.empty((6, 6))
@@ -434,7 +435,7 @@ def _sandwich(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
     _product(A, T, out)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untyped-def,unused-ignore]
     """Into ``D`` (6, 6): the Cartesian damping that gives the stiffness ``K`` the damping
     ratio ``zeta`` on the end effector's inertia ``Lambda = (J (M + diag(armature))^-1
@@ -493,7 +494,7 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
             D[i, j] = zeta * (out[i, j] + out[j, i])
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_outputs(p_d, quat_d, v_d, p, quat, stale, out, o):  # type: ignore[no-untyped-def,unused-ignore]
     """``CartesianTarget``'s outputs from offset ``o`` of ``out``: the reference's position,
     orientation and twist, its distance [m] and angle [rad] to the target ``p``, ``quat``,
@@ -509,3 +510,38 @@ def pose_target_outputs(p_d, quat_d, v_d, p, quat, stale, out, o):  # type: igno
     d = abs(quat[0] * quat_d[0] + quat[1] * quat_d[1] + quat[2] * quat_d[2] + quat[3] * quat_d[3])
     out[o + 14] = 2.0 * math.acos(min(1.0, d))
     out[o + 15] = 1.0 if stale else 0.0
+
+
+WARM_STEPS = 6  # the steps :func:`warmup` reports
+
+
+def warmup(advance: Callable[[], object] = lambda: None) -> None:
+    """Run every kernel of this module once (compiled, or loaded from the cache), on
+    inputs of the types the laws pass; ``advance`` after each of :data:`WARM_STEPS`."""
+    J = np.zeros((6, 7))
+    J[:6, :6] = np.eye(6)
+    z7, K = np.zeros(7), np.eye(6)
+    T = np.eye(4).reshape(16)
+    z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
+    cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
+    advance()
+    pose_filter(0.5, K, K, K, K, z3, z3, z7, z7, quat.copy(), quat)
+    advance()
+    # the joint walls, the rate and torque limits and the filter (laws.JointWalls):
+    # per joint lower, upper, PD width, D width, PD stiffness, PD damping, D damping
+    walls = np.tile([-1.0, 1.0, 0.1, 0.1, 1.0, 1.0, 1.0], (7, 1))
+    finalize_torques(z7, z7, z7, z7, walls, np.ones(7), np.zeros(8, dtype=np.int64), 1.0,
+                     z7 + 1.0, 1.0, np.empty(7))  # fmt: skip
+    advance()
+    # the Cartesian moves' and CartesianTarget's tracking (tracking.PoseImpedance)
+    pose_tracking_torque(T, J, J, z7, z7, 1e-3, z3, quat, np.zeros(6), np.zeros(6), K, K, z7,
+                         1.0, np.eye(7), z7, z7, 0.01, 10.0, np.empty(7), np.empty(6),
+                         np.empty((7, 6)))  # fmt: skip
+    advance()
+    # their damping from the arm's inertia (tracking.mass_damping)
+    mass_damping(K, 1.0, np.eye(7), z7, J, 1e-2, np.empty((6, 6)))
+    advance()
+    # the Cartesian moves' and CartesianTarget's limits at a new target, and its outputs
+    joint_scales(J, np.eye(3), np.eye(3), 0.5, 1.0, 1.0, 1.0, 1.0, z7 + 1.0, z7 + 1.0)
+    pose_target_outputs(z3, quat, np.zeros(6), z3, quat, False, np.zeros(16), 0)
+    advance()

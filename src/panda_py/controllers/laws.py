@@ -9,13 +9,12 @@ Conventions: quaternions (x, y, z, w); ``O_T_EE`` flat column-major (16,) as in
 from __future__ import annotations
 
 import math
-import os
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from panda_py import progress
+from panda_py import jit, progress
 from panda_py.motion.rotation import from_matrix
 
 __all__ = [
@@ -46,25 +45,14 @@ DTAU_MAX_PER_TICK = 1.0  # [Nm]
 PINV_DAMPING = 0.01
 
 
-_UNSET: Any = object()
-_KERNELS: Any = _UNSET
-_FUSED: Any = _UNSET
+KERNELS = "panda_py.controllers._kernels"
+FUSED = "panda_py.controllers._fused"
 
 
 def compiled() -> Any:
     """The laws compiled by numba (:mod:`._kernels`), or None (numba missing, or
-    ``PANDA_PY_NO_JIT=1``): imported on first use."""
-    global _KERNELS
-    if _KERNELS is _UNSET:
-        _KERNELS = None
-        if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
-            try:
-                from panda_py.controllers import _kernels
-            except ImportError:
-                pass
-            else:
-                _KERNELS = _kernels
-    return _KERNELS
+    ``PANDA_PY_NO_JIT=1``): imported on first use (:func:`panda_py.jit.optional`)."""
+    return jit.optional(KERNELS)
 
 
 def fused() -> Any:
@@ -72,54 +60,22 @@ def fused() -> Any:
     step and the moves' and streamed targets' tracking, each in one call), or None where
     the laws, the kinematics or the dynamics run without numba: imported (and compiled or
     loaded) on first use."""
-    global _FUSED
-    if _FUSED is _UNSET:
-        _FUSED = None
-        if compiled() is not None:
-            try:
-                from panda_py.controllers import _fused
-            except ImportError:
-                pass
-            else:
-                _FUSED = _fused
-    return _FUSED
+    return jit.optional(FUSED, requires=compiled)
 
 
 def warmup() -> None:
     """Compile (or load from numba's cache) the compiled laws now: the control process
-    calls this before its loop, whose first tick must not wait for a compiler."""
+    calls this before its loop, whose first tick must not wait for a compiler. Each
+    kernel module runs its own kernels on inputs of its own (``_kernels.warmup``,
+    ``_fused.warmup``)."""
     k = compiled()
     if k is not None:
-        J = np.zeros((6, 7))
-        J[:6, :6] = np.eye(6)
-        z7, K = np.zeros(7), np.eye(6)
-        T = np.eye(4).reshape(16)
-        z3, quat = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])
-        with progress.work("panda_py: compiling the control laws, once after installing", 7) as w:
-            k.cartesian_impedance_torque(T, J, z7, z7, z3, quat, K, K, z7, 1.0, np.empty(7))
-            w.advance()
-            k.pose_filter(0.5, K, K, K, K, z3, z3, z7, z7, quat.copy(), quat)
-            w.advance()
-            JointWalls(np.full(7, -1.0), np.full(7, 1.0)).finalize(z7, z7, z7, z7, z7 + 1.0,
-                                                                   np.empty(7))  # fmt: skip
-            w.advance()
-            # the Cartesian moves' and CartesianTarget's tracking (tracking.PoseImpedance)
-            k.pose_tracking_torque(T, J, J, z7, z7, 1e-3, z3, quat, np.zeros(6), np.zeros(6),
-                                   K, K, z7, 1.0, np.eye(7), z7, z7, 0.01, 10.0, np.empty(7),
-                                   np.empty(6), np.empty((7, 6)))  # fmt: skip
-            w.advance()
-            # their damping from the arm's inertia (tracking.mass_damping)
-            k.mass_damping(K, 1.0, np.eye(7), z7, J, 1e-2, np.empty((6, 6)))
-            w.advance()
-            # the Cartesian moves' and CartesianTarget's limits at a new target
-            k.joint_scales(J, np.eye(3), np.eye(3), 0.5, 1.0, 1.0, 1.0, 1.0, z7 + 1.0, z7 + 1.0)
-            # and CartesianTarget's outputs
-            k.pose_target_outputs(z3, quat, np.zeros(6), z3, quat, False, np.zeros(16), 0)
-            w.advance()
-            # the laws compiled with their model terms (CartesianImpedance, the tracking)
+        title = "panda_py: compiling the control laws, once after installing"
+        with progress.work(title, k.WARM_STEPS + 1) as w:
+            k.warmup(w.advance)
             f = fused()
             if f is not None:
-                f.warmup()
+                f.warmup()  # the laws compiled with their model terms
             w.advance()
 
 

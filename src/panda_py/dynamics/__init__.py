@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -26,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panda_py import checks
+from panda_py import checks, jit
 from panda_py.robots.params import GRAVITY, RobotSpec, get_robot
 
 __all__ = [
@@ -365,25 +364,10 @@ def gravity(
     return np.array(_rnea(ch, rot, bodies, zero, zero, (-g[0], -g[1], -g[2])))
 
 
-_UNSET: Any = object()
-_JIT: Any = _UNSET
-
-
 def _jit() -> Any:
     """The compiled recursion (:mod:`panda_py.dynamics._compiled`), or None (numba missing, or
-    ``PANDA_PY_NO_JIT=1``): imported on first use."""
-    global _JIT
-    if _JIT is _UNSET:
-        _JIT = None
-        if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
-            try:
-                from panda_py.dynamics import _compiled
-            except ImportError:
-                pass
-            else:
-                _compiled.warmup()  # compiled (the first time) or loaded, both at once
-                _JIT = _compiled
-    return _JIT
+    ``PANDA_PY_NO_JIT=1``): imported, and its kernels compiled or loaded, on first use."""
+    return jit.optional("panda_py.dynamics._compiled", warm="warmup")
 
 
 def compiled_kernels() -> Any:

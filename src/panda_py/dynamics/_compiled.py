@@ -4,7 +4,7 @@ loop's model terms: about 1.5 us a call where the plain-Python recursion takes 4
 
 Imported by :mod:`.dynamics` on first use unless ``PANDA_PY_NO_JIT=1`` or numba is
 missing; compiled once per machine and cached on disk under a key over this file
-(:mod:`panda_py.jitcache`: per user, whichever checkout or install compiled it).
+(:mod:`panda_py.jit.cache`: per user, whichever checkout or install compiled it).
 """
 
 from __future__ import annotations
@@ -14,17 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py import jitcache, progress
+from panda_py import progress
+from panda_py.jit import cache
 
 __all__ = ["crba", "rnea", "warmup"]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
-KEY = jitcache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__)])
 
 _N = 7
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
     """R_{i-1,i} = RotX(alpha_i) RotZ(q_i), i = 1..7, as (7, 3, 3)."""
     R = np.empty((_N, 3, 3))
@@ -36,14 +37,14 @@ def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
     return R
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _cross(a, b, out):  # type: ignore[no-untyped-def,unused-ignore]
     out[0] = a[1] * b[2] - a[2] * b[1]
     out[1] = a[2] * b[0] - a[0] * b[2]
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A x`` for a 3x3 ``A`` (written out: numba's ``@`` calls BLAS, whose call
     costs more than this product)."""
@@ -52,7 +53,7 @@ def _mv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[r] = A[r, 0] * x0 + A[r, 1] * x1 + A[r, 2] * x2
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mtv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A^T x`` for a 3x3 ``A``."""
     x0, x1, x2 = x[0], x[1], x[2]
@@ -60,7 +61,7 @@ def _mtv(A, x, out):  # type: ignore[no-untyped-def,unused-ignore]
         out[c] = A[0, c] * x0 + A[1, c] * x1 + A[2, c] * x2
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """Joint torques into ``tau`` (7,) for (q, dq, ddq) with base acceleration
     ``a_base`` (``-gravity``); links' ``mass`` (7,), first moments ``h`` (7, 3) and
@@ -123,7 +124,7 @@ def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ig
         tau[i] = no[2]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def,unused-ignore]
     """The joint-space mass matrix into ``M`` (7, 7) (arguments as :func:`rnea`)."""
     R = _rotations(ca, sa, q)

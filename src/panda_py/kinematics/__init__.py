@@ -33,8 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from panda_py.jit import LOADED
 from panda_py.kinematics import _backend, _fk
-from panda_py.kinematics._backend import warmup
+from panda_py.kinematics._backend import NAME, warmup
 from panda_py.kinematics._model import (
     _F64,
     _PACK16,
@@ -65,6 +66,8 @@ __all__ = [
     "warmup",
     "zero_jacobian",
 ]
+
+_UNSET: Any = object()  # the backend not chosen yet (jit.LOADED has no entry)
 
 
 def compiled_kernels() -> Any:
@@ -104,7 +107,7 @@ def _make_fk(kin: Kinematics) -> Any:
     # A closure over the default model: one Python call frame, no attribute look-ups on
     # the fast path (a float64 vector in, one 4x4 array out), on the numba kernel (its
     # signatures refuse other types with a TypeError) or on the plain scalar code.
-    empty, ndarray, F64, UNSET = np.empty, np.ndarray, _F64, _backend._UNSET
+    empty, ndarray, F64, UNSET = np.empty, np.ndarray, _F64, _UNSET
     CF, chain, pack, ee_pose = kin._CF, kin._chain, _PACK16, _fk.ee_pose
     kernel: Any = None  # the numba kernel, once loaded
 
@@ -115,7 +118,7 @@ def _make_fk(kin: Kinematics) -> Any:
         nonlocal kernel
         if robot is None and F_T_EE is None:
             if type(q) is ndarray and q.dtype is F64 and q.ndim == 1:
-                jit = _backend._JIT
+                jit = LOADED.get(NAME, UNSET)
                 if jit is UNSET:
                     jit = _backend.load_jit()
                 if jit is not None:
@@ -170,7 +173,7 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
     # else takes the general path, which also words the error messages.
     if kin._EE_T_F is not None:
         raise ValueError("the fast single-pose ik needs an EE on the flange's z axis")
-    F64, UNSET = _F64, _backend._UNSET
+    F64, UNSET = _F64, _UNSET
     P, start, empty, ndarray = kin._P, kin._start, np.empty, np.ndarray
     shape = (4, 7) if full else 7
     kernel_name = "ik_full_one" if full else "ik_one"
@@ -196,7 +199,7 @@ def _make_ik(kin: Kinematics, full: bool) -> Any:
         if fast:
             q7 = DEFAULT_Q7 if q7 is _NOARG else q7
             qi = start if qi is _NOARG or qi is None else qi
-            jit = _backend._JIT
+            jit = LOADED.get(NAME, UNSET)
             if jit is UNSET:
                 jit = _backend.load_jit()
             if jit is not None and (

@@ -16,35 +16,27 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import jit as jit_
 from panda_py.kinematics import _fk, _follow, _ik
 
-# _UNSET until the first call that could use the JIT, then the :mod:`._numba` module, or
-# None (numba missing, or PANDA_PY_NO_JIT=1). Tests set it.
-_UNSET: Any = object()
-_JIT: Any = _UNSET
+# the compiled kernels (numba), an optional module (panda_py.jit: a test may set its
+# entry in jit.LOADED to run a path plain or compiled)
+NAME = "panda_py.kinematics._numba"
 
 
 def load_jit() -> Any:
     """The JIT backend module, or None: imported on first use (importing numba and
     loading the cached kernels takes a few hundred ms; compiling them the first time,
     after installing or upgrading, tens of seconds, see :func:`warmup`)."""
-    global _JIT
-    if _JIT is _UNSET:
-        if os.environ.get("PANDA_PY_NO_JIT", "") not in ("", "0"):
-            _JIT = None
-        else:
-            try:
-                from panda_py.kinematics import _numba
-            except ImportError:
-                _JIT = None
-            else:
-                _JIT = _numba
-    return _JIT
+    return jit_.optional(NAME)
 
 
 def jit() -> Any:
     """The JIT backend module in use, or None (plain Python)."""
-    return _JIT if _JIT is not _UNSET else load_jit()
+    try:
+        return jit_.LOADED[NAME]
+    except KeyError:
+        return load_jit()
 
 
 def warmup() -> bool:
@@ -52,10 +44,10 @@ def warmup() -> bool:
     compiles later: for a process that must not stall inside its loop (the ``Panda``
     control process, the simulator) before the loop starts. Cheap once done; nothing to
     do on the plain backend. True if the JIT is in use."""
-    jit_ = jit()
-    if jit_ is None:
+    kernels = jit()
+    if kernels is None:
         return False
-    jit_.compile_all()
+    kernels.compile_all()
     return True
 
 

@@ -8,7 +8,7 @@ objects Python runs plain) and the branch-free :mod:`._nbmath` in place of
 :mod:`._scalar`'s libm calls; nothing is compiled until a kernel is first called or
 :func:`compile_all` runs.
 
-The compile cache (:mod:`panda_py.jitcache`: where the user can write, never in
+The compile cache (:mod:`panda_py.jit.cache`: where the user can write, never in
 site-packages) is keyed over the source of every module in this package (what the kernels
 compile: the solvers, the math, the constants they bake in), numba's version and the
 Python build: an edit to a helper or a constant elsewhere selects a new directory and the
@@ -26,7 +26,8 @@ import numba
 import numpy as np
 from numba.extending import overload, register_jitable
 
-from panda_py import jitcache, progress
+from panda_py import progress
+from panda_py.jit import cache
 from panda_py.kinematics import _fk, _follow, _ik, _nbmath, _scalar
 
 _OPTS: dict[str, Any] = {"nogil": True, "error_model": "numpy"}
@@ -66,17 +67,17 @@ for _fn in (
 
 # ----------------------------------------------------------------- the keyed disk cache
 
-SOURCE_KEY = jitcache.source_key(Path(__file__).parent.glob("*.py"))
+SOURCE_KEY = cache.source_key(Path(__file__).parent.glob("*.py"))
 
 
 def cache_dir() -> Path:
     """Where the compiled kernels are kept (see the module docstring)."""
-    return jitcache.cache_dir(SOURCE_KEY)
+    return cache.cache_dir(SOURCE_KEY)
 
 
 def _jit(**kw: Any) -> Any:
     """numba.njit, caching in :func:`cache_dir` where it can."""
-    return jitcache.keyed_jit(SOURCE_KEY, **kw)
+    return cache.keyed_jit(SOURCE_KEY, **kw)
 
 
 # ----------------------------------------------------------------------------- kernels

@@ -10,7 +10,7 @@ more (a new target's trajectory, the targets going stale, the robot's checks fai
 non-finite torque, a contact) it stops before that tick, or hands the rest of it back,
 with a status (:class:`Stop`) saying which; :class:`panda_py.learning.world.FastWorld`
 does that part in Python and goes on. Imported where numba runs (else ImportError);
-cached under a key over its sources and theirs (:mod:`panda_py.jitcache`).
+cached under a key over its sources and theirs (:mod:`panda_py.jit.cache`).
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py import jitcache
 from panda_py.controllers import laws
+from panda_py.jit import cache
 from panda_py.motion import online
 from panda_py.sim import compiled as sim
 
@@ -35,7 +35,7 @@ if _KERNELS is None or _FUSED is None or _ONLINE is None:
 __all__ = ["Stop", "joint_target_ticks", "pose_target_ticks", "read_state"]
 
 KEY = hashlib.sha256(
-    (jitcache.source_key([Path(__file__)]) + sim.KEY + _FUSED.KEY).encode()
+    (cache.source_key([Path(__file__)]) + sim.KEY + _FUSED.KEY).encode()
 ).hexdigest()[:20]
 
 _finalize = _KERNELS.finalize_torques
@@ -72,7 +72,7 @@ S_ERROR_RATE, S_OUT = 13, 14
 SCALARS = 15
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def read_state(sb, at, single, q, dq, O_T_EE, tau_J_d):  # type: ignore[no-untyped-def,unused-ignore]
     """The fields a law and its finishing read, from the robot's state buffer ``sb`` as
     the wire carries them: ``at`` the offsets of q, dq, O_T_EE, tau_J_d; ``single``: 1
@@ -87,7 +87,7 @@ def read_state(sb, at, single, q, dq, O_T_EE, tau_J_d):  # type: ignore[no-untyp
                 dst[i] = sb[a + i]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _before_tick(s):  # type: ignore[no-untyped-def,unused-ignore]
     """Whether the next tick runs as compiled: the targets do not go stale in it (else
     the reference runs it whole: the law's news)."""
@@ -95,7 +95,7 @@ def _before_tick(s):  # type: ignore[no-untyped-def,unused-ignore]
     return not (s[S_STALE] == 0.0 and t - s[S_T_TARGET] > s[S_TIMEOUT])
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _advance(s):  # type: ignore[no-untyped-def,unused-ignore]
     """The generator's compiled step's bookkeeping (``OnlineGenerator._advance``): the
     time to sample at, or -1 where the trajectory has finished (the reference stands)."""
@@ -106,7 +106,7 @@ def _advance(s):  # type: ignore[no-untyped-def,unused-ignore]
     return s[S_GEN_TIME]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot):  # type: ignore[no-untyped-def,unused-ignore]
     """The law's torques ``tau`` finished into ``cmd`` (``laws.JointWalls.finalize``), the
     time published, the robot's tick: a :class:`Stop` and whether the tick completed."""
@@ -121,7 +121,7 @@ def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot):  # type: ignore[no-
     return status, True
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot
 ):  # fmt: skip
@@ -167,7 +167,7 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     return n, _DONE
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     n, s, gen, gains, arm, target, out, reads, walls, buf, robot
 ):  # fmt: skip

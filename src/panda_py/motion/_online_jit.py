@@ -14,7 +14,7 @@
   :func:`aim`), each in one call (the NumPy reference: ``OnlinePose._aim``).
 
 Imported on first use unless ``PANDA_PY_NO_JIT=1`` or numba is missing; compiled once
-per machine and cached on disk under a key over this file (:mod:`panda_py.jitcache`).
+per machine and cached on disk under a key over this file (:mod:`panda_py.jit.cache`).
 """
 
 from __future__ import annotations
@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py import jitcache
+from panda_py.jit import cache
 
 __all__ = ["ROW", "aim", "publish_pose", "restart_toward", "retarget", "sample", "sample_pose"]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
-KEY = jitcache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__)])
 
 # a packed profile's row (one coordinate): the brake's duration, its two phases' times,
 # jerks, accelerations, velocities and positions; the profile's phase durations (7),
@@ -42,7 +42,7 @@ ROW = 49
 SMALL_ANGLE = 1e-8
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore[no-untyped-def,unused-ignore]
     """The state at time ``t`` [s] of a one-section trajectory of ``duration`` [s] packed
     in ``traj`` (n, ROW) into ``position``, ``velocity``, ``acceleration`` (each (n,)):
@@ -85,7 +85,7 @@ def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore
         acceleration[d] = a0 + tt * j
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def sample_pose(traj, duration, t, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel):  # type: ignore[no-untyped-def,unused-ignore]
     """:func:`sample` into the generator's ``p``, ``v``, ``a`` (6,), then
     :func:`publish_pose` from them: an OnlinePose's compiled step in one call."""
@@ -93,7 +93,7 @@ def sample_pose(traj, duration, t, p, v, a, Ft, Fr, R0, q0, position, orientatio
     publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mv(A, x, i0, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
     """``out[o0:o0+3] = A x[i0:i0+3]`` for a 3x3 ``A``."""
     x0, x1, x2 = x[i0], x[i0 + 1], x[i0 + 2]
@@ -101,7 +101,7 @@ def _mv(A, x, i0, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
         out[o0 + r] = A[r, 0] * x0 + A[r, 1] * x1 + A[r, 2] * x2
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _jacobian_times(x, y, sign, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``J(x) y`` for SO(3)'s left (``sign`` 1) or right (-1) Jacobian of the rotation
     vector ``x``: ``y + sign a (x × y) + b x × (x × y)`` (series expansions near 0, as the
@@ -122,7 +122,7 @@ def _jacobian_times(x, y, sign, out):  # type: ignore[no-untyped-def,unused-igno
     out[2] = y2 + a * c2 + b * d2
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel):  # type: ignore[no-untyped-def,unused-ignore]
     """From the generator's position ``p``, velocity ``v`` and acceleration ``a`` (6,
     translation in frame ``Ft``, rotation vector about the anchor ``q0``/``R0`` in frame
@@ -149,7 +149,7 @@ def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel): 
     _rates(a, accel, Ft, Fr, R0, xs, scratch)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _rates(src, dst, Ft, Fr, R0, xs, scratch):  # type: ignore[no-untyped-def,unused-ignore]
     """A velocity or acceleration ``src`` (6, aligned frames) into ``dst`` (6, base
     frame): the angular part's world rate is ``R0 J_l(x) xd`` (without the Jacobian's
@@ -161,7 +161,7 @@ def _rates(src, dst, Ft, Fr, R0, xs, scratch):  # type: ignore[no-untyped-def,un
     _mv(R0, world, 0, dst, 3)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _frame(dx, dy, dz, fx, fy, fz, F):  # type: ignore[no-untyped-def,unused-ignore]
     """``OnlinePose``'s ``_frame`` into ``F`` (3x3, columns): first axis along ``d`` (or,
     where that is ~0, ``f``; the identity where both are)."""
@@ -190,7 +190,7 @@ def _frame(dx, dy, dz, fx, fy, fz, F):  # type: ignore[no-untyped-def,unused-ign
     F[2, 0], F[2, 1], F[2, 2] = z, w, x * v - y * u
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _mtv(A, x, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
     """``out[o0:o0+3] = A^T x`` for a 3x3 ``A``."""
     x0, x1, x2 = x[0], x[1], x[2]
@@ -198,7 +198,7 @@ def _mtv(A, x, out, o0):  # type: ignore[no-untyped-def,unused-ignore]
         out[o0 + c] = A[0, c] * x0 + A[1, c] * x1 + A[2, c] * x2
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def aim(p, v, a, x, xd, xdd, q0, target, quat, Ft, Fr, start_p, start_v, start_a, goal):  # type: ignore[no-untyped-def,unused-ignore]
     """``OnlinePose._aim``'s arithmetic: from the translation's state ``p, v, a`` (base
     frame) and the rotation vector's ``x, xd, xdd`` (about the anchor ``q0``), toward the
@@ -229,7 +229,7 @@ def aim(p, v, a, x, xd, xdd, q0, target, quat, Ft, Fr, start_p, start_v, start_a
     _mtv(Fr, xt, goal, 3)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def retarget(gp, gv, ga, Ft, Fr, q0, target, quat, anchor, R0, Ft2, Fr2, sp, sv, sa, goal):  # type: ignore[no-untyped-def,unused-ignore]
     """``OnlinePose.set_target``'s arithmetic in one call: the generator's state ``gp``,
     ``gv``, ``ga`` (6,: the translation in frame ``Ft``, the rotation vector about the
@@ -267,7 +267,7 @@ def retarget(gp, gv, ga, Ft, Fr, q0, target, quat, anchor, R0, Ft2, Fr2, sp, sv,
     aim(p, v, a, x, xd, xdd, anchor, target, quat, Ft2, Fr2, sp, sv, sa, goal)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def restart_toward(p, quat, twist, accel, target, tquat, anchor, R0, Ft, Fr, sp, sv, sa, goal):  # type: ignore[no-untyped-def,unused-ignore]
     """``OnlinePose.reset_toward``'s arithmetic in one call (a Cartesian move's hand-over):
     the anchor at the orientation ``quat`` (4, x y z w, any norm; into ``anchor`` and
@@ -288,7 +288,7 @@ def restart_toward(p, quat, twist, accel, target, tquat, anchor, R0, Ft, Fr, sp,
     aim(p, v, a, x, xd, xdd, anchor, target, tquat, Ft, Fr, sp, sv, sa, goal)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _to_matrix(q, R):  # type: ignore[no-untyped-def,unused-ignore]
     """The rotation matrix of the unit quaternion ``q`` into ``R`` (3, 3) (as
     ``rotation.to_matrix``)."""

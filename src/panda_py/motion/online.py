@@ -24,7 +24,6 @@ in frames aligned with where the motion must go (see there).
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,7 +40,7 @@ from ruckig import (
     Trajectory,
 )
 
-from panda_py import checks
+from panda_py import checks, jit
 from panda_py.fci import PERIOD
 from panda_py.motion import rotation
 from panda_py.motion.errors import TrajectoryError
@@ -50,8 +49,6 @@ from panda_py.robots.params import RobotSpec
 __all__ = ["OnlineGenerator", "OnlineLimits", "OnlinePose", "compiled_kernels", "warmup"]
 
 FloatArray = NDArray[np.float64]
-_UNSET = object()
-_KERNELS: Any = _UNSET
 
 
 def compiled_kernels() -> Any:
@@ -65,17 +62,7 @@ def compiled_kernels() -> Any:
 def _compiled() -> Any:
     """:mod:`._online_jit` (OnlinePose's output compiled by numba), or None (numba
     missing, or ``PANDA_PY_NO_JIT=1``): imported on first use."""
-    global _KERNELS
-    if _KERNELS is _UNSET:
-        _KERNELS = None
-        if os.environ.get("PANDA_PY_NO_JIT", "") in ("", "0"):
-            try:
-                from panda_py.motion import _online_jit
-            except ImportError:
-                pass
-            else:
-                _KERNELS = _online_jit
-    return _KERNELS
+    return jit.optional("panda_py.motion._online_jit")
 
 
 # below these a velocity [unit/s] or an acceleration [unit/s^2] is rest: ruckig 0.19 fails

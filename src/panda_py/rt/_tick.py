@@ -21,7 +21,7 @@ reason in ``io[STATUS]``:
 
 The C library's ``poll``, ``recv`` and ``send`` are called as external symbols that the
 dynamic linker resolves when the compiled code loads (no address is compiled in), so the
-code is cached on disk as every other kernel (:mod:`panda_py.jitcache`). The memory
+code is cached on disk as every other kernel (:mod:`panda_py.jit.cache`). The memory
 fences of the shared memory's seqlock and latches are LLVM fences (``seq_cst``: a compiler
 and a hardware barrier on every machine).
 
@@ -42,8 +42,8 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from panda_py import jitcache
 from panda_py.controllers import laws
+from panda_py.jit import cache
 
 _FUSED, _KERNELS = laws.fused(), laws.compiled()
 if _FUSED is None or _KERNELS is None:  # plain Python: the loop runs its Python ticks
@@ -58,7 +58,7 @@ __all__ = [
     "joint_move_ticks", "joint_position_ticks", "pose_move_ticks",
 ]  # fmt: skip
 
-KEY = jitcache.source_key([Path(__file__)]) + _FUSED.KEY[:12]
+KEY = cache.source_key([Path(__file__)]) + _FUSED.KEY[:12]
 
 # io: the kernel's integer words (in and out)
 UDP, CHAN, LAST_ID, MG, CTRL, MOVE, TAKEN, BUDGET, LOGGING, SLOTS, RECORD = range(11)
@@ -153,7 +153,7 @@ def _fence_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
 _fence: Any = intrinsic(_fence_typer)
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _decode(buf, offset, size, count, tmp, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``count`` floats of ``size`` bytes each at ``offset`` of ``buf`` into ``out``
     (float64), through the aligned scratch ``tmp``."""
@@ -168,7 +168,7 @@ def _decode(buf, offset, size, count, tmp, out):  # type: ignore[no-untyped-def,
             out[i] = np.float64(small[i])
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _receive_newest(io, buf, scratch):  # type: ignore[no-untyped-def,unused-ignore]
     """Every datagram queued on the robot's socket, the newest one (by message_id) newer
     than ``io[LAST_ID]`` kept in ``buf`` (its length in ``io[LENGTH]``); its id, or 0 if
@@ -190,7 +190,7 @@ def _receive_newest(io, buf, scratch):  # type: ignore[no-untyped-def,unused-ign
             io[LENGTH] = n
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _wait(io, pfd, header):  # type: ignore[no-untyped-def,unused-ignore]
     """Wait for the robot's next state or a request: 0 when a state is readable (a state
     goes first, as in the loop's Python wait: a request is taken in the gap after it),
@@ -208,7 +208,7 @@ def _wait(io, pfd, header):  # type: ignore[no-untyped-def,unused-ignore]
     return TIMEOUT
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _unchanged(lay, buf, key):  # type: ignore[no-untyped-def,unused-ignore]
     """Whether the state's bytes at the key's spans equal ``key`` (the end effector and
     the load the model's arrays were made for)."""
@@ -222,7 +222,7 @@ def _unchanged(lay, buf, key):  # type: ignore[no-untyped-def,unused-ignore]
     return True
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _answer(io, lay, buf, cmd, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """The command for the state in ``buf`` (its message_id, the torques ``tau``) sent."""
     cmd[:8] = buf[:8]
@@ -232,7 +232,7 @@ def _answer(io, lay, buf, cmd, tau):  # type: ignore[no-untyped-def,unused-ignor
     return n == cmd.size
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _publish(io, buf, header, states, ring, spans):  # type: ignore[no-untyped-def,unused-ignore]
     """The state in ``buf`` into the shared block's latch (two copies) and, if logging,
     one record of the log ring (``rt.shm.SharedBlock.publish_state``, ``LogRing.append``)."""
@@ -258,7 +258,7 @@ def _publish(io, buf, header, states, ring, spans):  # type: ignore[no-untyped-d
         header[H_LOG_COUNT] = count + 1
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _outputs(header, outputs, values, n):  # type: ignore[no-untyped-def,unused-ignore]
     """The law's outputs into the shared block's latch (``SharedBlock.write_outputs``)."""
     header[H_OUT_SEQ] += 1
@@ -270,7 +270,7 @@ def _outputs(header, outputs, values, n):  # type: ignore[no-untyped-def,unused-
     outputs[1, :n] = values[:n]
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _signals(io, header, signals, scratch, n):  # type: ignore[no-untyped-def,unused-ignore]
     """The user's inputs, if they changed since ``io[IN_SEQ]`` and are consistent, into
     ``scratch`` (``SharedBlock.read_signals``); their sequence number, or -1 if the copy
@@ -286,7 +286,7 @@ def _signals(io, header, signals, scratch, n):  # type: ignore[no-untyped-def,un
     return seq
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d):  # type: ignore[no-untyped-def,unused-ignore]
     """The next state taken and decoded: 0, or the status to return with (the state in
     ``buf`` is then left unanswered where it is PENDING)."""
@@ -313,7 +313,7 @@ def _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J
     return 0
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _advance(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
     """The law's clock to the state in ``buf``: its time and dt [s] in ``law_t`` (the
     robot's clock: message_id counts milliseconds, as libfranka's Duration)."""
@@ -324,7 +324,7 @@ def _advance(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
     law_t[1] = dt
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, out_values, t,
             tau, q, dq, tau_J_d, walls, scale, flags, fin, tau_max, command):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
     """The law's torques ``tau`` finished (walls, rate, limits, filter: ``fin`` holds the
@@ -347,7 +347,7 @@ def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, o
     return 0
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, signals, new,
            values, guard, guard_key):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
     """A tick's beginning: wait for the next state, take and decode it, and read the
@@ -376,14 +376,14 @@ def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, s
     return 0
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _next_time(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
     """The law's time at the state in ``buf`` (not yet advanced: :func:`_advance`)."""
     mid = np.int64(buf[:8].view(np.uint64)[0])
     return law_t[0] + (mid - io[LAST_ID]) / 1000.0
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
     """``controllers.laws.ema``: in place, ``filtered <- alpha target + (1 - alpha)
     filtered`` (at once for alpha >= 1)."""
@@ -401,7 +401,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
 # for read-only state arrays); ``values``/``values_in`` likewise the law's inputs.
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -433,7 +433,7 @@ def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -468,7 +468,7 @@ def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -503,7 +503,7 @@ def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -535,7 +535,7 @@ def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -571,7 +571,7 @@ def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@jitcache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, nogil=True)
 def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from panda_py import progress
+from panda_py import jit, progress
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.law import CompiledTicks, ControlLaw, readonly
 from panda_py.libfranka import ActiveControl, TorqueIO
@@ -28,26 +28,13 @@ from panda_py.rt.shm import STATE_MAX, LogRing, SharedBlock
 
 __all__ = ["FastTicks", "Outcome", "kernels", "warm_up"]
 
-_UNSET: Any = object()
-_TICK: Any = _UNSET
-
 
 def kernels() -> Any:
     """The loop kernels (:mod:`panda_py.rt._tick`), or None where the laws run without
     numba (or ``PANDA_PY_NO_JIT=1``): imported, and compiled or loaded, on first use."""
-    global _TICK
-    if _TICK is _UNSET:
-        _TICK = None
-        from panda_py.controllers import laws
+    from panda_py.controllers import laws
 
-        if laws.fused() is not None:
-            try:
-                from panda_py.rt import _tick
-            except ImportError:
-                pass
-            else:
-                _TICK = _tick
-    return _TICK
+    return jit.optional("panda_py.rt._tick", requires=laws.fused)
 
 
 @dataclass

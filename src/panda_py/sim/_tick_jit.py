@@ -11,7 +11,7 @@ dozen NumPy calls on 7-vectors, whose fixed cost (about 0.5 us each) was most of
 rounding: its matrix product sums in an order of its own).
 Imported by :mod:`.fastpath` only when the kinematics run compiled (numba installed,
 ``PANDA_PY_NO_JIT`` unset); compiled once per machine (about 3 s, when the first simulator
-starts) and cached on disk under a key over this file (:mod:`panda_py.jitcache`); the
+starts) and cached on disk under a key over this file (:mod:`panda_py.jit.cache`); the
 kernels call nothing compiled elsewhere.
 """
 
@@ -22,15 +22,15 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py import jitcache
+from panda_py.jit import cache
 
 __all__ = [
     "FIELDS", "all_finite", "fill_state", "joint_limit_bits", "joint_push", "joint_tracking",
     "measured_in_limits", "torque_in_limits",
 ]  # fmt: skip
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jitcache)
-KEY = jitcache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__)])
 
 # The state fields the kernel writes, in the order of its offset vector ``off``.
 FIELDS = (
@@ -51,14 +51,14 @@ MOVING_CARTESIAN = 2  # a Cartesian motion generator runs
 MODE_CHANGED = 4  # the generator differs from the last fill's: write the held zeros
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _put_col_major(sb, at, T):  # type: ignore[no-untyped-def,unused-ignore]
     for c in range(4):
         for r in range(4):
             sb[at + 4 * c + r] = T[r, c]
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def fill_state(  # type: ignore[no-untyped-def,unused-ignore]
     sb, off, q, dq, tau_applied, gravcomp, tau_ext, tau_J_d, jq, jdq, jddq, q_hold,
     cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, fk, xmat, links, const, flags,
@@ -140,7 +140,7 @@ def fill_state(  # type: ignore[no-untyped-def,unused-ignore]
             sb[bottom + 3 * k + j] = v
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def torque_in_limits(tau, tau_J_d, tau_max, dtau_step):  # type: ignore[no-untyped-def,unused-ignore]
     """|tau| <= tau_max and |tau - tau_J_d| <= dtau_step on every joint (False for a NaN)."""
     for i in range(7):
@@ -149,7 +149,7 @@ def torque_in_limits(tau, tau_J_d, tau_max, dtau_step):  # type: ignore[no-untyp
     return True
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def measured_in_limits(q, dq, q_lo, q_hi, dq_hi):  # type: ignore[no-untyped-def,unused-ignore]
     """No joint below q_lo, above q_hi or faster than dq_hi (a NaN passes, as in the
     NumPy reference, whose comparisons are all False for it)."""
@@ -165,7 +165,7 @@ PUSH_VELOCITY = 1  # x: the commanded velocities [rad/s]
 EXTRAPOLATE = 2  # a lost command: keep the acceleration (x unused)
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_push(q, dq, ddq, dddq, x, kind, dt):  # type: ignore[no-untyped-def,unused-ignore]
     """:class:`~panda_py.sim.safety.JointSignal`'s backward-Euler update, in place, with
     its arithmetic operation for operation (``kind``: PUSH_POSITION, PUSH_VELOCITY or
@@ -187,7 +187,7 @@ def joint_push(q, dq, ddq, dddq, x, kind, dt):  # type: ignore[no-untyped-def,un
         q[i] = q_new
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_limit_bits(q, dq, ddq, dddq, upper, lower):  # type: ignore[no-untyped-def,unused-ignore]
     """Which joint limits a commanded signal breaks: bit 0 position (below ``lower`` or
     above ``upper[7:14]``), bit 1 velocity, bit 2 acceleration, bit 3 jerk (``upper``
@@ -206,7 +206,7 @@ def joint_limit_bits(q, dq, ddq, dddq, upper, lower):  # type: ignore[no-untyped
     return bits
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def all_finite(x):  # type: ignore[no-untyped-def,unused-ignore]
     """No NaN and no infinity in the vector ``x``."""
     for i in range(x.shape[0]):
@@ -215,7 +215,7 @@ def all_finite(x):  # type: ignore[no-untyped-def,unused-ignore]
     return True
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_tracking(  # type: ignore[no-untyped-def,unused-ignore]
     M, bias, grav, q, dq, q_d, dq_d, ddq_d, K_theta, K_default, coulomb, omega, fs_inv, out
 ):  # fmt: skip

@@ -14,7 +14,7 @@ keeps the two in step).
 
 Imported only where the kinematics run compiled (numba installed, ``PANDA_PY_NO_JIT``
 unset); cached on disk under a key over this file and the kernels it calls
-(:mod:`panda_py.jitcache`).
+(:mod:`panda_py.jit.cache`).
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ import mujoco
 import numpy as np
 from numba import types
 
-from panda_py import jitcache, kinematics
+from panda_py import kinematics
+from panda_py.jit import cache
 from panda_py.sim import _tick_jit
 
 _KIN = kinematics.compiled_kernels()
@@ -126,7 +127,7 @@ def contact_views(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarra
     return count, pointer, pairs, np.array([base], dtype=np.int64)
 
 
-KEY = jitcache.source_key([
+KEY = cache.source_key([
     Path(__file__), Path(_tick_jit.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
 ])  # fmt: skip
 _fk_one = _KIN.fk_one
@@ -169,7 +170,7 @@ HAND = 4
 G_KP, G_KD, G_MAX_FORCE, G_FORCE_STEP, G_DT = 0, 1, 2, 3, 4  # (G_DT: DT [s])
 
 
-@jitcache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     tau, ints, hand, gains, qpos, qvel, q0, v0, ctrl, applied, tau_applied, gravcomp,
     contacts, xmat, sb, off, tau_J_d, tau_max, dtau_step, tau_ext, q_hold, jq, jdq, jddq,

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from panda_py import fci, kinematics
+from panda_py import fci, jit, kinematics
 from panda_py.fci import MotionGeneratorMode
 from panda_py.robots.params import GRAVITY
 from panda_py.sim.physics import DT, FRICTION_SPEED, OMEGA, Physics
@@ -26,9 +26,9 @@ if TYPE_CHECKING:
 class TickKernels:
     """The compiled kernels bound to one robot's state buffer and model."""
 
-    def __init__(self, jit: Any, kernels: Any, core: StateAssembly) -> None:
+    def __init__(self, kin: Any, kernels: Any, core: StateAssembly) -> None:
         self._k = self.kernels = kernels
-        self._fk_one = jit.single("fk_one")
+        self._fk_one = kin.single("fk_one")
         self._chain = core._kin.chain_constants  # the nominal EE's chain, as core._kin.fk uses
         self._fk = np.zeros((2, 4, 4))
         self._off = np.array([core.state_offsets[n][0] for n in kernels.FIELDS], dtype=np.int64)
@@ -139,12 +139,10 @@ class TickKernels:
 
 def load(core: StateAssembly) -> TickKernels | None:
     """The compiled path for ``core``, or None where the kinematics run plain Python."""
-    jit = kinematics.compiled_kernels()
-    if jit is None:
+    tick = jit.optional("panda_py.sim._tick_jit", requires=kinematics.compiled_kernels)
+    if tick is None:
         return None
-    from panda_py.sim import _tick_jit
-
-    return TickKernels(jit, _tick_jit, core)
+    return TickKernels(kinematics.compiled_kernels(), tick, core)
 
 
 __all__ = ["TickKernels", "load"]

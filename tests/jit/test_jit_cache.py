@@ -1,12 +1,15 @@
-"""The keyed disk cache of the compiled kernels (panda_py.jitcache): the key covers every
+"""The keyed disk cache of the compiled kernels (panda_py.jit.cache): the key covers every
 source file a kernel compiles, so an edit to any of them selects a new directory."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from panda_py import dynamics, jitcache, kinematics
+import pytest
+
+from panda_py import dynamics, jit, kinematics
 from panda_py.controllers import laws
+from panda_py.jit import cache as jitcache
 
 
 def test_the_key_changes_with_any_file_and_only_then(tmp_path: Path) -> None:
@@ -30,6 +33,7 @@ def test_the_cache_lives_under_panda_py_cache(monkeypatch, tmp_path: Path) -> No
     assert jitcache.cache_dir("k1") == tmp_path / "xdg" / "panda_py" / "numba" / "k1"
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles() -> None:
     """The fused laws inline the Jacobian (kinematics), the recursions (dynamics), the
     online generator's sampling, and read PoseImpedance's buffer at its layout's offsets
