@@ -96,6 +96,8 @@ def test_episodes_round_trip(tmp_path: Path, codec: str) -> None:
     rng = np.random.default_rng(30)
     written = [("stack the cube", steps(rng, 6)), ("open the drawer", steps(rng, 4, 6)),
                ("stack the cube", steps(rng, 3, 10))]  # fmt: skip
+    prompt, second = written[1]  # its entries in another order: the same columns
+    written[1] = (prompt, [(dict(reversed(o.items())), a, t) for o, a, t in second])
     root = tmp_path / "dataset"
     record(root, written, codec=codec)
     recording = read_lerobot(root)
@@ -359,3 +361,66 @@ def test_lerobot_loads_what_we_write(tmp_path: Path) -> None:
     ours = np.concatenate([e.obs["exterior_image_1_left"] for e in read_lerobot(root).episodes])
     assert np.abs(frames.astype(int) - ours).max() <= 2
     assert "observation.images.exterior_image_1_left" in out["stats"] and "action" in out["stats"]
+
+
+# lerobot's own writer: a video camera, an "image" camera (PNG files in the rows), a reward
+PEER_WRITER = """
+import json, sys
+import numpy as np
+from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+data = json.load(sys.stdin)
+image = {"dtype": "video", "shape": (24, 32, 3), "names": ["height", "width", "channels"]}
+features = {
+    "observation.state": {"dtype": "float32", "shape": (8,), "names": None},
+    "action": {"dtype": "float32", "shape": (8,), "names": None},
+    "observation.images.front": image,
+    "observation.images.wrist": {**image, "dtype": "image"},
+    "next.reward": {"dtype": "float32", "shape": (1,), "names": None},
+}
+ds = LeRobotDataset.create("local/theirs", fps=data["fps"], features=features, root=data["root"],
+                           robot_type="franka")
+for episode in data["episodes"]:
+    for step in episode["steps"]:
+        ds.add_frame({
+            "observation.state": np.float32(step["state"]), "action": np.float32(step["action"]),
+            "observation.images.front": np.uint8(step["front"]),
+            "observation.images.wrist": np.uint8(step["wrist"]),
+            "next.reward": np.float32([step["reward"]]), "task": episode["task"],
+        })
+    ds.save_episode()
+ds.finalize()
+"""
+
+
+@pytest.mark.peer
+@pytest.mark.timeout(1200)
+def test_we_read_what_lerobot_writes(tmp_path: Path) -> None:
+    try:
+        python = peer_python("lerobot")
+    except PeerUnavailable as exc:
+        pytest.skip(str(exc))
+    rng = np.random.default_rng(34)
+    episodes = []
+    for task, ks in (("stack the cube", range(4)), ("open the drawer", range(4, 7))):
+        steps_ = [{"state": rng.normal(size=8).tolist(), "action": rng.normal(size=8).tolist(),
+                   "front": image(k).tolist(), "wrist": image(20 - k)[::-1].tolist(),
+                   "reward": float(k == ks[-1])} for k in ks]  # fmt: skip
+        episodes.append({"task": task, "steps": steps_})
+    root = tmp_path / "theirs"
+    payload = {"fps": FPS, "root": str(root), "episodes": episodes}
+    done = subprocess.run([str(python), "-c", PEER_WRITER], env=peer_environ(), capture_output=True,
+                          text=True, input=json.dumps(payload), timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    recording = read_lerobot(root)
+    assert recording.env_args == {"fps": FPS, "robot_type": "franka"}
+    assert [e.name for e in recording.episodes] == ["episode_0", "episode_1"]
+    for ours, theirs in zip(recording.episodes, episodes, strict=True):
+        steps_ = theirs["steps"]
+        assert ours.attrs == {"prompt": theirs["task"]}
+        assert sorted(ours.obs) == ["front", "state", "wrist"]
+        np.testing.assert_array_equal(ours.obs["state"], np.float32([s["state"] for s in steps_]))
+        np.testing.assert_array_equal(ours.actions, np.float32([s["action"] for s in steps_]))
+        np.testing.assert_array_equal(ours.rewards, [s["reward"] for s in steps_])
+        np.testing.assert_array_equal(ours.obs["wrist"], [s["wrist"] for s in steps_])  # PNG
+        check_frames(ours.obs["front"], np.uint8([s["front"] for s in steps_]))

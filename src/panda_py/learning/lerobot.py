@@ -198,8 +198,9 @@ class LeRobotWriter:
                              names if name == "observation.state" else None,
                 }  # fmt: skip
                 self._ours["shapes"][name] = list(v.shape[1:])
-        for name in rows:  # later episodes: in the first's dtypes
-            rows[name] = rows[name].astype(self._features[name]["dtype"], copy=False)
+        # every episode in the first's order and dtypes (one schema for the Parquet files)
+        rows = {k: rows[k].astype(f["dtype"], copy=False) for k, f in self._features.items()
+                if k in rows}  # fmt: skip
         return rows, frames
 
     def _write(self, steps: list[Step]) -> None:

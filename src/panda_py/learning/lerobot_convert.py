@@ -10,13 +10,14 @@ it was recorded with (``observation.state`` split into ``joint_position`` and
 or one from the Hugging Face Hub) maps ``observation.images.<c>`` to ``obs[<c>]``,
 ``observation.<key>`` to ``obs[<key>]`` (``observation.state`` to ``obs["state"]``),
 ``action.<key>`` to ``action_dict[<key>]`` and ``next.reward``/``next.done`` to rewards and
-dones. Frames are decoded with PyAV into (N, H, W, 3) uint8; like ``read_recording``,
-the whole dataset is read into memory.
+dones. Frames (videos, decoded with PyAV, or lerobot's "image" features) come back as
+(N, H, W, 3) uint8; like ``read_recording``, the whole dataset is read into memory.
 """
 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import os
 from collections.abc import Sequence
@@ -38,9 +39,15 @@ from panda_py.learning.recording import Episode, Recording, read_recording
 __all__ = ["hdf5_to_lerobot", "main", "read_lerobot"]
 
 
-def _column(table: Any, name: str, shape: list[int]) -> np.ndarray:
-    """A column as an array (rows, *shape): a number a row, or a vector (a list)."""
+def _column(table: Any, name: str, shape: list[int], image: bool) -> np.ndarray:
+    """A column as an array (rows, *shape): a number a row, a vector (a list), or an
+    image (lerobot's "image" features: PNG files' bytes) as (H, W, 3) uint8."""
     values = table.column(name).combine_chunks()
+    if image:
+        from PIL import Image  # matplotlib's dependency, so ours
+
+        files = values.field("bytes").to_pylist()
+        return np.stack([np.asarray(Image.open(io.BytesIO(f)).convert("RGB")) for f in files])
     if hasattr(values, "flatten"):
         return values.flatten().to_numpy(zero_copy_only=False).reshape(len(values), *shape)
     return values.to_numpy(zero_copy_only=False).reshape(len(values), *shape)
@@ -85,11 +92,11 @@ def read_lerobot(root: str | os.PathLike[str]) -> Recording:
     data = table("data")
     data = data.take(np.argsort(data.column("index").to_numpy(), kind="stable"))
     index = data.column("index").to_numpy()
-    columns = {  # a number a step: (N,), unless we know better
-        name: _column(data, name, shapes.get(name, [] if ft["shape"] == [1] else ft["shape"]))
-        for name, ft in features.items()
-        if name in data.column_names
-    }
+    columns = {}  # a number a step: (N,), unless we know better
+    for name, ft in features.items():
+        if name in data.column_names:
+            shape = shapes.get(name, [] if ft["shape"] == [1] else ft["shape"])
+            columns[name] = _column(data, name, shape, ft["dtype"] == "image")
     videos: dict[Path, tuple[np.ndarray, list[np.ndarray]]] = {}
     episodes = []
     for e in sorted(meta.to_pylist(), key=lambda e: e["episode_index"]):
@@ -117,8 +124,8 @@ def read_lerobot(root: str | os.PathLike[str]) -> Recording:
             if b - a != n:
                 raise ValueError(f"{path}: expected {n} frames from frame {first}, found {b - a}")
             obs[name.removeprefix(IMAGES)] = np.stack(decoded[a:b])
-        obs.update({k.removeprefix("observation."): v for k, v in rows.items()
-                    if k.startswith("observation.")})  # fmt: skip
+        obs.update({k.removeprefix(IMAGES).removeprefix("observation."): v
+                    for k, v in rows.items() if k.startswith("observation.")})  # fmt: skip
         tasks = list(e["tasks"])
         attrs = ours["episodes"][i] if ours else {"prompt": tasks[0]} if len(tasks) == 1 else {
             "tasks": tasks}  # fmt: skip
