@@ -30,17 +30,17 @@ FPS = 15  # DROID's
 SIZE = (24, 32)  # [px] (H, W): small, so encoding takes milliseconds
 # [levels of 255] how far decoded pixels may be from the images encoded, on average and at
 # the 99th percentile (yuv420p halves the colours' resolution, and these images are tiny);
-# measured on these: AV1 (CRF 30) mean 2.7-3.4, p99 15-22; H.264 (CRF 23) 3.0-3.1, 16-17
+# measured on these: AV1 (CRF 30) mean 2.6-3.4, p99 15-22; H.264 (CRF 23) 2.7-3.1, 16
 MEAN_ERROR, P99_ERROR = 5.0, 30
 
 
 def image(i: int) -> np.ndarray:
-    """A smooth camera image, a different one each step: a gradient, brighter every step,
-    and a blob moving across."""
+    """A smooth camera image, a different one each step: a gradient whose brightness
+    swings, and a blob going round."""
     y, x = np.mgrid[: SIZE[0], : SIZE[1]]
-    cx = 4 + 3 * (i % 8)
-    blob = 120 * np.exp(-((x - cx) ** 2 + (y - 12) ** 2) / 20.0)
-    base = np.stack([40 + 4 * x + 6 * i, 60 + 3 * y, 90 + 0 * x], axis=-1)
+    cx, cy = 16 + 10 * np.sin(0.7 * i), 12 + 7 * np.cos(0.7 * i)
+    blob = 120 * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 20.0)
+    base = np.stack([40 + 4 * x + 30 * np.sin(0.3 * i), 60 + 3 * y, 90 + 0 * x], axis=-1)
     return np.clip(base + blob[..., None] * [1, 0.5, -0.5], 0, 255).astype(np.uint8)
 
 
@@ -78,17 +78,16 @@ def record(root: Path, episodes: list[tuple[str, list]], **options) -> None:
 
 
 def check_frames(decoded: np.ndarray, written: np.ndarray) -> None:
-    """Within the video's loss, and each frame its own (not a neighbour's)."""
+    """Within the video's loss, and each frame its own (not its neighbour's)."""
     assert decoded.shape == written.shape and decoded.dtype == np.uint8
     error = np.abs(decoded.astype(int) - written.astype(int))
     p99 = np.percentile(error, 99)
     assert error.mean() < MEAN_ERROR and p99 <= P99_ERROR, (error.mean(), p99)
-    for k in range(len(written)):
+    for k in range(len(written)):  # not one step early or late
         own = np.abs(decoded[k].astype(int) - written[k]).mean()
-        others = [
-            np.abs(decoded[k].astype(int) - w).mean() for j, w in enumerate(written) if j != k
-        ]
-        assert not others or own < min(others)
+        for j in (k - 1, k + 1):
+            if 0 <= j < len(written):
+                assert own < np.abs(decoded[k].astype(int) - written[j]).mean(), (k, j)
 
 
 @pytest.mark.parametrize("codec", ["libsvtav1", "h264"])
@@ -166,6 +165,30 @@ def test_episodes_round_trip(tmp_path: Path, codec: str) -> None:
     assert stats["action"]["count"] == [13] and len(stats["action"]["q99"]) == 8
     assert np.shape(stats["observation.images.exterior_image_1_left"]["mean"]) == (3, 1, 1)
     assert stats["observation.time"]["min"] == [1234.5]
+
+
+def test_full_files_roll_over_to_the_next(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from panda_py.learning import _lerobot_files, lerobot
+
+    monkeypatch.setattr(lerobot, "DATA_MB", 0)  # every file full once it has bytes
+    monkeypatch.setattr(_lerobot_files, "VIDEO_MB", 0)
+    monkeypatch.setattr(_lerobot_files, "CHUNKS_SIZE", 2)  # 2 files a chunk
+    rng = np.random.default_rng(35)
+    # 25 steps an episode: AV1's encoder holds 22 frames before it writes any
+    written = [("stack the cube", steps(rng, 25, 25 * i)) for i in range(3)]
+    root = tmp_path / "dataset"
+    record(root, written)
+    data = sorted(p.relative_to(root).as_posix() for p in root.glob("data/*/*.parquet"))
+    assert data == ["data/chunk-000/file-000.parquet", "data/chunk-000/file-001.parquet",
+                    "data/chunk-001/file-000.parquet"]  # fmt: skip
+    assert len(list(root.glob("videos/*/*/*.mp4"))) >= 2  # full once its encoder wrote
+    episodes = pq.read_table(root / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
+    assert [(e["data/chunk_index"], e["data/file_index"]) for e in episodes] == [
+        (0, 0), (0, 1), (1, 0)]  # fmt: skip
+    for episode, (_, steps_written) in zip(read_lerobot(root).episodes, written, strict=True):
+        np.testing.assert_array_equal(episode.actions, [a for _, a, _ in steps_written])
+        frames = [o["observation/exterior_image_1_left"] for o, _, _ in steps_written]
+        check_frames(episode.obs["exterior_image_1_left"], np.array(frames))
 
 
 def test_an_hdf5_recording_converts(tmp_path: Path) -> None:
