@@ -4,12 +4,20 @@ actions (7 normalised joint velocities, 1 = 0.2 rad a step, and a gripper comman
 ``open_loop_horizon``), followed as DROID's robots follow them. Here the "policy" is
 scripted: it steers the joints toward a goal above the table and closes the hand once
 there, then back to the start with the hand open. Each episode, with the camera's images
-(a simulated robot's), is recorded to an HDF5 file in robomimic's layout and read back."""
+(a simulated robot's), is recorded to an HDF5 file in robomimic's layout, or with
+``--format lerobot`` to a LeRobot dataset (its images as AV1 video), and read back."""
 
 import numpy as np
 from _robot import connect, robot_host
 
-from panda_py.learning import DroidActions, EpisodeWriter, PolicyRunner, read_recording
+from panda_py.learning import (
+    DroidActions,
+    EpisodeWriter,
+    LeRobotWriter,
+    PolicyRunner,
+    read_lerobot,
+    read_recording,
+)
 from panda_py.learning.droid import DROID_MAX_JOINT_DELTA
 from panda_py.libfranka import Gripper
 
@@ -44,7 +52,13 @@ def reaching_policy(goal, close):
 
 
 def options(parser):
-    parser.add_argument("--out", default="episodes.hdf5", help="the recording (HDF5)")
+    parser.add_argument(
+        "--format",
+        default="hdf5",
+        choices=["hdf5", "lerobot"],
+        help="robomimic's HDF5 file, or a LeRobot dataset (a directory)",
+    )
+    parser.add_argument("--out", help="the recording (default: episodes.hdf5, episodes_lerobot)")
     parser.add_argument("--steps", type=int, default=60, help="policy steps an episode")
 
 
@@ -58,8 +72,14 @@ if __name__ == "__main__":
         cameras = {"exterior_image_1_left": args.render} if args.render else {}
         meta = {"env_kwargs": {"robot": args.robot, "action_space": "joint_velocity",
                                "rate": RATE}}  # fmt: skip
+        lerobot = args.format == "lerobot"
+        out = args.out or ("episodes_lerobot" if lerobot else "episodes.hdf5")
+        if lerobot:  # a new directory, written whole when the recorder closes
+            recorder = LeRobotWriter(out, fps=int(RATE), env_args=meta)
+        else:
+            recorder = EpisodeWriter(out, env_args=meta)
         with (
-            EpisodeWriter(args.out, env_args=meta) as recorder,
+            recorder,
             DroidActions(panda, gripper, cameras=cameras) as arm,
         ):
             for prompt, goal, close in (("reach and close", GOAL, True),
@@ -74,12 +94,12 @@ if __name__ == "__main__":
                       f"goal, hand {gripper.read_once().width * 1000:.0f} mm")  # fmt: skip
         panda.move_to_start()
 
-        recording = read_recording(args.out)
+        recording = read_lerobot(out) if lerobot else read_recording(out)
         steps = sum(len(e) for e in recording.episodes)
         frames = [e.obs.get("exterior_image_1_left") for e in recording.episodes]
         shape = "no" if frames[0] is None else "x".join(map(str, frames[0].shape[1:3]))
         print(f"recorded {len(recording.episodes)} episodes, {steps} steps, {shape} frames to "
-              f"{args.out}; actions {recording.episodes[0].actions.shape[1]}-wide, obs: "
+              f"{out}; actions {recording.episodes[0].actions.shape[1]}-wide, obs: "
               f"{', '.join(sorted(recording.episodes[0].obs))}")  # fmt: skip
         gripper.close()
         panda.close()

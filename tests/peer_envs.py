@@ -24,6 +24,11 @@ PEERS: dict[str, list[str]] = {
     "panda-gym": ["panda-gym==3.0.7", "pybullet==3.2.7"],
     # the analytical ik with a q7 search: benchmarks/bench_kinematics.py --search's peer
     "frankik": ["frankik==1.0.1"],
+    # LeRobot's own dataset loader: tests/learning/test_lerobot.py reads our episodes with it.
+    # 0.4.4 is the newest on Python 3.10-3.11 (0.5+ need 3.12); it reads and writes the
+    # same dataset format as 0.6 (codebase v3.0). torch pinned to a pair whose torchvision
+    # still decodes video with PyAV; PyPI's x86_64 torch is a CUDA build: 4-5 GB on disk.
+    "lerobot": ["lerobot==0.4.4", "torch==2.9.1", "torchvision==0.24.1", "torchcodec==0.8.1"],
 }
 
 

@@ -245,11 +245,13 @@ def test_18_the_scripted_policies_succeed_on_the_fast_world_and_on_panda_sim(
             assert rate >= 66, out  # at least 2 of 3 (measured: all)
 
 
-@needs("h5py")
+@needs("h5py", "pyarrow", "av")
+@pytest.mark.parametrize(("form", "recording"),
+                         [("hdf5", "episodes.hdf5"), ("lerobot", "episodes_lerobot")])  # fmt: skip
 def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
-    tmp_path: Path,
+    tmp_path: Path, form: str, recording: str
 ) -> None:
-    out = run_example("19", cwd=tmp_path)
+    out = run_example("19", "--format", form, cwd=tmp_path)
     for n in (0, 1):
         assert number(rf"episode {n} \(.*?\): (\d+) steps at 15 Hz", out) == 60
         calls = number(rf"episode {n} .*?(\d+) policy calls", out)
@@ -261,8 +263,8 @@ def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
         assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.02
     assert number(r"episode 0 .*, hand (\d+) mm", out) < 5  # closed at the goal
     assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
-    assert "recorded 2 episodes" in out and "180x320 frames to episodes.hdf5" in out
-    assert (tmp_path / "episodes.hdf5").is_file()
+    assert "recorded 2 episodes" in out and f"180x320 frames to {recording}" in out
+    assert (tmp_path / recording).exists()
 
 
 @needs("ray", "gymnasium")

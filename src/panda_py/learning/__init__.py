@@ -4,8 +4,9 @@ in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
 :mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
 (DROID's action contract, chunked actions at a policy rate,
 :mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`) and recording
-episodes (:mod:`~panda_py.learning.recording`); rollouts on many processes and machines
-with Ray (:mod:`~panda_py.learning.rollouts`).
+episodes (robomimic's HDF5: :mod:`~panda_py.learning.recording`; LeRobot's datasets:
+:mod:`~panda_py.learning.lerobot`, :mod:`~panda_py.learning.lerobot_convert`); rollouts on
+many processes and machines with Ray (:mod:`~panda_py.learning.rollouts`).
 
     import gymnasium
     import panda_py.learning  # registers the environments
@@ -14,10 +15,10 @@ with Ray (:mod:`~panda_py.learning.rollouts`).
     env = gymnasium.make("PandaPickAndPlace-v0", backend=RobotArm(sim.host, scene=sim))
 
 Importing this package is cheap: its modules load on first use of one of the names below
-(PEP 562). The environments need gymnasium, recording needs h5py and the rollouts need
-Ray: the ``learning`` extra (``pip install "panda-py-pure[learning]"``); without
-gymnasium, the environments' names raise an ImportError saying so and no id is
-registered.
+(PEP 562). The environments need gymnasium, recording needs h5py (HDF5) or pyarrow and av
+(LeRobot) and the rollouts need Ray: the ``learning`` extra (``pip install
+"panda-py-pure[learning]"``); without gymnasium, the environments' names raise an
+ImportError saying so and no id is registered.
 """
 
 from __future__ import annotations
@@ -32,6 +33,8 @@ if TYPE_CHECKING:
     from panda_py.learning.backend import Backend, Snapshot
     from panda_py.learning.deploy import ActionSpace, DroidActions
     from panda_py.learning.env import PandaEnv, Reward
+    from panda_py.learning.lerobot import LeRobotWriter
+    from panda_py.learning.lerobot_convert import hdf5_to_lerobot, read_lerobot
     from panda_py.learning.policies import pick_and_place_policy, reach_policy
     from panda_py.learning.policy_runner import PolicyRunner, RunStats
     from panda_py.learning.recording import EpisodeWriter, read_recording
@@ -48,6 +51,7 @@ _LAZY: dict[str, str] = {
     "EpisodeResult": "panda_py.learning.rollouts",
     "EpisodeWriter": "panda_py.learning.recording",
     "FastWorld": "panda_py.learning.world",
+    "LeRobotWriter": "panda_py.learning.lerobot",
     "PandaEnv": "panda_py.learning.env",
     "PandaPickAndPlaceEnv": "panda_py.learning.tasks",
     "PandaReachEnv": "panda_py.learning.tasks",
@@ -58,8 +62,10 @@ _LAZY: dict[str, str] = {
     "RunStats": "panda_py.learning.policy_runner",
     "Scene": "panda_py.learning.arm",
     "Snapshot": "panda_py.learning.backend",
+    "hdf5_to_lerobot": "panda_py.learning.lerobot_convert",
     "pick_and_place_policy": "panda_py.learning.policies",
     "reach_policy": "panda_py.learning.policies",
+    "read_lerobot": "panda_py.learning.lerobot_convert",
     "read_recording": "panda_py.learning.recording",
     "run_rollouts": "panda_py.learning.rollouts",
 }
@@ -73,6 +79,7 @@ __all__ = [
     "EpisodeResult",
     "EpisodeWriter",
     "FastWorld",
+    "LeRobotWriter",
     "PandaEnv",
     "PandaPickAndPlaceEnv",
     "PandaReachEnv",
@@ -83,8 +90,10 @@ __all__ = [
     "RunStats",
     "Scene",
     "Snapshot",
+    "hdf5_to_lerobot",
     "pick_and_place_policy",
     "reach_policy",
+    "read_lerobot",
     "read_recording",
     "run_rollouts",
 ]

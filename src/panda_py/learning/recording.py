@@ -4,10 +4,11 @@ Why this format: one file per dataset that robomimic (and the tools built on it:
 robosuite, MimicGen, LIBERO's loaders) trains on as it is, that ``h5py``, HDFView or any
 HDF5 library reads, and that needs one small dependency (``h5py``, the ``learning``
 extra). Images are stored losslessly inside the file (uint8, gzip), so a recording
-round-trips bit for bit. LeRobot's layout (Parquet, MP4 and JSON metadata; what openpi
-fine-tunes on) was the other candidate: it needs ``pyarrow`` (tens of MB) beside the video
-encoder, and lossy video; LeRobot and openpi ship converters from HDF5 episodes (openpi's
-``examples/droid/convert_droid_data_to_lerobot.py`` reads DROID's own HDF5 trajectories).
+round-trips bit for bit. Beside it, :class:`~panda_py.learning.lerobot.LeRobotWriter`
+records to LeRobot's dataset format (Parquet, MP4 and JSON metadata: what LeRobot's
+policies and openpi fine-tune on) with the same recorder interface, its images as lossy
+video; :func:`~panda_py.learning.lerobot_convert.hdf5_to_lerobot` converts a file of these
+into one.
 
 The layout (robomimic's "Dataset Structure", robomimic.github.io/docs/datasets/overview)::
 
@@ -60,6 +61,48 @@ def _key(name: str) -> str:
     return key
 
 
+Step = tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]
+
+
+def _check_step(
+    observation: Mapping[str, Any],
+    action: Any,
+    extras: Mapping[str, Any],
+    first: list[Step],
+    label: str = "the episode's first step",
+) -> Step:
+    """A step as arrays (``observation`` without its ``prompt`` and its names' prefix),
+    checked: numbers only, a finite action vector, and (``first``: ``[step]`` to match,
+    ``label`` saying which) the same entries and shapes as that step. Raises ValueError."""
+    obs = {_key(k): np.asarray(v) for k, v in observation.items() if k != "prompt"}
+    act = np.asarray(action, dtype=np.float64)
+    if act.ndim != 1 or not np.isfinite(act).all():
+        raise ValueError(f"action: expected a finite action vector, got {action!r}")
+    more = {k: np.asarray(v) for k, v in extras.items()}
+    for what, entries in (("observation", obs), ("extras", more)):
+        for k, v in entries.items():
+            if v.dtype.kind not in "biuf":
+                raise ValueError(
+                    f"{what}: {k!r} expected numbers (an array or a number), got "
+                    f"{v.dtype} (a text belongs in begin()'s attributes)"
+                )
+    if first:
+        first_obs, first_act, first_more = first[0]
+        for what, now, then in (("observation", obs, first_obs), ("extras", more, first_more)):
+            if now.keys() != then.keys():
+                raise ValueError(
+                    f"{what}: expected the entries of {label} {sorted(then)}, got {sorted(now)}"
+                )
+            for k, v in now.items():
+                if v.shape != then[k].shape:
+                    raise ValueError(
+                        f"{what}: {k!r} expected shape {then[k].shape} as in {label}, got {v.shape}"
+                    )
+        if act.shape != first_act.shape:
+            raise ValueError(f"action: expected shape {first_act.shape}, got {act.shape}")
+    return obs, act, more
+
+
 class EpisodeWriter:
     """Writes episodes to the HDF5 file ``path`` (a new file; ``append``: after the
     episodes it has). ``env_args`` (JSON-able, robomimic's: ``env_name``, ``type``,
@@ -85,7 +128,7 @@ class EpisodeWriter:
         data.attrs["panda_py_format"] = FORMAT_VERSION
         data.attrs.setdefault("total", 0)
         self.episodes = sum(1 for k in data if k.startswith("demo_"))
-        self._steps: list[tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]] = []
+        self._steps: list[Step] = []
         self._attrs: dict[str, Any] = {}
 
     def begin(self, **attrs: Any) -> None:
@@ -98,36 +141,7 @@ class EpisodeWriter:
         """Add a step: the observation the action was chosen on (arrays or numbers under
         the same names, of the same shapes, every step), the action (8,) and ``extras``
         of it (``joint_target=...``) for ``action_dict``."""
-        obs = {_key(k): np.asarray(v) for k, v in observation.items() if k != "prompt"}
-        act = np.asarray(action, dtype=np.float64)
-        if act.ndim != 1 or not np.isfinite(act).all():
-            raise ValueError(f"action: expected a finite action vector, got {action!r}")
-        more = {k: np.asarray(v) for k, v in extras.items()}
-        for what, entries in (("observation", obs), ("extras", more)):
-            for k, v in entries.items():
-                if v.dtype.kind not in "biuf":
-                    raise ValueError(
-                        f"{what}: {k!r} expected numbers (an array or a number), got "
-                        f"{v.dtype} (a text belongs in begin()'s attributes)"
-                    )
-        if self._steps:
-            first_obs, first_act, first_more = self._steps[0]
-            for what, now, then in (("observation", obs, first_obs),
-                                    ("extras", more, first_more)):  # fmt: skip
-                if now.keys() != then.keys():
-                    raise ValueError(
-                        f"{what}: expected the entries of the episode's first step "
-                        f"{sorted(then)}, got {sorted(now)}"
-                    )
-                for k, v in now.items():
-                    if v.shape != then[k].shape:
-                        raise ValueError(
-                            f"{what}: {k!r} expected shape {then[k].shape} as in the "
-                            f"episode's first step, got {v.shape}"
-                        )
-            if act.shape != first_act.shape:
-                raise ValueError(f"action: expected shape {first_act.shape}, got {act.shape}")
-        self._steps.append((obs, act, more))
+        self._steps.append(_check_step(observation, action, extras, self._steps[:1]))
 
     def __len__(self) -> int:
         """Steps of the episode under way."""
