@@ -3,8 +3,9 @@ in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
 (:mod:`~panda_py.learning.env`, :mod:`~panda_py.learning.tasks`,
 :mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
 (DROID's action contract, chunked actions at a policy rate,
-:mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`) and recording
-episodes (:mod:`~panda_py.learning.recording`); rollouts on many processes and machines
+:mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`), serving a
+policy to openpi's client (:mod:`~panda_py.learning.policy_server`) and recording episodes
+(:mod:`~panda_py.learning.recording`); rollouts on many processes and machines
 with Ray (:mod:`~panda_py.learning.rollouts`).
 
     import gymnasium
@@ -14,8 +15,8 @@ with Ray (:mod:`~panda_py.learning.rollouts`).
     env = gymnasium.make("PandaPickAndPlace-v0", backend=RobotArm(sim.host, scene=sim))
 
 Importing this package is cheap: its modules load on first use of one of the names below
-(PEP 562). The environments need gymnasium, recording needs h5py and the rollouts need
-Ray: the ``learning`` extra (``pip install "panda-py-pure[learning]"``); without
+(PEP 562). The environments need gymnasium, recording needs h5py, the policy server msgpack and
+the rollouts Ray: the ``learning`` extra (``pip install "panda-py-pure[learning]"``); without
 gymnasium, the environments' names raise an ImportError saying so and no id is
 registered.
 """
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
     from panda_py.learning.env import PandaEnv, Reward
     from panda_py.learning.policies import pick_and_place_policy, reach_policy
     from panda_py.learning.policy_runner import PolicyRunner, RunStats
+    from panda_py.learning.policy_server import PolicyServer
     from panda_py.learning.recording import EpisodeWriter, read_recording
     from panda_py.learning.rollouts import EpisodeResult, RolloutWorkers, run_rollouts
     from panda_py.learning.tasks import PandaPickAndPlaceEnv, PandaReachEnv
@@ -52,6 +54,7 @@ _LAZY: dict[str, str] = {
     "PandaPickAndPlaceEnv": "panda_py.learning.tasks",
     "PandaReachEnv": "panda_py.learning.tasks",
     "PolicyRunner": "panda_py.learning.policy_runner",
+    "PolicyServer": "panda_py.learning.policy_server",
     "Reward": "panda_py.learning.env",
     "RobotArm": "panda_py.learning.arm",
     "RolloutWorkers": "panda_py.learning.rollouts",
@@ -77,6 +80,7 @@ __all__ = [
     "PandaPickAndPlaceEnv",
     "PandaReachEnv",
     "PolicyRunner",
+    "PolicyServer",
     "Reward",
     "RobotArm",
     "RolloutWorkers",
