@@ -29,7 +29,20 @@ PEERS: dict[str, list[str]] = {
     # same dataset format as 0.6 (codebase v3.0). torch pinned to a pair whose torchvision
     # still decodes video with PyAV; PyPI's x86_64 torch is a CUDA build: 4-5 GB on disk.
     "lerobot": ["lerobot==0.4.4", "torch==2.9.1", "torchvision==0.24.1", "torchcodec==0.8.1"],
+    # openpi's own policy client (examples/21_openpi_client.py), which pins numpy<2 (and
+    # imports typing_extensions without requiring it), beside this package's runtime
+    # dependencies at this environment's versions but numpy 1.x: the example imports this
+    # checkout's panda_py there (openpi_environ)
+    "openpi-client": [
+        "openpi-client==0.1.2",
+        "typing-extensions==4.15.0",
+        *("numpy==1.26.4", "ruckig==0.19.4", "mujoco==4.0.0", "numba==0.68.1"),
+        *("websockets==17.4", "uvicorn==0.54.0", "cryptography==48.0.0"),
+        *("matplotlib==3.11.2", "tqdm==4.70.1"),
+    ],
 }
+# this checkout's package, for the peers that run it (openpi_environ)
+SRC = Path(__file__).resolve().parents[1] / "src"
 
 
 class PeerUnavailable(RuntimeError):
@@ -52,7 +65,8 @@ def peer_python(name: str) -> Path:
     cache_dir().mkdir(parents=True, exist_ok=True)
     with open(cache_dir() / f"{tag}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # several test processes may ask at once
-        if marker.exists() and python.exists():
+        # a venv made from another recipe (an edited pin) is made again
+        if marker.exists() and python.exists() and marker.read_text() == " ".join(PEERS[name]):
             return python
         try:
             subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True)
@@ -72,3 +86,9 @@ def peer_environ() -> dict[str, str]:
     """This process's environment for a peer's interpreter, less PYTHONPATH/PYTHONHOME:
     the peer must import its own ``panda_py``, never this repository's."""
     return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+
+
+def openpi_environ() -> dict[str, str]:
+    """:func:`peer_environ` for the openpi-client peer, which runs this checkout's
+    ``panda_py`` (under its numpy 1.x): PYTHONPATH is this checkout's ``src`` alone."""
+    return {**peer_environ(), "PYTHONPATH": str(SRC)}

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from peer_envs import PeerUnavailable, openpi_environ, peer_python
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -278,3 +279,43 @@ def test_20_ray_rollouts_on_two_workers_succeed(tmp_path: Path) -> None:
     assert {w for _, _, w in episodes} == {"0", "1"}
     assert number(r"succeeded (\d+)% of 8 episodes", out) == 100  # measured: all
     assert number(r"throughput: ([\d.]+) episodes/s", out) > 0
+
+
+@pytest.mark.peer
+@pytest.mark.timeout(1200)  # the environment's first install (up to 900 s), then the run
+def test_21_openpi_client_runs_a_served_policy_on_the_simulator(tmp_path: Path) -> None:
+    # openpi-client pins numpy<2: the example runs in an environment of its own (numpy 1.26),
+    # on this checkout's panda_py
+    try:
+        python = peer_python("openpi-client")
+    except PeerUnavailable as exc:
+        pytest.skip(str(exc))
+    (script,) = EXAMPLES.glob("21_*.py")
+    env = {**openpi_environ(), "PYTHONUNBUFFERED": "1"}
+    done = subprocess.run([str(python), str(script)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert done.returncode == 0, f"{script.name} failed:\n{done.stdout}\n{done.stderr}"
+    out = done.stdout
+    assert "{'policy': 'stand-in reaching', 'action_horizon': 10}" in out  # the metadata
+    assert number(r"openpi client: (\d+) steps at 15 Hz", out) == 60
+    calls = number(r"openpi client: .*?(\d+) policy calls", out)
+    assert calls == 8, out  # every 8 of 60, late steps or not (see 19's)
+    # DROID's soft gains hold the arm off the goal by its joints' friction (see 19's)
+    assert number(r"; ([\d.]+) rad from the goal", out) < 0.02
+    assert number(r"from the goal, hand (\d+) mm", out) < 5  # closed there
+    # the server saw what openpi's DROID client sends
+    assert number(r"the server answered (\d+) requests", out) == calls
+    assert "frames 224x224x3 uint8 (from 320x180 camera images)" in out
+    assert "prompt 'reach over the table and close the hand'" in out
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("openpi_client") is not None, reason="openpi-client is installed"
+)
+def test_21_without_openpi_client_says_how_to_get_it(tmp_path: Path) -> None:
+    (script,) = EXAMPLES.glob("21_*.py")
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.returncode != 0
+    assert "needs openpi's client: pip install openpi-client" in done.stderr

@@ -3,7 +3,8 @@ in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
 (:mod:`~panda_py.learning.env`, :mod:`~panda_py.learning.tasks`,
 :mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
 (DROID's action contract, chunked actions at a policy rate,
-:mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`) and recording
+:mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`), serving a
+policy to openpi's client (:mod:`~panda_py.learning.policy_server`) and recording
 episodes (robomimic's HDF5: :mod:`~panda_py.learning.recording`; LeRobot's datasets:
 :mod:`~panda_py.learning.lerobot`, :mod:`~panda_py.learning.lerobot_convert`); rollouts on
 many processes and machines with Ray (:mod:`~panda_py.learning.rollouts`).
@@ -16,8 +17,8 @@ many processes and machines with Ray (:mod:`~panda_py.learning.rollouts`).
 
 Importing this package is cheap: its modules load on first use of one of the names below
 (PEP 562). The environments need gymnasium, recording needs h5py (HDF5) or pyarrow and av
-(LeRobot) and the rollouts need Ray: the ``learning`` extra (``pip install
-"panda-py-pure[learning]"``); without gymnasium, the environments' names raise an
+(LeRobot), the policy server msgpack and the rollouts Ray: the ``learning`` extra (``pip
+install "panda-py-pure[learning]"``); without gymnasium, the environments' names raise an
 ImportError saying so and no id is registered.
 """
 
@@ -37,6 +38,7 @@ if TYPE_CHECKING:
     from panda_py.learning.lerobot_convert import hdf5_to_lerobot, read_lerobot
     from panda_py.learning.policies import pick_and_place_policy, reach_policy
     from panda_py.learning.policy_runner import PolicyRunner, RunStats
+    from panda_py.learning.policy_server import PolicyServer
     from panda_py.learning.recording import EpisodeWriter, read_recording
     from panda_py.learning.rollouts import EpisodeResult, RolloutWorkers, run_rollouts
     from panda_py.learning.tasks import PandaPickAndPlaceEnv, PandaReachEnv
@@ -56,6 +58,7 @@ _LAZY: dict[str, str] = {
     "PandaPickAndPlaceEnv": "panda_py.learning.tasks",
     "PandaReachEnv": "panda_py.learning.tasks",
     "PolicyRunner": "panda_py.learning.policy_runner",
+    "PolicyServer": "panda_py.learning.policy_server",
     "Reward": "panda_py.learning.env",
     "RobotArm": "panda_py.learning.arm",
     "RolloutWorkers": "panda_py.learning.rollouts",
@@ -84,6 +87,7 @@ __all__ = [
     "PandaPickAndPlaceEnv",
     "PandaReachEnv",
     "PolicyRunner",
+    "PolicyServer",
     "Reward",
     "RobotArm",
     "RolloutWorkers",
