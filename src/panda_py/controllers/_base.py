@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import checks
-from panda_py.controllers.law import ControlLaw, SignalSlot
+from panda_py.controllers.law import ControlLaw, SignalSlot, StateView
+from panda_py.controllers.model import ControlModel
 from panda_py.libfranka.errors import InvalidOperationException
 
 __all__ = ["TorqueController"]
@@ -264,7 +265,7 @@ class TorqueController(ControlLaw):
 
     # --- control-process side (override start/step/stop) --------------------------------
 
-    def step(self, state: Any, model: Any) -> Any:
+    def step(self, state: StateView, model: ControlModel) -> Any:
         """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot);
         runs at 1 kHz in the control process. Inside it, ``self.t`` is the controller's
         time and ``self.dt`` the time since the previous tick [s]; the state's arrays are

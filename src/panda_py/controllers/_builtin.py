@@ -16,7 +16,7 @@ from panda_py import checks
 from panda_py.checks import QUATERNION_NORM_TOL
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
-from panda_py.controllers.law import CompiledTicks, readonly
+from panda_py.controllers.law import CompiledTicks, StateView, readonly
 from panda_py.controllers.model import LOAD_FIELDS, ControlModel
 from panda_py.libfranka.errors import ControlException
 from panda_py.robots.params import START_POSE
@@ -115,13 +115,13 @@ class JointPosition(TorqueController):
         toward new values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         q = state.q
         self.initial_signals(position=q, velocity=np.zeros(7))
         self._q_d, self._dq_d = q.copy(), np.zeros(7)
         self._K, self._D = self._K_t.copy(), self._D_t.copy()
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """Its ticks in ``rt._tick.joint_position_ticks``."""
         L = self._sig_layout
         at = np.array([L[n][0] for n in ("position", "velocity", "stiffness", "damping",
@@ -129,7 +129,7 @@ class JointPosition(TorqueController):
         arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._q_d, self._dq_d, self._K, self._D)
         return CompiledTicks("joint_position_ticks", arrays, (), np.array([self.t, self.dt]))
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         a = self._scalar("filter_coeff")
         laws.ema(self._q_d, self._q_t, a)
         laws.ema(self._dq_d, self._dq_t, a)
@@ -173,14 +173,14 @@ class IntegratedVelocity(TorqueController):
         """The integrated desired joint position [rad]."""
         return self.get_output("q_d")
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         self.initial_signals(velocity=np.zeros(7))
         self._q_d = state.q.copy()
         self._lower = np.array(model.spec.joints.q_min) if hasattr(model, "spec") else None
         self._upper = np.array(model.spec.joints.q_max) if hasattr(model, "spec") else None
         self.set_output("q_d", self._q_d)
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """Its ticks in ``rt._tick.integrated_velocity_ticks``."""
         if self._lower is None:
             return None
@@ -191,7 +191,7 @@ class IntegratedVelocity(TorqueController):
         return CompiledTicks("integrated_velocity_ticks", arrays, (),
                              np.array([self.t, self.dt]))  # fmt: skip
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         self._q_d += self.dt * self._dq_t
         if self._lower is not None:
             np.clip(self._q_d, self._lower, self._upper, out=self._q_d)
@@ -231,7 +231,7 @@ class _Applied(TorqueController):
         values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         name, n, _ = self._input
         self.initial_signals(**{name: np.zeros(n)})
         self._in, self._D = np.zeros(n), self._D_t.copy()
@@ -253,14 +253,14 @@ class AppliedTorque(_Applied):
         """Joint torques to apply [Nm] (on top of the robot's gravity compensation)."""
         self._set_input(torque)
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """Its ticks in ``rt._tick.applied_torque_ticks``."""
         L = self._sig_layout
         at = np.array([L["torque"][0], L["damping"][0], L["filter_coeff"][0]])
         arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._in, self._D)
         return CompiledTicks("applied_torque_ticks", arrays, (), np.array([self.t, self.dt]))
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         return self._filtered() - self._D * state.dq
 
 
@@ -275,7 +275,7 @@ class AppliedForce(_Applied):
         """Wrench at the end effector in the base frame [N, Nm]."""
         self._set_input(force)
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         return model.ee_jacobian(state).T @ self._filtered() - self._D * state.dq
 
 
@@ -345,7 +345,7 @@ class Force(TorqueController):
         move toward new values each tick (1: at once)."""
         self._write(filter_coeff=[checks.unit_interval("filter_coeff", filter_coeff)])
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         self.initial_signals(force=np.zeros(3))
         self._f = np.zeros(3)
         self._gains = self._gains_t.copy()
@@ -355,7 +355,7 @@ class Force(TorqueController):
         self._tau_ext0 = state.tau_J - model.gravity_of(state)  # bias of the torque sensors
         self._integral = np.zeros(7)
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         a = self._scalar("filter_coeff")
         laws.ema(self._f, self._f_t, a)
         laws.ema(self._gains, self._gains_t, a)
@@ -478,7 +478,7 @@ class CartesianImpedance(TorqueController):
             self._Kd_key = (K.copy(), ratio)
         return self._Kd_target
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         T = state.O_T_EE
         self.initial_signals(
             position=T[12:15], orientation=laws.quat_from_matrix(T), q_nullspace=state.q
@@ -496,7 +496,7 @@ class CartesianImpedance(TorqueController):
         self._at = np.array([layout[name][0] for name in _FUSED_SIGNALS], dtype=np.int64)
         self._J = np.empty((1, 6, 7))
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """Its ticks in ``rt._tick.cartesian_impedance_ticks``: the fused step (where numba
         runs it) on its own buffers, the impedance and the damping ratio guarded (the
         damping target is computed here)."""
@@ -514,7 +514,7 @@ class CartesianImpedance(TorqueController):
         return CompiledTicks("cartesian_impedance_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         # the damping's target depends on the inputs only: redone when they changed
         Kd_t = self._damping_target() if self.inputs_changed else self._Kd_target
         fused = laws.fused()

@@ -31,14 +31,64 @@ import math
 import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["CompiledTicks", "ControlLaw", "SignalSlot", "readonly"]
+if TYPE_CHECKING:
+    from panda_py.controllers.model import ControlModel
+
+__all__ = ["CompiledTicks", "ControlLaw", "SignalSlot", "StateView", "readonly"]
 
 FloatArray = NDArray[np.float64]
+
+
+class StateView(Protocol):
+    """What a law reads of a tick's state: libfranka's ``RobotState`` fields by their
+    names, flat float64 arrays (transforms (16,) column-major, inertia tensors (9,)),
+    read-only within the tick (:class:`~panda_py.libfranka.RobotState`, the loop's
+    :class:`~panda_py.libfranka.state.TickState`, the fast training world's state)."""
+
+    @property
+    def q(self) -> FloatArray: ...  # [rad]
+
+    @property
+    def dq(self) -> FloatArray: ...  # [rad/s]
+
+    @property
+    def O_T_EE(self) -> FloatArray: ...  # the end effector in the base frame
+
+    @property
+    def F_T_EE(self) -> FloatArray: ...  # the end effector on the flange
+
+    @property
+    def tau_J(self) -> FloatArray: ...  # [Nm] measured
+
+    @property
+    def tau_J_d(self) -> FloatArray: ...  # [Nm] last commanded
+
+    @property
+    def m_ee(self) -> float: ...  # [kg] the end effector's mass
+
+    @property
+    def F_x_Cee(self) -> FloatArray: ...
+
+    @property
+    def I_ee(self) -> FloatArray: ...
+
+    @property
+    def m_load(self) -> float: ...  # [kg] the payload's
+
+    @property
+    def F_x_Cload(self) -> FloatArray: ...
+
+    @property
+    def I_load(self) -> FloatArray: ...
+
+    def raw_fields(self, names: tuple[str, ...]) -> bytes:
+        """The raw bytes of the fields ``names``: a cheap key of what they hold."""
+        ...
 
 
 class SignalSlot(Protocol):
@@ -78,7 +128,7 @@ class ControlLaw:
         """A human-readable name of the law (error messages, logs)."""
         return type(self).__name__
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         """Called once, before the first tick, with the state the law starts from."""
 
     #: whether a move may replace it mid-motion (:meth:`replace`): the moves
@@ -86,17 +136,17 @@ class ControlLaw:
     #: [s] how long its reference lasts (a move's; a controller runs until stopped)
     duration: float = math.inf
 
-    def begin(self, state: Any, model: Any) -> None:
+    def begin(self, state: StateView, model: ControlModel) -> None:
         """Called at its first tick, before :meth:`tick`, with that tick's state (a move
         planned while another ran, which ended meanwhile, leads in from where the arm
         rests)."""
 
-    def replace(self, previous: ControlLaw, state: Any, model: Any) -> None:
+    def replace(self, previous: ControlLaw, state: StateView, model: ControlModel) -> None:
         """Take over from ``previous`` mid-motion, from this tick's ``state`` (laws that
         are :attr:`replaceable` only)."""
         raise TypeError(f"{self.name} cannot take over from a running {previous.name}")
 
-    def next_law(self, state: Any, model: Any) -> ControlLaw | None:
+    def next_law(self, state: StateView, model: ControlModel) -> ControlLaw | None:
         """After the tick that finished it: the law that goes on in its place, already
         taken over (a guarded move's ``then`` once its condition held), or None: the
         motion ends."""
@@ -111,26 +161,26 @@ class ControlLaw:
         self.t += dt
         self.dt = dt
 
-    def step(self, state: Any, model: Any) -> Any:
+    def step(self, state: StateView, model: ControlModel) -> ArrayLike:
         """Joint torques (7,) [Nm] for ``state`` (gravity is compensated by the robot)."""
         raise NotImplementedError(f"{type(self).__name__} must implement step(state, model)")
 
     def published(self) -> None:
         """Called in every tick after the command left: publish what the law outputs."""
 
-    def finished(self, state: Any) -> bool:
+    def finished(self, state: StateView) -> bool:
         """Whether the law is done after this tick (a controller runs until stopped)."""
         return False
 
-    def stop(self, state: Any, model: Any) -> None:
+    def stop(self, state: StateView | None, model: ControlModel) -> None:
         """Called once when the law ends (finished, stopped or aborted), with the last
         state (None if there was none)."""
 
-    def result(self, state: Any) -> Any:
+    def result(self, state: StateView) -> Any:
         """What the caller waiting for this law gets when it ended (None by default)."""
         return None
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """The law's ticks as a compiled loop runs them (:mod:`panda_py.rt.fastloop`),
         from ``state`` on (the last one :meth:`step` saw), or None (the default): the loop
         then calls :meth:`tick`, :meth:`step` and :meth:`published` each tick. A law that

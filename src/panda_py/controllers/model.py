@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import dynamics, kinematics
+from panda_py.controllers.law import StateView
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.state import RobotState, combine_load
 from panda_py.libfranka.types import Frame
@@ -57,7 +58,7 @@ class ControlModel(Model):
             self._kin_key = key
         return self._kin
 
-    def ee_jacobian(self, state: Any) -> FloatArray:
+    def ee_jacobian(self, state: StateView) -> FloatArray:
         """Zero Jacobian (6, 7) of the end effector (the state's ``F_T_EE``)."""
         cached = self._jac
         if cached is not None and cached[0] is state:
@@ -66,13 +67,13 @@ class ControlModel(Model):
         self._jac = (state, J)
         return J
 
-    def kernel_arrays(self, state: Any) -> tuple[FloatArray, tuple[FloatArray, ...]]:
+    def kernel_arrays(self, state: StateView) -> tuple[FloatArray, tuple[FloatArray, ...]]:
         """What a law compiled with its model terms takes (``_fused``): the packed chain to
         the state's end effector (``F_T_EE``) and the arm's parameters with the state's
         total load (``LoadedArm.arrays``), each prepared once per end effector and load."""
         return self._kinematics(state.F_T_EE).chain_constants, self._arm(state).arrays
 
-    def _arm(self, state: Any) -> dynamics.LoadedArm:
+    def _arm(self, state: StateView) -> dynamics.LoadedArm:
         """The arm with the state's total load, prepared once per load: keyed on the raw
         end-effector and payload fields, combined (``combine_load``) only when they
         change."""
@@ -88,7 +89,7 @@ class ControlModel(Model):
         self._arm_state = state
         return self._arm_cached
 
-    def coriolis_of(self, state: Any) -> FloatArray:
+    def coriolis_of(self, state: StateView) -> FloatArray:
         """Coriolis and centrifugal torques (7,) [Nm] with the state's total load."""
         cached = self._cor
         if cached is not None and cached[0] is state:
@@ -97,7 +98,7 @@ class ControlModel(Model):
         self._cor = (state, tau)
         return tau
 
-    def mass_of(self, state: Any) -> FloatArray:
+    def mass_of(self, state: StateView) -> FloatArray:
         """Joint-space mass matrix (7, 7) [kg m^2] with the state's total load."""
         cached = self._mass
         if cached is not None and cached[0] is state:
@@ -106,7 +107,7 @@ class ControlModel(Model):
         self._mass = (state, M)
         return M
 
-    def driven_mass_of(self, state: Any) -> FloatArray:
+    def driven_mass_of(self, state: StateView) -> FloatArray:
         """The inertia the joint torques accelerate (7, 7) [kg m^2]: the links'
         (:meth:`mass_of`, libfranka's model) plus the drives' reflected rotor inertia
         (``robots.params.JointDrives``), which libfranka's model leaves out; a move's
@@ -141,7 +142,7 @@ class ControlModel(Model):
         (or stopping) is never pushed by it."""
         return self._coulomb * np.tanh(dq_planned * (1.0 / FRICTION_SPEED))
 
-    def gravity_of(self, state: Any) -> FloatArray:
+    def gravity_of(self, state: StateView) -> FloatArray:
         """Gravity torques (7,) [Nm] with the state's total load."""
         cached = self._grav
         if cached is not None and cached[0] is state:

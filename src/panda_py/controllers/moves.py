@@ -24,7 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
-from panda_py.controllers.law import CompiledTicks, ControlLaw, readonly
+from panda_py.controllers.law import CompiledTicks, ControlLaw, StateView, readonly
 from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
 from panda_py.controllers.tracking import (
@@ -206,18 +206,18 @@ class Tracker(ControlLaw):
 
     replaceable = True
 
-    def begin(self, state: Any, model: Any) -> None:
+    def begin(self, state: StateView, model: ControlModel) -> None:
         """Planned while another move ran, which ended before it arrived: the arm is not
         where the plan starts, so lead in from where it rests."""
         if self.off_start(state):
             self.handover(None, state, model)
 
-    def replace(self, previous: ControlLaw, state: Any, model: Any) -> None:
+    def replace(self, previous: ControlLaw, state: StateView, model: ControlModel) -> None:
         if not isinstance(previous, Tracker):
             raise TypeError(f"a move takes over from a move, not from a {previous.name}")
         self.handover(previous, state, model)
 
-    def next_law(self, state: Any, model: Any) -> ControlLaw | None:
+    def next_law(self, state: StateView, model: ControlModel) -> ControlLaw | None:
         """Once its condition held: the move ``then`` asked for, taken over from here."""
         successor = self.successor
         if successor is None:
@@ -244,7 +244,7 @@ class Tracker(ControlLaw):
     def _begin_rest(self) -> None:
         raise NotImplementedError
 
-    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+    def handover(self, prev: Tracker | None, state: StateView, model: ControlModel) -> None:
         """Take over from ``prev`` mid-motion (see the subclasses)."""
         raise NotImplementedError
 
@@ -274,7 +274,7 @@ class Tracker(ControlLaw):
             self.previous = prev
         prev.previous = None  # a chain of blends ends here
 
-    def _blended(self, tau: FloatArray, state: Any, model: Any) -> FloatArray:
+    def _blended(self, tau: FloatArray, state: StateView, model: ControlModel) -> FloatArray:
         prev = self.previous
         if prev is None:
             return tau
@@ -286,20 +286,24 @@ class Tracker(ControlLaw):
         s = _smoothstep(x)  # no step in the rate either
         return s * tau + (1.0 - s) * prev.torque_toward(self.ref, state, model)
 
-    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+    def torque_toward(
+        self, ref: tuple[FloatArray, ...], state: StateView, model: ControlModel
+    ) -> FloatArray:
         """This law's torques toward the other space's reference ``ref`` (a blend's)."""
         raise NotImplementedError
 
-    def off_start(self, state: Any) -> bool:
+    def off_start(self, state: StateView) -> bool:
         """Whether the arm is away from where the plan starts (beyond what panda-py's
         planning from the current state leaves: the clip to the joint limits)."""
         raise NotImplementedError
 
-    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def joint_reference(
+        self, state: StateView, model: ControlModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The reference of the last tick as joint positions, velocities, accelerations."""
         raise NotImplementedError
 
-    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+    def pose_reference(self, state: StateView, model: ControlModel) -> tuple[FloatArray, ...]:
         """The reference of the last tick as position, orientation, twist, acceleration."""
         raise NotImplementedError
 
@@ -329,7 +333,7 @@ class Tracker(ControlLaw):
             else:
                 self.successor = tracker_for(self.then)
 
-    def finished(self, state: Any) -> bool:
+    def finished(self, state: StateView) -> bool:
         if self.successor is not None:
             return True
         over = self.t - self.t_end
@@ -340,7 +344,7 @@ class Tracker(ControlLaw):
             return at_rest or over >= SETTLE_TIMEOUT
         return (at_rest and self.at_goal(state)) or over >= SETTLE_TIMEOUT
 
-    def at_goal(self, state: Any) -> bool:
+    def at_goal(self, state: StateView) -> bool:
         raise NotImplementedError
 
     def _follows_plan(self, model: Any) -> bool:
@@ -394,7 +398,7 @@ class JointMove(Tracker):
         self.stop_limits = plan.stop_limits or plan.limits
         self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
 
-    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+    def handover(self, prev: Tracker | None, state: StateView, model: ControlModel) -> None:
         """Replace ``prev`` mid-motion: lead in from its reference (from the arm at rest
         where it is, without one) to this plan's sample ``join`` (its goal for a single
         target), jerk-limited, then follow the plan."""
@@ -411,14 +415,16 @@ class JointMove(Tracker):
         self.t_end = self.duration = math.inf
         self._blend_from(prev)
 
-    def off_start(self, state: Any) -> bool:
+    def off_start(self, state: StateView) -> bool:
         return float(np.abs(self.q[0] - state.q).max()) > START_JOINT
 
-    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def joint_reference(
+        self, state: StateView, model: ControlModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The reference of the last tick: joint positions, velocities, accelerations."""
         return self.ref[0].copy(), self.ref[1].copy(), self.ref[2].copy()
 
-    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+    def pose_reference(self, state: StateView, model: ControlModel) -> tuple[FloatArray, ...]:
         """The pose and twist the arm has, with the reference's acceleration (as
         :meth:`PoseMove.joint_reference`: a lead-in from the reference's twist where the arm
         lags it would make the new law catch up, up to 1.3x the planned accelerations)."""
@@ -426,7 +432,9 @@ class JointMove(Tracker):
         T = state.O_T_EE
         return T[12:15].copy(), laws.quat_from_matrix(T), J @ state.dq, J @ self.ref[2]
 
-    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+    def torque_toward(
+        self, ref: tuple[FloatArray, ...], state: StateView, model: ControlModel
+    ) -> FloatArray:
         """Toward a pose reference ``(position, orientation, twist, acceleration)``: the
         joints it asks for to first order (``J^+`` of its error, twist, acceleration), the
         arm's motion in the task's nullspace kept as it is (the Cartesian law damps it
@@ -458,7 +466,7 @@ class JointMove(Tracker):
     def _sampled(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         return self.q[k], self.dq[k], self.ddq[k]
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """While it follows its plan: ``rt._tick.joint_move_ticks``."""
         if not self._follows_plan(model):
             return None
@@ -471,7 +479,7 @@ class JointMove(Tracker):
         return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
         tau = joint_impedance_torque(self.K, self.D, q_d, dq_d, ddq_d, state, model)
         if self.t > self.t_end and not self.stopping:
@@ -483,10 +491,10 @@ class JointMove(Tracker):
             self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
         return self._blended(tau, state, model)  # (the law's torque has the Coriolis')
 
-    def at_goal(self, state: Any) -> bool:
+    def at_goal(self, state: StateView) -> bool:
         return float(np.abs(self.goal - state.q).max()) <= SETTLE_JOINT
 
-    def result(self, state: Any) -> MoveResult:
+    def result(self, state: StateView) -> MoveResult:
         err = float(np.abs(self.goal - state.q).max())
         ok = err <= self.success_threshold
         reason = (
@@ -528,7 +536,7 @@ class PoseMove(Tracker):
         self.refine = False  # the lead-in's limits are the worst case's (see published)
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
 
-    def handover(self, prev: Tracker | None, state: Any, model: Any) -> None:
+    def handover(self, prev: Tracker | None, state: StateView, model: ControlModel) -> None:
         """As :meth:`JointMove.handover`, in Cartesian space."""
         if prev is None:
             T = state.O_T_EE
@@ -568,21 +576,25 @@ class PoseMove(Tracker):
         if self.leading and not self.stopping and not self.gen.finished:
             joint_capped_peaks(self.gen, self.limits, J, self.spec)
 
-    def off_start(self, state: Any) -> bool:
+    def off_start(self, state: StateView) -> bool:
         pos = float(np.linalg.norm(state.O_T_EE[12:15] - self.p[0]))
         rot = rotation_angle(laws.quat_from_matrix(state.O_T_EE), self.quat[0])
         return pos > START_POSITION or rot > START_ORIENTATION
 
-    def pose_reference(self, state: Any, model: Any) -> tuple[FloatArray, ...]:
+    def pose_reference(self, state: StateView, model: ControlModel) -> tuple[FloatArray, ...]:
         """The reference of the last tick: position, orientation, twist, acceleration."""
         return tuple(r.copy() for r in self.ref)
 
-    def joint_reference(self, state: Any, model: Any) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def joint_reference(
+        self, state: StateView, model: ControlModel
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The joints where they are, with the reference's acceleration mapped to them."""
         J_pinv = laws.damped_pinv(model.ee_jacobian(state))
         return np.array(state.q), np.array(state.dq), J_pinv @ self.ref[3]
 
-    def torque_toward(self, ref: tuple[FloatArray, ...], state: Any, model: Any) -> FloatArray:
+    def torque_toward(
+        self, ref: tuple[FloatArray, ...], state: StateView, model: ControlModel
+    ) -> FloatArray:
         """Toward a joint reference ``(q, dq, ddq)``: the pose, twist and acceleration it
         gives to first order (``J`` of its offset, velocity, acceleration)."""
         q_d, dq_d, ddq_d = ref
@@ -616,7 +628,7 @@ class PoseMove(Tracker):
     def _sampled(self, k: int) -> tuple[FloatArray, ...]:
         return self.p[k], self.quat[k], self.v[k], self.a[k]
 
-    def compiled(self, state: Any, model: Any) -> CompiledTicks | None:
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """While it follows its plan: ``rt._tick.pose_move_ticks``, on its tracking law's
         buffer (after that law's first tick)."""
         if not self._follows_plan(model) or self.refine or self.law.J_prev is None:
@@ -635,7 +647,7 @@ class PoseMove(Tracker):
         super().compiled_ran(time, in_seq)
         self.law.compiled_ran(int(self._samples[2]))
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
@@ -651,16 +663,16 @@ class PoseMove(Tracker):
             self.check_until(state, Progress(self.t, float(np.linalg.norm(T[12:15] - self.p[-1]))))
         return self._blended(tau, state, model)  # (the law's torque has the Coriolis')
 
-    def _errors(self, state: Any) -> tuple[float, float]:
+    def _errors(self, state: StateView) -> tuple[float, float]:
         T = state.O_T_EE
         pos = float(np.linalg.norm(T[12:15] - self.p[-1]))
         return pos, rotation_angle(laws.quat_from_matrix(T), self.quat[-1])
 
-    def at_goal(self, state: Any) -> bool:
+    def at_goal(self, state: StateView) -> bool:
         pos, rot = self._errors(state)
         return pos <= SETTLE_POSITION and rot <= SETTLE_ORIENTATION
 
-    def result(self, state: Any) -> MoveResult:
+    def result(self, state: StateView) -> MoveResult:
         pos, rot = self._errors(state)
         ok = pos <= self.success_threshold and rot <= self.orientation_threshold
         reason = (

@@ -38,6 +38,8 @@ import numpy as np
 
 from panda_py import checks, kinematics
 from panda_py.controllers._base import FloatArray, TorqueController
+from panda_py.controllers.law import StateView
+from panda_py.controllers.model import ControlModel
 
 __all__ = [
     "DROID_KQ",
@@ -116,7 +118,7 @@ class HybridJointImpedance(TorqueController):
 
     # --- control process ------------------------------------------------------------
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         joints = model.spec.joints
         self._flange = kinematics.get_kinematics(model.spec, np.eye(4))
         self._speed = SETPOINT_SPEED_SHARE * np.asarray(joints.dq_max)  # [rad/s]
@@ -128,7 +130,7 @@ class HybridJointImpedance(TorqueController):
         self.set_output("target", state.q)
         self.set_output("q_d", state.q)
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         target = self.signal("q")
         reach = self._speed * self.dt
         q_d = self._q_d

@@ -32,6 +32,7 @@ from panda_py import checks
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
 from panda_py.controllers._builtin import JOINT_DAMPING, JOINT_STIFFNESS
+from panda_py.controllers.law import StateView
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import joint_capped
 from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
@@ -166,7 +167,7 @@ class JointTarget(_Streamed):
 
     # --- control process ------------------------------------------------------------
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         joints = model.spec.joints
         s = self.speed_factor
         self._follow = OnlineLimits.joints(model.spec, s)
@@ -188,7 +189,7 @@ class JointTarget(_Streamed):
         out[o + 21] = float(np.abs(target - gen.position).max())
         out[o + 22] = float(self._stale)
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         gen = self._gen
         target = self.signal("q")
         news = self._news()
@@ -269,7 +270,7 @@ class CartesianTarget(_Streamed):
 
     # --- control process ------------------------------------------------------------
 
-    def start(self, state: Any, model: Any) -> None:
+    def start(self, state: StateView, model: ControlModel) -> None:
         spec = model.spec
         s = self.speed_factor
         self._follow = OnlineLimits.cartesian(spec, s)
@@ -314,7 +315,7 @@ class CartesianTarget(_Streamed):
         out[o + 14] = 2.0 * math.acos(min(1.0, abs(a * e + b * f + c * g + d * h)))
         out[o + 15] = 1.0 if self._stale else 0.0
 
-    def step(self, state: Any, model: Any) -> FloatArray:
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
         gen = self._gen
         news = self._news()
         if news:
@@ -340,7 +341,7 @@ class CartesianTarget(_Streamed):
         self._publish(self.signal("position"), self.signal("orientation"))
         return tau  # (with the Coriolis torques)
 
-    def _fused_step(self, fused: Any, state: Any, model: Any) -> FloatArray:
+    def _fused_step(self, fused: Any, state: StateView, model: ControlModel) -> FloatArray:
         """The rest of :meth:`step` in one compiled call (``_fused.pose_target_step``): the
         generator's sampling, the tracking and the outputs (the same arithmetic as the
         separate calls)."""

@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
+from panda_py.controllers.law import StateView
 from panda_py.controllers.model import FRICTION_SPEED, ControlModel
 
 __all__ = ["PoseImpedance", "joint_impedance_torque"]
@@ -53,7 +53,7 @@ _K, _QN, _J = LAW_LAYOUT["K"][0], LAW_LAYOUT["q_n"][0], LAW_LAYOUT["J"][0]
 
 def joint_impedance_torque(
     K: FloatArray, D: FloatArray, q_d: FloatArray, dq_d: FloatArray, ddq_d: FloatArray,
-    state: Any, model: Any,
+    state: StateView, model: ControlModel,
 ) -> FloatArray:  # fmt: skip
     """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d + FRICTION_ERROR_RATE (q_d -
     q)) + C(q, dq) dq`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm
@@ -194,8 +194,8 @@ class PoseImpedance:
         self.J_prev = self._J0
         return self.buffer
 
-    def torque(self, state: Any, model: Any, dt: float, p_d: FloatArray, quat_d: FloatArray,
-               v_d: FloatArray, a_d: FloatArray) -> FloatArray:  # fmt: skip
+    def torque(self, state: StateView, model: ControlModel, dt: float, p_d: FloatArray,
+               quat_d: FloatArray, v_d: FloatArray, a_d: FloatArray) -> FloatArray:  # fmt: skip
         """The torques [Nm] (with the Coriolis torques) toward the reference position
         ``p_d`` [m], orientation ``quat_d`` (x, y, z, w), twist ``v_d`` [m/s, rad/s] and its
         rate ``a_d`` [m/s^2, rad/s^2], ``dt`` [s] after the previous call."""

@@ -268,6 +268,7 @@ class ControlServer:
         if not isinstance(ctrl, TorqueController):
             raise ValueError(f"controller: expected a TorqueController, got {type(ctrl)!r}")
         ctrl.t = ctrl.dt = 0.0
+        assert self.model is not None  # (connected: a request needs the robot)
         ctrl.start(self._fresh_state(), self.model)
         values = ctrl.open_slot(self.block)
         self._schedule(ctrl, None)
@@ -507,6 +508,7 @@ class ControlServer:
         assert self.replacement is not None
         new, rid = self.replacement
         self.replacement = None
+        assert self.model is not None
         new.replace(law, state, self.model)
         handed_over = time.monotonic()  # the new move's reference is the one in effect
         if move_rid is not None:
