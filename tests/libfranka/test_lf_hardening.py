@@ -105,7 +105,8 @@ def test_a_bogus_newest_id_ends_in_a_timeout_not_a_hang(sim):
         t0 = time.monotonic()
         with pytest.raises(lf.NetworkException, match="UDP receive: Timeout"):
             robot._conn.receive_state()
-        assert time.monotonic() - t0 < 2.0
+        # the 1 s UDP timeout, and the rest a loaded machine adds (measured up to 2.2 s)
+        assert time.monotonic() - t0 < 1.0 + 3.0
 
 
 def test_a_motion_cancelled_after_a_bogus_id_returns_in_bounded_time(sim):

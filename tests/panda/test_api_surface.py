@@ -65,7 +65,7 @@ def peer() -> dict[str, Any]:
 
 
 # controllers of ours that panda-py does not have (streamed targets)
-EXTENSIONS = {"CartesianTarget", "JointTarget"}
+EXTENSIONS = {"CartesianTarget", "HybridJointImpedance", "JointTarget"}  # ours only
 PANDA_PY_CONTROLLERS = sorted(set(controllers.__all__) - EXTENSIONS)
 OURS = {
     "Panda": panda_py.Panda,
