@@ -112,7 +112,7 @@ print(json.dumps(res))
 # --- ik with an unknown q7 -------------------------------------------------------------
 
 # A solution is found when fk(q) matches the pose within this [m, -] in every entry: the
-# tolerance the package's tests hold fk(ik(T)) to (tests/test_kinematics*.py).
+# tolerance the package's tests hold fk(ik(T)) to (tests/kinematics/).
 FOUND_TOL = 1e-9
 
 # Timing run here and in the peer's interpreter. per_pose: each call of fn(i) timed alone,
