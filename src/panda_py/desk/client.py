@@ -9,19 +9,16 @@ timeout, and no request that changes the robot is ever retried behind the caller
 
 from __future__ import annotations
 
-import json
 import logging
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
 from panda_py import checks
 from panda_py.desk import answers
-from panda_py.desk.api import PILOT_EVENTS_PATH, V1API, DeskAPI, LegacyAPI, encode_password
+from panda_py.desk.api import V1API, DeskAPI, LegacyAPI, encode_password
 from panda_py.desk.duties import DeskDuties
 from panda_py.desk.errors import (
-    DeskConnectionError,
     DeskError,
     DeskHTTPError,
     DeskUnsupportedError,
@@ -29,9 +26,9 @@ from panda_py.desk.errors import (
     TakeControlTimeoutError,
 )
 from panda_py.desk.excerpt import redact, request_secrets
+from panda_py.desk.pilot import PilotEvents
 from panda_py.desk.shapes import array, header_token, ident, obj, seconds, text
 from panda_py.desk.store import Token, TokenStore
-from panda_py.desk.tls_stream import shared_tls
 from panda_py.desk.transport import (
     DEFAULT_TIMEOUT,
     HTTPSTransport,
@@ -51,7 +48,7 @@ _PLATFORMS = {
 }  # fmt: skip
 
 
-class Desk(DeskDuties):
+class Desk(DeskDuties, PilotEvents):
     """A session with a robot's Desk (``hostname`` may carry a port: ``"robot:8443"``).
 
     As panda-py's, the constructor logs in and tries to take control (without force);
@@ -100,9 +97,6 @@ class Desk(DeskDuties):
         # taking control, releasing it and the FCI calls do nothing.
         self._tokenless = False
         self._token = self._store.token(hostname, username)
-        self._listening = False
-        self._listen_thread: threading.Thread | None = None
-        self._listen_ws: Any = None  # the Pilot event stream the listener reads
         if connect:
             self.login()
             self.take_control()
@@ -443,77 +437,6 @@ class Desk(DeskDuties):
                 lambda body: [text(j["brakeStatus"], "brakeStatus") for j in array(body)],
             )
         )  # fmt: skip
-
-    # -- Pilot buttons -------------------------------------------------------------------
-
-    def listen(self, cb: Callable[[dict[str, bool]], None]) -> None:
-        """Call ``cb`` with each Pilot button event (``{"circle": True}`` on press,
-        False on release; the first event is the full key map) from a thread, until
-        :meth:`stop_listen`."""
-        if self._listen_thread is not None:
-            raise DeskError("already listening: call stop_listen() first")
-        self._need_login()
-        ws = self._open_events()
-        self._listening = True
-        self._listen_ws = ws
-        self._listen_thread = threading.Thread(
-            target=self._listen, args=(ws, cb), name="panda-py-desk-listen", daemon=True
-        )
-        self._listen_thread.start()
-
-    def _open_events(self) -> Any:
-        from websockets.exceptions import InvalidHandshake
-        from websockets.sync.client import connect
-
-        sock = self._transport.secure_socket(timeout=self.timeout)
-        headers = self._v1.ws_headers() if self._api == DeskAPI.V1 else self._legacy.ws_headers()
-        try:
-            # ws:// over a socket that is already TLS, its certificate checked against the pin.
-            return connect(
-                f"ws://{self._hostname}{PILOT_EVENTS_PATH}",
-                sock=shared_tls(sock),  # websockets reads and writes from two threads
-                additional_headers=headers,
-                open_timeout=self.timeout,
-                proxy=None,
-            )
-        except (InvalidHandshake, OSError, TimeoutError) as exc:
-            sock.close()
-            raise DeskConnectionError(f"Pilot events of {self._hostname}: {exc}") from exc
-
-    def _listen(self, ws: Any, cb: Callable[[dict[str, bool]], None]) -> None:
-        from websockets.exceptions import ConnectionClosed
-
-        with ws:
-            while self._listening:
-                try:
-                    message = ws.recv(timeout=0.2)
-                except TimeoutError:
-                    continue
-                except ConnectionClosed:
-                    if self._listening:  # (stop_listen closes it too)
-                        log.warning("the Desk at %s closed the Pilot event stream", self._hostname)
-                    return
-                try:
-                    event = json.loads(message)
-                except ValueError:
-                    continue
-                if isinstance(event, dict):
-                    cb(event)
-
-    def stop_listen(self) -> None:
-        """Stop the listener thread started by :meth:`listen`."""
-        self._listening = False
-        thread, self._listen_thread = self._listen_thread, None
-        ws, self._listen_ws = self._listen_ws, None
-        if ws is not None:
-            # the closing handshake ends the listener's receive at once (it would see the
-            # flag only at its next 0.2 s timeout)
-            try:
-                ws.close()
-            except OSError:
-                pass  # the connection is gone: the listener's receive ends all the same
-        if thread is not None:
-            thread.join()
 
 
 def _status(body: Any) -> str:
