@@ -31,11 +31,6 @@ def cert_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("fault-cert")
 
 
-@pytest.fixture
-def tokens(tmp_path: Path) -> str:
-    return str(tmp_path / "store")
-
-
 def _desk(server: FaultServer, tokens: str, timeout: float = 5.0, api: str | None = None) -> Desk:
     return Desk(
         server.hostname, USER, PASSWORD, timeout=timeout, token_dir=tokens, api=api, connect=False

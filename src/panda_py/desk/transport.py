@@ -42,10 +42,10 @@ log = logging.getLogger("panda_py.desk")
 
 DEFAULT_TIMEOUT = 10.0  # [s] for every request unless the caller says otherwise
 MAX_ANSWER = 8 * 2**20
-"""The largest answer a Desk client reads [bytes]. The answers it reads are JSON status
-and configuration documents and login tokens, a few kilobytes each (the simulated Desk's
-largest, its end-effector configuration, under 2 KB): 8 MiB leaves three orders of
-magnitude for a real robot's, and is still nothing to hold in memory. Larger answers (a
+"""The largest answer a Desk client reads [bytes]. It reads JSON status and configuration
+documents and login tokens: the simulated Desk's largest, the legacy system status, is
+891 bytes; a robot's carry more fields, but are documents of that kind. 8 MiB leaves
+three or four orders of magnitude, and is still nothing to hold in memory. Larger answers (a
 200 MB one was read whole) are refused unread, or once this much has come."""
 
 
@@ -145,10 +145,11 @@ class HTTPSTransport:
         raise CertificateChangedError(self.hostname, pinned, presented)
 
     def secure_socket(self, *, timeout: float) -> socket.socket:
-        return self._connect(time.monotonic() + timeout, timeout, "connecting")
+        return self._connect(time.monotonic() + timeout, timeout, "")
 
     def _connect(self, deadline: float, timeout: float, what: str) -> ssl.SSLSocket:
-        """A TLS connection with the pinned certificate, made by ``deadline``."""
+        """A TLS connection with the pinned certificate, made by ``deadline`` (for ``what``,
+        a request, named in the errors)."""
         host = self.hostname
         try:
             raw = socket.create_connection((self.host, self.port), timeout=remaining(deadline))
