@@ -110,6 +110,9 @@ WRONG_SHAPES = {
         "v1", lambda d: d.self_test_due_in(), {**V1, **_shape("/api/safety/self-tests", b"[1]")},
         "[1]",
     ),
+    "v1 JSON nested past the stack": (
+        "v1", lambda d: d.system_status(), _shape("/api/system", b"[" * 100_000), "nested",
+    ),
     "v1 not JSON": (
         "v1", lambda d: d.system_status(), _shape("/api/system", b"<html>oops</html>"), "<html>",
     ),
@@ -189,6 +192,17 @@ def test_an_echoed_request_shows_no_credential(cert_dir: Path, tokens: str, case
         for text in shown:
             assert secret not in text
     assert "bad request" in exc.message  # the rest of what came back is kept
+
+
+def test_an_error_page_nested_past_the_stack_is_still_a_desk_http_error(
+    cert_dir: Path, tokens: str
+) -> None:
+    """The code/reason fields are read from a JSON error body: one nested 100 000 deep
+    raised RecursionError."""
+    with FaultServer({"/api/system": answer(500, b"[" * 100_000)}, cert_dir) as s:
+        with pytest.raises(DeskHTTPError) as info:
+            _desk(s, tokens, api="v1").login()
+    assert info.value.status == 500 and info.value.code is None
 
 
 @pytest.mark.parametrize("timeout", [math.inf, math.nan, 0.0, -1.0, 1e300, "5", None])

@@ -43,8 +43,10 @@ def json_body(response: Response, secrets: Iterable[str] = ()) -> Any:
         return None
     try:
         return json.loads(response.body)
-    except (ValueError, RecursionError) as exc:
+    except ValueError as exc:
         raise answer_error(response, "no JSON where JSON was due", secrets) from exc
+    except RecursionError as exc:
+        raise answer_error(response, "JSON nested deeper than Python's stack", secrets) from exc
 
 
 def _identity(body: Any) -> Any:

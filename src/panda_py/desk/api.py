@@ -86,9 +86,9 @@ class LegacyAPI:
     @staticmethod
     def parse_active(body: Any) -> tuple[str, str]:
         """(id, owner) of ``GET /admin/api/control-token``'s ``activeToken`` (("", "")
-        when it is null); ``TypeError`` for another shape."""
+        when it is null); ``TypeError`` or ``KeyError`` for another shape."""
         active = obj(body).get("activeToken") if body is not None else None
-        if active is None:
+        if not active:  # null (or empty): nobody holds control
             return "", ""
         active = obj(active, "activeToken")
         owner = active.get("ownedBy")

@@ -43,7 +43,7 @@ class DeskHTTPError(DeskError):
         self.reason: str | None = None
         try:
             body = json.loads(message)
-        except ValueError:
+        except (ValueError, RecursionError):  # (not JSON, or nested past the stack)
             body = None
         if isinstance(body, dict):
             if isinstance(body.get("code"), str):
