@@ -4,6 +4,10 @@
 Arguments as panda-py's: ``host user [password] [--platform]``. Leave the password out:
 it is then read from ``PANDA_PY_PASSWORD`` or prompted for, so it never shows in the
 process list (a password given as an argument still works, with a warning).
+
+Whatever the robot answers, and whatever the arguments, a failure is one line on stderr
+(``prog: what happened``) and a non-zero exit status: 1 for a failure, 2 for bad
+arguments, 130 when interrupted.
 """
 
 from __future__ import annotations
@@ -14,14 +18,35 @@ import logging
 import os
 import sys
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
+from panda_py import checks
 from panda_py.desk import Desk, DeskError
+from panda_py.desk.excerpt import one_line
 
 PASSWORD_ENV = "PANDA_PY_PASSWORD"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, its errors on one line (argparse prints the usage first)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {one_line(message, 500)} (see {self.prog} --help)\n")
+
+
+def _seconds(text: str) -> float:
+    """``--timeout``'s value: a number of seconds that every socket accepts."""
+    try:
+        return checks.timeout("--timeout", float(text))
+    except ValueError as exc:
+        # (argparse names the option itself)
+        raise argparse.ArgumentTypeError(
+            f"expected a number of seconds [s] in (0, {checks.MAX_TIMEOUT:g}], got {text!r}"
+        ) from exc
+
+
 def _parser(prog: str, description: str, *, platform: bool) -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=prog, description=description)
+    p = _Parser(prog=prog, description=description)
     p.add_argument("host", help="the robot's Desk address (host or host:port)")
     p.add_argument("user", help="Desk user name")
     p.add_argument(
@@ -31,7 +56,12 @@ def _parser(prog: str, description: str, *, platform: bool) -> argparse.Argument
     )
     if platform:
         p.add_argument("--platform", default=None, help="panda (fer) or fr3; detected if omitted")
-    p.add_argument("--timeout", type=float, default=10.0, help="seconds per request")
+    p.add_argument(
+        "--timeout",
+        type=_seconds,
+        default=10.0,
+        help="seconds each request may take, all of it (default %(default)g)",
+    )
     p.add_argument(
         "--repin",
         action="store_true",
@@ -84,9 +114,12 @@ def _run(
             repin=args.repin,
         )
         return action(desk, args)
-    except (DeskError, ValueError) as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
+    except (DeskError, ValueError, OSError) as exc:  # OSError: the token store's file
+        print(f"{prog}: {one_line(str(exc), 1000)}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
 
 
 def _in_control(desk: Desk, prog: str) -> bool:

@@ -20,7 +20,10 @@ from panda_py.desk import (
     CertificateChangedError,
     ControlNotGrantedError,
     Desk,
+    DeskAnswerError,
+    DeskConnectionError,
     DeskHTTPError,
+    DeskTimeoutError,
     DeskUnsupportedError,
     FCIRefusedError,
     MockTransport,
@@ -254,6 +257,9 @@ def test_errors_pickle_with_their_fields() -> None:
         SelfTestFailedError("robot", "did not pass", due_in=0.0),
         OperatingModeError("robot", "no"),
         BrakesError("robot", "still locked", brakes=("Locked",) * 7),
+        DeskConnectionError("reset", host="robot", what="GET /api/system"),
+        DeskTimeoutError(2.0, host="robot", what="GET /api/system", received=3, start="HTT"),
+        DeskAnswerError("GET", "/api/fci", 200, "JSON of another shape", "[1]"),
         FCIRefusedError.from_http("robot", "refused", http),
     ]
     for e in errors:

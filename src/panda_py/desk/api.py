@@ -13,6 +13,7 @@ import hashlib
 import json
 from typing import Any
 
+from panda_py.desk.shapes import array, ident, number, obj
 from panda_py.desk.transport import Request
 
 CONTROL_TOKEN_HEADER = "X-Control-Token"
@@ -84,10 +85,31 @@ class LegacyAPI:
 
     @staticmethod
     def parse_active(body: Any) -> tuple[str, str]:
-        active = body.get("activeToken") if isinstance(body, dict) else None
-        if not active:
+        """(id, owner) of ``GET /admin/api/control-token``'s ``activeToken`` (("", "")
+        when it is null); ``TypeError`` or ``KeyError`` for another shape."""
+        active = obj(body).get("activeToken") if body is not None else None
+        if not active:  # null (or empty): nobody holds control
             return "", ""
-        return str(active.get("id", "")), str(active.get("ownedBy", ""))
+        active = obj(active, "activeToken")
+        owner = active.get("ownedBy")
+        return ident(active["id"], "activeToken.id"), "" if owner is None else str(owner)
+
+    @staticmethod
+    def parse_status(body: Any) -> dict[str, Any]:
+        """``GET /admin/api/system-status``'s document, the parts the client reads checked:
+        ``TypeError`` or ``ValueError`` naming the first that has another shape."""
+        status = obj(body)
+        safety = status.get("safety")
+        if safety is not None:
+            obj(safety, "safety")
+            for name, check in (("recoverableErrors", obj), ("brakeState", array)):
+                if safety.get(name) is not None:
+                    check(safety[name], f"safety.{name}")
+            if safety.get("timeToTd2") is not None:
+                number(safety["timeToTd2"], "safety.timeToTd2")
+        if status.get("derived") is not None:
+            obj(status["derived"], "derived")
+        return status
 
     def request_control(self, username: str, force: bool) -> Request:
         path = "/admin/api/control-token/request" + ("?force" if force else "")
@@ -148,9 +170,11 @@ class V1API:
 
     @staticmethod
     def parse_active(body: Any) -> tuple[str, str]:
-        if not isinstance(body, dict) or body.get("tokenId") is None:
+        """(id, owner) of ``GET /api/system/control-token`` (("", "") when nobody holds
+        it); ``TypeError`` for another shape."""
+        if body is None or obj(body).get("tokenId") is None:
             return "", ""
-        return str(body["tokenId"]), str(body.get("owner") or "")
+        return ident(body["tokenId"], "tokenId"), str(body.get("owner") or "")
 
     def take(self, username: str, timeout: float) -> Request:
         return _json(

@@ -9,25 +9,26 @@ timeout, and no request that changes the robot is ever retried behind the caller
 
 from __future__ import annotations
 
-import json
 import logging
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
-from panda_py.desk.api import PILOT_EVENTS_PATH, V1API, DeskAPI, LegacyAPI
+from panda_py import checks
+from panda_py.desk import answers
+from panda_py.desk.api import V1API, DeskAPI, LegacyAPI, encode_password
 from panda_py.desk.duties import DeskDuties
 from panda_py.desk.errors import (
-    DeskConnectionError,
     DeskError,
     DeskHTTPError,
     DeskUnsupportedError,
     NotInControlError,
     TakeControlTimeoutError,
 )
+from panda_py.desk.excerpt import redact, request_secrets
+from panda_py.desk.pilot import PilotEvents
+from panda_py.desk.shapes import array, header_token, ident, obj, seconds, text
 from panda_py.desk.store import Token, TokenStore
-from panda_py.desk.tls_stream import shared_tls
 from panda_py.desk.transport import (
     DEFAULT_TIMEOUT,
     HTTPSTransport,
@@ -47,16 +48,17 @@ _PLATFORMS = {
 }  # fmt: skip
 
 
-class Desk(DeskDuties):
+class Desk(DeskDuties, PilotEvents):
     """A session with a robot's Desk (``hostname`` may carry a port: ``"robot:8443"``).
 
     As panda-py's, the constructor logs in and tries to take control (without force);
     ``platform`` (``"panda"``/``"fer"`` or ``"fr3"``) is only a hint for the legacy brake
     endpoints, which are detected. ``api`` pins the dialect (``"legacy"`` or ``"v1"``);
-    by default it is detected from what the robot serves. ``timeout`` [s] bounds every
-    request; ``token_dir`` holds the token and certificate store (0700 directory, 0600
-    file); ``repin`` accepts a changed robot certificate once and pins it. ``transport``
-    replaces the network (tests).
+    by default it is detected from what the robot serves. ``timeout`` [s] (finite, at
+    most a day) bounds every request, as a deadline for the whole of it, and the Pilot
+    event stream's opening and closing; ``token_dir`` holds the token and certificate
+    store (0700 directory, 0600 file); ``repin`` accepts a changed robot certificate once
+    and pins it. ``transport`` replaces the network (tests).
     """
 
     def __init__(
@@ -77,8 +79,7 @@ class Desk(DeskDuties):
             raise ValueError(
                 f"platform: expected one of {sorted(_PLATFORMS)} or None, got {platform!r}"
             )
-        if not timeout > 0:
-            raise ValueError(f"timeout: expected > 0 s, got {timeout}")
+        timeout = checks.timeout("timeout", timeout)
         self._hostname = hostname
         self._username = username
         self._password = password
@@ -96,9 +97,6 @@ class Desk(DeskDuties):
         # taking control, releasing it and the FCI calls do nothing.
         self._tokenless = False
         self._token = self._store.token(hostname, username)
-        self._listening = False
-        self._listen_thread: threading.Thread | None = None
-        self._listen_ws: Any = None  # the Pilot event stream the listener reads
         if connect:
             self.login()
             self.take_control()
@@ -122,24 +120,49 @@ class Desk(DeskDuties):
     def _auth(self) -> dict[str, str]:
         return self._v1.auth_headers() if self._api == DeskAPI.V1 else self._legacy.auth_headers()
 
+    def _secrets(self) -> list[str]:
+        """What must never show in an error, besides the credentials of the request."""
+        return [
+            self._password,
+            encode_password(self._username, self._password),
+            self._legacy.session or "",
+            self._token.token,
+        ]
+
     def _send(
         self, request: Request, *, check: bool = True, timeout: float | None = None
     ) -> Response:
         """One request, never retried (a control request may have reached the robot)."""
         request.headers = {**self._auth(), **request.headers}
         response = self._transport.request(request, timeout=timeout or self.timeout)
+        response.request = request
         if check and not 200 <= response.status < 300:
-            raise DeskHTTPError(request.method, request.path, response.status, response.text)
+            raise self._refusal(response)
         return response
 
-    @staticmethod
-    def _json(response: Response) -> Any:
-        if not response.body:
-            return None
-        try:
-            return json.loads(response.body)
-        except ValueError as exc:
-            raise DeskError(f"the Desk answered non-JSON: {response.text[:200]!r}") from exc
+    def _refusal(self, response: Response) -> DeskHTTPError:
+        """The error for an answer with an error status (its text, credentials hidden)."""
+        request = response.request or Request("?", "?")
+        secrets = [*self._secrets(), *request_secrets(request.headers, request.body)]
+        text = redact(response.text, secrets)
+        return DeskHTTPError(request.method, request.path, response.status, text)
+
+    def _parse(self, response: Response, expected: str = "JSON", read: Any = None) -> Any:
+        """``read`` (by default nothing) applied to the answer's JSON; a
+        :class:`~panda_py.desk.errors.DeskAnswerError` if it is not of the ``expected``
+        shape."""
+        return answers.parse(response, expected, read or (lambda body: body), self._secrets())
+
+    def _read(
+        self,
+        request: Request,
+        expected: str = "JSON",
+        read: Any = None,
+        *,
+        timeout: float | None = None,
+    ) -> Any:
+        """:meth:`_send` ``request``, then :meth:`_parse` its answer."""
+        return self._parse(self._send(request, timeout=timeout), expected, read)
 
     def _need_login(self) -> DeskAPI:
         if self._api is None or not self._logged_in:
@@ -175,11 +198,11 @@ class Desk(DeskDuties):
             # A legacy-only Desk answers 404 (or its page) for the v1 paths.
             legacy_only = response.status in (404, 405) or response.status < 300
             if choice == DeskAPI.V1 or not legacy_only:
-                raise DeskHTTPError("GET", "/api/system", response.status, response.text)
+                raise self._refusal(response)
         self._api = DeskAPI.LEGACY
         self._legacy.session = None
         response = self._send(self._legacy.login(self._username, self._password))
-        self._legacy.session = response.text.strip()
+        self._legacy.session = answers.session_of(response, self._secrets())
         self._logged_in = True
         log.info("logged into the Desk at %s (legacy web API)", self._hostname)
 
@@ -196,8 +219,13 @@ class Desk(DeskDuties):
     def _active(self) -> tuple[str, str]:
         """(id, owner) of the robot's active control token; ("", "") if none."""
         if self._need_login() == DeskAPI.V1:
-            return V1API.parse_active(self._json(self._send(self._v1.active_token())))
-        return LegacyAPI.parse_active(self._json(self._send(self._legacy.active_token())))
+            return self._read(
+                self._v1.active_token(), "an object with the active 'tokenId'", V1API.parse_active
+            )
+        return self._read(
+            self._legacy.active_token(), "an object with an 'activeToken' object or null",
+            LegacyAPI.parse_active,
+        )  # fmt: skip
 
     def has_control(self) -> bool:
         """Whether this session's token is the robot's active one."""
@@ -234,7 +262,10 @@ class Desk(DeskDuties):
             # The robot holds the request until it is granted: allow for that, plus margin.
             try:
                 request = self._v1.take(self._username, wait)
-                body = self._json(self._send(request, timeout=wait + self.timeout))
+                token = self._read(
+                    request, "an object with 'tokenId' and 'token'", self._taken("tokenId"),
+                    timeout=wait + self.timeout,
+                )  # fmt: skip
             except DeskHTTPError as exc:
                 if exc.status == 424 and exc.code == "Timeout":
                     raise TakeControlTimeoutError(
@@ -242,13 +273,18 @@ class Desk(DeskDuties):
                         "press the Pilot's top button, or ask the holder to release it"
                     ) from exc
                 raise
-            self._set_token(Token(str(body["tokenId"]), self._username, str(body["token"])))
+            self._set_token(token)
             log.info("taken control of %s", self._hostname)
             return True
-        body = self._json(self._send(self._legacy.request_control(self._username, force)))
-        token = Token(str(body["id"]), self._username, str(body["token"]))
+        token = self._read(
+            self._legacy.request_control(self._username, force),
+            "an object with 'id' and 'token'", self._taken("id"),
+        )  # fmt: skip
         if force:
-            limit = float(self._json(self._send(self._legacy.safety()))["tokenForceTimeout"])
+            limit = self._read(
+                self._legacy.safety(), "an object with 'tokenForceTimeout' [s]",
+                lambda body: seconds(body["tokenForceTimeout"], "tokenForceTimeout"),
+            )  # fmt: skip
             log.warning(
                 "you have %.0f s to confirm control by pressing the circle (FER) or top (FR3) "
                 "button on the robot's Pilot",
@@ -265,6 +301,15 @@ class Desk(DeskDuties):
         self._set_token(token)
         log.info("taken control of %s", self._hostname)
         return True
+
+    def _taken(self, id_field: str) -> Callable[[Any], Token]:
+        """Reads the token a granted take answers (its id in ``id_field``)."""
+
+        def read(body: Any) -> Token:
+            token = header_token(body["token"], "token")
+            return Token(ident(body[id_field], id_field), self._username, token)
+
+        return read
 
     def release_control(self) -> None:
         """Give control back (the next queued user, if any, gets it)."""
@@ -303,8 +348,7 @@ class Desk(DeskDuties):
             if response.status == 404:  # the other arm's endpoint: nothing happened
                 continue
             if not 200 <= response.status < 300:
-                path = self._legacy.brakes(platform, action, "", force).path
-                raise DeskHTTPError("POST", path, response.status, response.text)
+                raise self._refusal(response)
             if platform != self._platform:
                 if self._platform_given:
                     log.warning(
@@ -347,14 +391,20 @@ class Desk(DeskDuties):
     def system_status(self) -> dict[str, Any]:
         """The robot's status document (``GET /api/system`` or ``/admin/api/system-status``)."""
         if self._need_login() == DeskAPI.V1:
-            return dict(self._json(self._send(self._v1.system())))
-        return dict(self._json(self._send(self._legacy.system_status())))
+            return dict(self._read(self._v1.system(), "an object", obj))
+        return dict(self._read(self._legacy.system_status(), "an object", LegacyAPI.parse_status))
 
     def operating_mode(self) -> str:
         """``"Execution"`` or ``"Programming"``."""
         if self._need_login() == DeskAPI.V1:
-            return str(self._json(self._send(self._v1.operating_mode()))["status"])
-        return str(self.system_status()["derived"]["operatingMode"])
+            request = self._v1.operating_mode()
+            return str(self._read(request, "an object with a text 'status'", _status))
+        return str(
+            self._read(
+                self._legacy.system_status(), "an object with a text 'derived.operatingMode'",
+                lambda body: text(body["derived"]["operatingMode"], "derived.operatingMode"),
+            )
+        )  # fmt: skip
 
     def set_operating_mode(self, mode: str) -> None:
         """Switch to ``"Execution"`` (FCI and tasks) or ``"Programming"`` (guiding)."""
@@ -376,83 +426,21 @@ class Desk(DeskDuties):
     def fci_status(self) -> str:
         """``"Active"`` or ``"Inactive"`` (v1)."""
         self._require_v1("fci_status")
-        return str(self._json(self._send(self._v1.fci_status()))["status"])
+        return str(self._read(self._v1.fci_status(), "an object with a text 'status'", _status))
 
     def brake_states(self) -> list[str]:
         """Per joint ``"Locked"`` or ``"Unlocked"`` (v1)."""
         self._require_v1("brake_states")
-        return [str(j["brakeStatus"]) for j in self._json(self._send(self._v1.joints()))]
-
-    # -- Pilot buttons -------------------------------------------------------------------
-
-    def listen(self, cb: Callable[[dict[str, bool]], None]) -> None:
-        """Call ``cb`` with each Pilot button event (``{"circle": True}`` on press,
-        False on release; the first event is the full key map) from a thread, until
-        :meth:`stop_listen`."""
-        if self._listen_thread is not None:
-            raise DeskError("already listening: call stop_listen() first")
-        self._need_login()
-        ws = self._open_events()
-        self._listening = True
-        self._listen_ws = ws
-        self._listen_thread = threading.Thread(
-            target=self._listen, args=(ws, cb), name="panda-py-desk-listen", daemon=True
-        )
-        self._listen_thread.start()
-
-    def _open_events(self) -> Any:
-        from websockets.exceptions import InvalidHandshake
-        from websockets.sync.client import connect
-
-        sock = self._transport.secure_socket(timeout=self.timeout)
-        headers = self._v1.ws_headers() if self._api == DeskAPI.V1 else self._legacy.ws_headers()
-        try:
-            # ws:// over a socket that is already TLS, its certificate checked against the pin.
-            return connect(
-                f"ws://{self._hostname}{PILOT_EVENTS_PATH}",
-                sock=shared_tls(sock),  # websockets reads and writes from two threads
-                additional_headers=headers,
-                open_timeout=self.timeout,
-                proxy=None,
+        return list(
+            self._read(
+                self._v1.joints(), "a list of joints, each with a text 'brakeStatus'",
+                lambda body: [text(j["brakeStatus"], "brakeStatus") for j in array(body)],
             )
-        except (InvalidHandshake, OSError, TimeoutError) as exc:
-            sock.close()
-            raise DeskConnectionError(f"Pilot events of {self._hostname}: {exc}") from exc
+        )  # fmt: skip
 
-    def _listen(self, ws: Any, cb: Callable[[dict[str, bool]], None]) -> None:
-        from websockets.exceptions import ConnectionClosed
 
-        with ws:
-            while self._listening:
-                try:
-                    message = ws.recv(timeout=0.2)
-                except TimeoutError:
-                    continue
-                except ConnectionClosed:
-                    if self._listening:  # (stop_listen closes it too)
-                        log.warning("the Desk at %s closed the Pilot event stream", self._hostname)
-                    return
-                try:
-                    event = json.loads(message)
-                except ValueError:
-                    continue
-                if isinstance(event, dict):
-                    cb(event)
-
-    def stop_listen(self) -> None:
-        """Stop the listener thread started by :meth:`listen`."""
-        self._listening = False
-        thread, self._listen_thread = self._listen_thread, None
-        ws, self._listen_ws = self._listen_ws, None
-        if ws is not None:
-            # the closing handshake ends the listener's receive at once (it would see the
-            # flag only at its next 0.2 s timeout)
-            try:
-                ws.close()
-            except OSError:
-                pass  # the connection is gone: the listener's receive ends all the same
-        if thread is not None:
-            thread.join()
+def _status(body: Any) -> str:
+    return text(obj(body)["status"], "status")
 
 
 __all__ = ["Desk", "DeskAPI"]

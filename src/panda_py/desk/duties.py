@@ -89,8 +89,9 @@ class DeskDuties(SafetyDuties):
         """The end-effector configuration the Desk stores: ``mass`` [kg],
         ``center_of_mass`` [m], ``inertia`` [kg m^2], ``F_T_EE`` (flange to EE), ``name``."""
         api = self._dialect()
-        body = self._json(self._send(duty_api.request("end_effector", api)))
-        return from_v1(body) if api == "v1" else from_legacy(body)
+        read = from_v1 if api == "v1" else from_legacy
+        request = duty_api.request("end_effector", api)
+        return self._read(request, f"an end-effector configuration ({api})", read)
 
     def set_payload(self, mass: float, center_of_mass: Any, inertia: Any) -> EndEffectorConfig:
         """Store what the flange carries: ``mass`` [kg] (0 to the robot's 3 kg payload),

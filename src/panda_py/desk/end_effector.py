@@ -28,7 +28,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import checks
-from panda_py.desk.errors import DeskError
 
 PAYLOAD_MAX = 3.0
 """The heaviest payload a Desk accepts [kg]: the FER's and FR3's data sheets' 3 kg, the end
@@ -113,15 +112,14 @@ def rpy_to_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
 # -- the two stored shapes ------------------------------------------------------------------
 
 
-def _malformed(api: str, body: Any, exc: Exception) -> DeskError:
-    return DeskError(
-        f"the Desk answered an end-effector configuration ({api}) that cannot be read: "
-        f"{type(exc).__name__}: {exc}; got {str(body)[:300]}"
-    )
+def _malformed(api: str, exc: Exception) -> ValueError:
+    why = f"no {exc.args[0]!r}" if isinstance(exc, KeyError) else f"{type(exc).__name__}: {exc}"
+    return ValueError(f"an end-effector configuration ({api}) that cannot be read: {why}")
 
 
 def from_v1(body: Any) -> EndEffectorConfig:
-    """The configuration in ``GET /api/configuration``'s answer."""
+    """The configuration in ``GET /api/configuration``'s answer; ``ValueError`` if it
+    holds none that can be read (the Desk client makes that its ``DeskAnswerError``)."""
     try:
         ee = body["endEffectorConfiguration"]["endEffector"]
         p = ee["params"]
@@ -150,7 +148,7 @@ def from_v1(body: Any) -> EndEffectorConfig:
             raw=dict(body),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise _malformed("v1", body, exc) from exc
+        raise _malformed("v1", exc) from exc
 
 
 def v1_payload_patch(
@@ -169,7 +167,8 @@ def v1_payload_patch(
 
 
 def from_legacy(body: Any) -> EndEffectorConfig:
-    """The configuration in the legacy Desk's end-effector document."""
+    """The configuration in the legacy Desk's end-effector document; ``ValueError`` if
+    it cannot be read."""
     try:
         T = np.array(body["transformation"], dtype=float).reshape(4, 4, order="F")
         return EndEffectorConfig(
@@ -181,7 +180,7 @@ def from_legacy(body: Any) -> EndEffectorConfig:
             raw=dict(body),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise _malformed("legacy", body, exc) from exc
+        raise _malformed("legacy", exc) from exc
 
 
 def legacy_payload_document(

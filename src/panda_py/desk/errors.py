@@ -1,11 +1,15 @@
 """The Desk client's exceptions: one root, structured fields, no message matching.
 
 ``DeskError`` derives from ``ConnectionError`` because panda-py's ``Desk`` raised
-``ConnectionError`` for every failure; scripts that catch it keep working.
+``ConnectionError`` for every failure; scripts that catch it keep working. Every failure
+talking to a Desk is one: what the robot answered, that it answered too late or too
+much or in a shape the client cannot read, or that it could not be reached.
 
 Every exception here pickles with its fields (an error raised in a worker process
 reaches its parent whole): ``BaseException`` pickles ``args``, the formatted message,
 which the structured constructors do not take, so each says how to rebuild itself.
+Text taken from an answer goes in as one line with credentials hidden
+(:mod:`panda_py.desk.excerpt`).
 """
 
 from __future__ import annotations
@@ -13,6 +17,8 @@ from __future__ import annotations
 import enum
 import json
 from typing import Any
+
+from panda_py.desk.excerpt import excerpt, redact
 
 
 class DeskError(ConnectionError):
@@ -32,26 +38,88 @@ class DeskHTTPError(DeskError):
         self.method = method
         self.path = path
         self.status = status
-        self.message = message
+        self.message = message = redact(message)
         self.code: str | None = None
         self.reason: str | None = None
         try:
             body = json.loads(message)
-        except ValueError:
+        except (ValueError, RecursionError):  # (not JSON, or nested past the stack)
             body = None
         if isinstance(body, dict):
             if isinstance(body.get("code"), str):
                 self.code = body["code"]
             if isinstance(body.get("reason"), str):
                 self.reason = body["reason"]
-        super().__init__(f"{method} {path} answered {status}: {message.strip()[:500]}")
+        super().__init__(f"{method} {path} answered {status}: {excerpt(message, limit=500)}")
 
     def __reduce__(self) -> tuple[Any, ...]:
         return (type(self), (self.method, self.path, self.status, self.message))
 
 
+class DeskAnswerError(DeskError):
+    """The robot answered something the client cannot use: more than it reads at most,
+    no JSON where JSON was due, JSON of another shape, a session or token that cannot
+    be sent back in a header.
+
+    ``method`` and ``path`` name the request, ``status`` is the answer's HTTP status,
+    ``problem`` says what is wrong with it, ``excerpt`` shows its beginning (one line,
+    credentials hidden; empty if nothing of it is worth showing).
+    """
+
+    def __init__(
+        self, method: str, path: str, status: int, problem: str, excerpt: str = ""
+    ) -> None:
+        self.method = method
+        self.path = path
+        self.status = status
+        self.problem = problem = redact(problem)
+        self.excerpt = excerpt = redact(excerpt)
+        super().__init__(
+            f"{method} {path} answered {status} with {problem}"
+            + (f": {excerpt}" if excerpt else "")
+        )
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (type(self), (self.method, self.path, self.status, self.problem, self.excerpt))
+
+
 class DeskConnectionError(DeskError):
-    """The robot could not be reached, or it did not answer within the timeout."""
+    """The robot could not be reached, the connection failed, or the answer was not
+    HTTP: ``detail`` says what happened; ``host`` names the robot and ``what`` the
+    request or stream (``"GET /api/system"``, ``"Pilot events"``) where known."""
+
+    def __init__(self, detail: str, *, host: str = "", what: str = "") -> None:
+        self.detail = detail = redact(detail)
+        self.host = host
+        self.what = what
+        where = " on ".join(part for part in (what, host) if part)
+        super().__init__(f"{where}: {detail}" if where else detail)
+
+    def _fields(self) -> dict[str, Any]:
+        return {"host": self.host, "what": self.what}
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild, (type(self), (self.detail,), self._fields()))
+
+
+class DeskTimeoutError(DeskConnectionError, TimeoutError):
+    """The robot did not answer ``what`` in full within ``timeout`` [s] (a deadline for
+    the whole request: connecting, the TLS handshake, sending, the whole answer).
+    ``received`` is how many bytes of the answer came by then, ``start`` their
+    beginning (one line, credentials hidden)."""
+
+    def __init__(
+        self, timeout: float, *, host: str = "", what: str = "", received: int = 0, start: str = ""
+    ) -> None:
+        self.timeout = timeout
+        self.received = received
+        self.start = start = redact(start)
+        came = f"{received} bytes came by then: {start}" if received else "nothing came"
+        super().__init__(f"no complete answer within {timeout:g} s ({came})", host=host, what=what)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        fields = {**self._fields(), "received": self.received, "start": self.start}
+        return (_rebuild, (type(self), (self.timeout,), fields))
 
 
 class CertificateChangedError(DeskError):
@@ -154,7 +222,7 @@ class BringUpError(DeskError):
         return (_rebuild, (type(self), (self.host, self.detail), self._fields()))
 
 
-def _rebuild(cls: type[BringUpError], args: tuple[Any, ...], fields: dict[str, Any]) -> Any:
+def _rebuild(cls: type[DeskError], args: tuple[Any, ...], fields: dict[str, Any]) -> Any:
     return cls(*args, **fields)
 
 
@@ -237,9 +305,11 @@ __all__ = [
     "BringUpStep",
     "CertificateChangedError",
     "ControlNotGrantedError",
+    "DeskAnswerError",
     "DeskConnectionError",
     "DeskError",
     "DeskHTTPError",
+    "DeskTimeoutError",
     "DeskUnsupportedError",
     "FCIRefusedError",
     "NotInControlError",

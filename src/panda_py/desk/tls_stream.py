@@ -10,6 +10,12 @@ one Pilot-event handshake in sixteen (a stall to the timeout with a socket timeo
 is non-blocking; each call into it holds the lock only for that non-blocking step, and
 waits for readiness outside it, so reader and writer take turns and neither waits on the
 other's socket state.
+
+A wait ends when the socket is closed, too: websockets reads with no timeout, and a
+``select`` is not woken by another thread closing its socket. A Desk that sent its TLS
+session tickets and then nothing left the reader waiting for the rest of a record, and
+the caller's close (after the upgrade's timeout) joining it, until the Desk hung up.
+Waits therefore look at the closed flag every :data:`CLOSE_POLL`.
 """
 
 from __future__ import annotations
@@ -21,6 +27,8 @@ import threading
 import time
 from typing import Any
 
+CLOSE_POLL = 0.05  # [s] a waiting read or write notices a close within this
+
 
 class SerializedTLSSocket:
     """The socket methods websockets' sync client uses, over an :class:`ssl.SSLSocket`."""
@@ -30,21 +38,24 @@ class SerializedTLSSocket:
         self._sock = sock
         self._lock = threading.Lock()
         self._timeout: float | None = None
+        self._closed = False
         self.family = sock.family
 
     def settimeout(self, timeout: float | None) -> None:
         self._timeout = timeout
 
     def _wait(self, write: bool, deadline: float | None) -> None:
-        remaining = None if deadline is None else deadline - time.monotonic()
-        if remaining is not None and remaining <= 0:
-            raise TimeoutError("timed out")
-        fd = self._sock.fileno()
-        if fd < 0:
-            raise OSError("the socket is closed")
-        r, w, _ = select.select([] if write else [fd], [fd] if write else [], [], remaining)
-        if not r and not w:
-            raise TimeoutError("timed out")
+        while True:
+            remaining = None if deadline is None else deadline - time.monotonic()
+            if remaining is not None and remaining <= 0:
+                raise TimeoutError("timed out")
+            fd = self._sock.fileno()
+            if self._closed or fd < 0:
+                raise OSError("the socket is closed")
+            wait = CLOSE_POLL if remaining is None else min(remaining, CLOSE_POLL)
+            r, w, _ = select.select([] if write else [fd], [fd] if write else [], [], wait)
+            if r or w:
+                return
 
     def _deadline(self) -> float | None:
         return None if self._timeout is None else time.monotonic() + self._timeout
@@ -79,7 +90,9 @@ class SerializedTLSSocket:
         self._sock.shutdown(how)  # the TCP connection's, not OpenSSL's: no lock needed
 
     def close(self) -> None:
-        self._sock.close()
+        self._closed = True  # (a wait in the other thread sees it within CLOSE_POLL)
+        with self._lock:  # not in the middle of the other thread's OpenSSL call
+            self._sock.close()
 
     def fileno(self) -> int:
         return self._sock.fileno()
@@ -102,4 +115,4 @@ def shared_tls(sock: socket.socket) -> socket.socket:
     return SerializedTLSSocket(sock)  # type: ignore[return-value]
 
 
-__all__ = ["SerializedTLSSocket", "shared_tls"]
+__all__ = ["CLOSE_POLL", "SerializedTLSSocket", "shared_tls"]

@@ -19,6 +19,7 @@ from typing import Any
 
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.desk.link import DeskLink
+from panda_py.sim.desk.protocol import desk_protocol
 
 log = logging.getLogger("panda_py.sim.desk")
 
@@ -46,7 +47,7 @@ class DeskConfig:
     token_force_timeout: float = 10.0  # [s] to press the Pilot after a forced take
     cert_dir: str | None = None  # default: ~/.cache/panda_py/desk
     page: bool = True
-    header_timeout: float = 10.0  # [s] a request head slower than this (to twice it): closed
+    header_timeout: float = 10.0  # [s] a request head slower than this (to twice it): aborted
     self_test_duration: float = 1.0  # [s] the simulated safety self-test takes this long
 
     def __post_init__(self) -> None:
@@ -75,43 +76,6 @@ def _bind(host: str, port: int) -> socket.socket:
         sock.close()
         raise
     return sock
-
-
-def _slow_header_protocol(timeout: float) -> Any:
-    """uvicorn's HTTP/1.1 protocol, closing connections that send no complete request
-    head within ``timeout`` to 2 ``timeout`` [s] (uvicorn waits for it forever, so slow
-    clients could use up ``limit_concurrency``). Idle kept-alive connections close sooner,
-    after uvicorn's own ``timeout_keep_alive``."""
-    import h11
-    from uvicorn.protocols.http.h11_impl import H11Protocol
-
-    class SlowHeaderProtocol(H11Protocol):
-        def connection_made(self, transport: Any) -> None:
-            super().connection_made(transport)
-            self._heads = 0
-            self._heads_at_check = 0
-            self._check_later()
-
-        def _check_later(self) -> None:
-            self.loop.call_later(timeout, self._check)
-
-        def data_received(self, data: bytes) -> None:
-            idle = self.conn.their_state is h11.IDLE
-            super().data_received(data)
-            if idle and self.conn.their_state is not h11.IDLE:
-                self._heads += 1  # a complete request head arrived
-
-        def _check(self) -> None:
-            if self.transport.is_closing() or self.transport.get_protocol() is not self:
-                return  # closed, or upgraded to a websocket
-            if self.conn.their_state is h11.IDLE and self._heads == self._heads_at_check:
-                log.info("closing a connection that sent no request head in %.1f s", timeout)
-                self.timeout_keep_alive_handler()
-                return
-            self._heads_at_check = self._heads
-            self._check_later()
-
-    return SlowHeaderProtocol
 
 
 def desk_main(
@@ -157,7 +121,7 @@ def desk_main(
             log_level="warning",
             access_log=False,
             lifespan="off",
-            http=_slow_header_protocol(config.header_timeout),
+            http=desk_protocol(config.header_timeout),
             ws="websockets-sansio",
             ws_max_size=64 * 1024,
             timeout_keep_alive=5,
