@@ -375,7 +375,23 @@ class Panda:
         self._motion = handle
         if asynchronous:
             return handle
-        return handle.wait()
+        try:
+            return handle.wait()
+        except BaseException:  # Ctrl-C (KeyboardInterrupt) or any error while it ran
+            self._stop_interrupted(handle)
+            raise
+
+    def _stop_interrupted(self, handle: MotionHandle) -> None:
+        """A blocking move whose wait was interrupted: bring the arm gently to rest before
+        the exception goes on, so a script that catches it has no arm moving behind its
+        back. The cancel goes out first; a second interrupt while the arm decelerates (or a
+        control process already gone) leaves it to the control process."""
+        try:
+            if not handle.done():
+                handle.cancel()
+                handle.wait(CLOSE_MOTION_TIMEOUT)
+        except BaseException:  # (the first exception is the one to raise)
+            pass
 
     def move_to_joint_position(
         self, *args: Any, asynchronous: bool = False, until: Any = None, then: Any = None,
