@@ -99,20 +99,20 @@ _DRY_FRICTION = 'solreffriction="0.002 1" solimpfriction="0.99 0.9999 0.001"'
 _PAD = f'priority="1" condim="4" {_HARD}'
 # The table's contacts, with whatever touches it (the fingertips, the hand, the links, a
 # held or a free object): the higher priority, so its parameters decide them. An arm
-# stopped by a surface is stopped through a chain of compliances a rigid-joint plant
-# lacks: the joints' harmonic drives and torque sensors (between the rotors' reflected
-# inertia, a third of the arm's effective mass at the hand, and the links), the
+# stopped by a surface is stopped through a chain of compliances a rigid-joint plant lacks:
+# the joints' harmonic drives and torque sensors (between the rotors' reflected inertia, a
+# quarter to a third of the arm's effective mass at the hand, and the links), the
 # fingertips, the table top. On a Panda they spread an impact over tens of milliseconds
 # into a damped oscillation (I. Aouaj, V. Padois, A. Saccon, "Predicting the Post-Impact
-# Velocity of a Robotic Arm via Rigid Multibody Models: an Experimental Study", ICRA
-# 2021), and a viscoelastic (spring-damper) contact model fits its measured impact forces
-# best (Y. Wang, N. Dehio, A. Kheddar, "On Inverse Inertia Matrix and Contact-Force Model
-# for Robotic Manipulators at Normal Impacts", IEEE RA-L 7(2), 2022). The table stands
-# for that chain with MuJoCo's default time constant: a critically damped spring-damper
-# of 20 ms (about 33 kN/m for the hand's 13 kg effective mass on it at the scene's
-# grasping height), impedance 0.99 at once so that a steady push finds the surface
-# firm. Franka publishes no such figure: a judgement, and the reason the pads' 2 ms
-# (made for holding objects) no longer decide their contacts with the table. Its
+# Velocity of a Robotic Arm via Rigid Multibody Models: an Experimental Study", arXiv:2010.08220),
+# and a viscoelastic (spring-damper) contact model fits its measured impact forces best (Y.
+# Wang, N. Dehio, A. Kheddar, "On Inverse Inertia Matrix and Contact-Force Model for
+# Robotic Manipulators at Normal Impacts", IEEE RA-L 7(2), 2022). The table stands for that
+# chain with MuJoCo's default time constant: a critically damped spring-damper of 20 ms
+# (about 33 kN/m for the hand's 13 kg effective mass, its fingertips sticking, 4 cm above
+# the table at x = 0.45 m, y = 0.25 m), impedance 0.99 at once so that a steady push finds
+# the surface firm. Franka publishes no such figure: a judgement, and the reason the pads'
+# 2 ms (made for holding objects) no longer decide their contacts with the table. Its
 # friction and contact dimensions keep those that decided the cube's contacts with it
 # before (MuJoCo's maximum of the two geoms').
 _TABLE = (
