@@ -3,8 +3,10 @@ down onto the table with ``Reaction(Measure.FORCE_Z < -5.0, CartesianStopMotion(
 fires at the contact and stops the arm there: it works only if the simulator publishes
 O_F_ext_hat_K with libfranka's sign (the robot's force on the environment; pressing down
 reads negative). With the opposite sign it never fires and the motion ends in a reflex.
-(The simulated contact's impact is stiffer than a robot's, so the script raises the
-collision thresholds; the force at the firing tick is reported, not held to 5 N.)"""
+(The README sets the dynamics factor robot-wide, which slows the stop motion as much: the
+commanded pose runs on into the table after the reaction fires and the robot presses
+there, so the script raises the collision thresholds, as test_conf_franky_guarded
+explains; the force at the firing tick is reported, not held to 5 N.)"""
 
 from __future__ import annotations
 

@@ -49,17 +49,69 @@ def above_table() -> np.ndarray:
 
 
 IMPACT = 0.03  # [s] the impact's transient, over before the contact force is judged
+CONTACT_THRESHOLD = 60.0  # [N], [Nm] the reflex thresholds of a contact task (example 16)
 
 
 def allow_contact(panda: panda_py.Panda) -> None:
-    """Collision thresholds for a contact task, as on a real robot: touching a rigid
-    table at 5 cm/s is an impact (the simulated table and pads are hard: the estimated
-    force peaks at about 47 N for a tick, whatever the controller), above the default
-    reflex thresholds (20 N)."""
+    """Collision thresholds for a contact task, as on a real robot: touching a table at
+    5 cm/s is an impact whose estimated force peaks at about 22 N (10 cm/s: 46 N), above
+    the default reflex thresholds (20 N)."""
+    t = CONTACT_THRESHOLD
     panda.get_robot().set_collision_behavior(
-        [80.0] * 7, [80.0] * 7, [80.0] * 7, [80.0] * 7,
-        [80.0] * 6, [80.0] * 6, [80.0] * 6, [80.0] * 6,
-    )  # fmt: skip
+        [t] * 7, [t] * 7, [t] * 7, [t] * 7, [t] * 6, [t] * 6, [t] * 6, [t] * 6
+    )
+
+
+def descend_onto_the_table(panda: panda_py.Panda, speed: float) -> tuple[Any, np.ndarray, float]:
+    """Down at ``speed`` [m/s] from 4 cm above the table toward 3 cm inside it until the
+    robot presses with 5 N (example 16's guarded place, without the cube): the move's
+    handle, the logged push on the table [N] (``-O_F_ext_hat_K`` z) and the descent's
+    speed when it first touched [m/s]."""
+    panda.move_to_start()
+    allow_contact(panda)
+    start = above_table()
+    assert panda.move_to_pose(start)
+    panda.enable_logging(30_000)
+    goal = start.copy()
+    goal[2, 3] = -0.03
+    factor = speed / FER.cartesian.translation_velocity
+    handle = panda.move_to_pose(goal, speed_factor=factor, until=(Force.z < -5.0) | (Elapsed > 5.0),
+                                asynchronous=True)  # fmt: skip
+    handle.wait()
+    log = panda.get_log()
+    panda.disable_logging()
+    push = -np.array(log["O_F_ext_hat_K"])[:, 2]
+    z = np.array(log["O_T_EE"])[:, 14]
+    touching = np.flatnonzero(push > 1.0)
+    assert touching.size, "never touched the table"
+    first = touching[0]
+    return handle, push, float(z[first - 6] - z[first - 1]) / 5e-3
+
+
+@pytest.mark.parametrize("speed", [0.02, 0.05, 0.10])
+def test_a_guarded_approach_stops_on_the_table_without_a_reflex(
+    panda: panda_py.Panda, speed: float
+) -> None:
+    """At the speeds users approach surfaces with, the impact's estimated force stays
+    below the 60 N reflex thresholds of a contact task: the move ends by its condition."""
+    handle, push, touched_at = descend_onto_the_table(panda, speed)
+    assert touched_at > 0.9 * speed  # it hit the table at the speed it was meant to
+    result = handle.result
+    assert result is not None and result.error is None, result
+    assert result.condition == "Force.z < -5.0"
+    assert 5.0 < push.max() < CONTACT_THRESHOLD
+    assert not panda.get_state().last_motion_errors
+
+
+def test_an_impact_at_speed_ends_in_a_reflex(panda: panda_py.Panda) -> None:
+    """At 30 cm/s the same approach is an impact the robot's reflex stops."""
+    handle, push, touched_at = descend_onto_the_table(panda, 0.30)
+    assert touched_at > 0.27
+    assert handle.result is not None and handle.result.error is not None
+    assert push.max() > CONTACT_THRESHOLD
+    assert "cartesian_reflex" in panda.get_state().last_motion_errors
+    panda.recover()  # the reflex held the arm pressed on the table: lift it off again
+    assert panda.move_to_pose(above_table())
 
 
 def test_a_guarded_descent_stops_on_contact_gently(panda: panda_py.Panda) -> None:

@@ -41,6 +41,7 @@ def _randomise(core: RobotCore, rng: np.random.Generator) -> None:
     ph.data.qpos[ph.q0 : ph.q0 + 7] = rng.uniform(lo, hi)
     ph.data.qvel[ph.v0 : ph.v0 + 7] = rng.normal(size=7)
     mujoco.mj_forward(ph.model, ph.data)
+    ph.dq_before[:] = rng.normal(size=7)  # (tau_J: the rotor inertia's share)
     ph.tau_applied[:] = rng.normal(size=7) * 10
     core.tau_ext[:] = rng.normal(size=7) if rng.random() < 0.5 else 0.0
     core.contact_active = bool(core.tau_ext.any())

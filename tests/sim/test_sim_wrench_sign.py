@@ -2,7 +2,8 @@
 checked against the definitions rather than against our own client:
 
 - ``tau_ext_hat_filtered``: "the error between tau_J and the expected torques given by the
-  robot model" -- under torque control, tau_J minus the commanded and gravity torques;
+  robot model" -- for an arm at rest, tau_J minus the gravity torques (the link-side
+  sensors carry what the drives push with; the table's push back acts on the links);
 - ``O_F_ext_hat_K`` / ``K_F_ext_hat_K``: the wrench at the stiffness frame K, "forces
   applied by the robot to the environment are positive, while forces applied by the
   environment on the robot are negative" -- an arm pressing down on the table reads a
@@ -53,7 +54,7 @@ def test_pressing_on_the_table_reads_the_robots_force_on_it(panda_sim) -> None:
             # state read after the motion has ended sees the estimate already decaying.)
             for name in ("O_F_ext_hat_K", "K_F_ext_hat_K", "tau_ext_hat_filtered", "tau_J"):
                 last[name] = np.array(getattr(state, name))
-            last["commanded"] = np.array(state.tau_J_d)
+            last["dq"] = np.array(state.dq)
             last["gravity"] = np.array(model.gravity(state))
             return lf.motion_finished(lf.Torques(tau))
 
@@ -61,9 +62,10 @@ def test_pressing_on_the_table_reads_the_robots_force_on_it(panda_sim) -> None:
     O_F, K_F, tau_ext = last["O_F_ext_hat_K"], last["K_F_ext_hat_K"], last["tau_ext_hat_filtered"]
     assert O_F[2] < -0.6 * PUSH, O_F  # the robot's force on the table points down
     assert K_F[2] > 0.6 * PUSH, K_F  # K's z points down, into the table
-    # the robot model expects the commanded torques on top of gravity (in torque control)
-    expected = last["commanded"] + last["gravity"]
-    assert np.allclose(tau_ext, last["tau_J"] - expected, atol=0.15 * PUSH), (
+    # at rest the robot model expects gravity alone (M ddq + c vanish); the client's hand
+    # holds the fingers' 30 g the simulated hand carries as bodies of their own
+    assert np.abs(last["dq"]).max() < 1e-3
+    assert np.allclose(tau_ext, last["tau_J"] - last["gravity"], atol=0.25), (
         tau_ext,
-        last["tau_J"] - expected,
+        last["tau_J"] - last["gravity"],
     )

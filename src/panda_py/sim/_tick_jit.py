@@ -60,14 +60,18 @@ def _put_col_major(sb, at, T):  # type: ignore[no-untyped-def,unused-ignore]
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def fill_state(  # type: ignore[no-untyped-def,unused-ignore]
-    sb, off, q, dq, tau_applied, gravcomp, tau_ext, tau_J_d, jq, jdq, jddq, q_hold,
-    cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, fk, xmat, links, const, flags,
+    sb, off, q, dq, tau_applied, gravcomp, dq_before, drive, constraint, tau_J_d, jq, jdq,
+    jddq, q_hold, cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, fk, xmat, links,
+    const, flags,
 ):  # fmt: skip
     """The per-tick fields into the state buffer ``sb`` (float64, field ``i`` of FIELDS
     at ``off[i]``). ``fk`` (2, 4, 4): O_T_EE of the measured joints and, outside a
     Cartesian motion, of the desired ones ``jq``; ``xmat``: MuJoCo's body rotations,
     ``links`` the bodies of links 1..6; ``const``: (elbow flip q4 [rad], 1 / DT [1/s],
-    -gravity z [m/s^2])."""
+    -gravity z [m/s^2]). tau_J as ``Physics.sensor_torque`` (``dq_before`` the joint
+    velocities before the step, ``drive`` its rotor inertia and viscous friction rows,
+    ``constraint`` the arm's constraint forces), the contacts' part left to the
+    reference."""
     flip, inv_dt, minus_gz = const[0], const[1], const[2]
     moving_cart = (flags & MOVING_CARTESIAN) != 0
     moving = moving_cart or (flags & MOVING_JOINT) != 0
@@ -113,7 +117,11 @@ def fill_state(  # type: ignore[no-untyped-def,unused-ignore]
     o_q, o_dq, o_th, o_dth = off[_Q], off[_DQ], off[_THETA], off[_DTHETA]
     o_qd, o_dqd, o_ddqd = off[_Q_D], off[_DQ_D], off[_DDQ_D]
     for i in range(7):
-        tau = tau_applied[i] + gravcomp[i] - tau_ext[i]
+        tau = (dq[i] - dq_before[i]) * (-inv_dt * drive[0, i])
+        tau = tau + tau_applied[i]
+        tau = tau + gravcomp[i]
+        tau = tau - drive[1, i] * dq[i]
+        tau = tau + constraint[i]
         sb[dtj + i] = (tau - sb[tj + i]) * inv_dt
         sb[tj + i] = tau
         sb[tjd + i] = tau_J_d[i]

@@ -173,7 +173,7 @@ G_KP, G_KD, G_MAX_FORCE, G_FORCE_STEP, G_DT = 0, 1, 2, 3, 4  # (G_DT: DT [s])
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     tau, ints, hand, gains, qpos, qvel, q0, v0, ctrl, applied, tau_applied, gravcomp,
-    contacts, xmat, sb, off, tau_J_d, tau_max, dtau_step, tau_ext, q_hold, jq, jdq, jddq,
+    contacts, xmat, sb, off, tau_J_d, tau_max, dtau_step, sensor, q_hold, jq, jdq, jddq,
     jdddq, upper, lower, cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, success, fk,
     chain, links, const, scratch, measured,
 ):  # fmt: skip
@@ -185,10 +185,12 @@ def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     counters, the fingers' qpos and dof (updated in place); ``hand``: the hand's hold
     width, force, the held grasp's force (NaN: none), its max width (force updated);
     ``contacts``: :func:`contact_views`' and which geoms are the robot's (uint8);
-    the rest: the physics' arrays (MuJoCo's own), the state buffer, the core's arrays
-    and the commanded joint signal (``jq`` .. ``jdddq``, updated), ``fk`` (2, 4, 4) and
-    ``scratch`` (4, 7) buffers; ``measured``: the measured state's limits (q_min, q_max,
-    |dq| max with the robot's tolerance)."""
+    ``sensor``: the physics' joint velocities before the step (written), its drive terms
+    and the arm's constraint forces, for tau_J (``Physics.sensor_torque``); the rest: the
+    physics' arrays (MuJoCo's own), the state buffer, the core's arrays and the commanded
+    joint signal (``jq`` .. ``jdddq``, updated), ``fk`` (2, 4, 4) and ``scratch`` (4, 7)
+    buffers; ``measured``: the measured state's limits (q_min, q_max, |dq| max with the
+    robot's tolerance)."""
     # -- the checks, before anything changes: the measured state's (RobotCore._motion_tick
     # after the command's: where they fail the reference reflexes), the command's
     # (RobotCore._accept)
@@ -239,9 +241,11 @@ def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
         limit = gains[G_MAX_FORCE]
         hand[H_FORCE] = max(-limit, min(limit, f))
     # -- the physics (Physics.step) -----------------------------------------------------
+    dq_before, drive, constraint = sensor
     for i in range(7):
         applied[i] = tau_J_d[i]
         tau_applied[i] = tau_J_d[i]
+        dq_before[i] = qvel[v0 + i]
     if ints[I_FINGER_ACT] >= 0:
         ctrl[ints[I_FINGER_ACT]] = hand[H_FORCE]
     _mj_step(ints[I_MODEL], ints[I_DATA])
@@ -252,9 +256,10 @@ def torque_tick(  # type: ignore[no-untyped-def,unused-ignore]
     flags = ints[I_FLAGS]
     if (flags & _tick_jit.MOVING_CARTESIAN) == 0 and not _fk_one(jq, chain, fk[1]):
         return _FILL
-    _fill_state(sb, off, q, qvel[v0 : v0 + 7], tau_applied, gravcomp, tau_ext, tau_J_d, jq,
-                jdq, jddq, q_hold, cart_T, cart_v, cart_a, elbow_c, delbow_c, ddelbow_c, fk,
-                xmat, links, const, flags & ~_tick_jit.MODE_CHANGED)  # fmt: skip
+    _fill_state(sb, off, q, qvel[v0 : v0 + 7], tau_applied, gravcomp, dq_before, drive,
+                constraint, tau_J_d, jq, jdq, jddq, q_hold, cart_T, cart_v, cart_a, elbow_c,
+                delbow_c, ddelbow_c, fk, xmat, links, const,
+                flags & ~_tick_jit.MODE_CHANGED)  # fmt: skip
     # Physics.contact_torques finds nothing where no contact is between the robot and
     # something else: then the reference's contact part does nothing (none was active)
     count, pointer, pairs, base, robot_geom = contacts

@@ -88,7 +88,7 @@ class CompiledTick:
         self._update(hand)
         # the arrays the core replaces (a new hold, a reset, another end effector) made
         # the arguments anew; otherwise the last ones (the same arrays, updated in place)
-        key = (core.q_hold, core.tau_J_d, core.joint, core.cart, core.success, core.tau_ext,
+        key = (core.q_hold, core.tau_J_d, core.joint, core.cart, core.success,
                core.elbow_c, core.chain_constants())  # fmt: skip
         if self._key is None or any(a is not b for a, b in zip(key, self._key, strict=True)):
             self._args = self._arguments(core.measured_limits())
@@ -125,8 +125,9 @@ class CompiledTick:
             ints, h, self.gains, d.qpos, d.qvel, ph.q0, v0, d.ctrl, ph.applied_arm,
             ph.tau_applied, ph.gravity_torque(), self._contacts, d.xmat,
             core.state_buffer, self._off, core.tau_J_d, core.tau_max, core.dtau_step,
-            core.tau_ext, core.q_hold, joint.q, joint.dq, joint.ddq, joint.dddq, self._upper,
-            self._lower, cart.T, cart.v, cart.a, core.elbow_c, core.delbow_c, core.ddelbow_c,
+            (ph.dq_before, ph.drive_terms, ph.constraint_arm), core.q_hold, joint.q, joint.dq,
+            joint.ddq, joint.dddq, self._upper, self._lower, cart.T, cart.v, cart.a,
+            core.elbow_c, core.delbow_c, core.ddelbow_c,
             np.frombuffer(core.success, dtype=np.uint8), self._fk, core.chain_constants(),
             links, const, self._scratch, measured,
         )  # fmt: skip

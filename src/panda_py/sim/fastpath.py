@@ -98,9 +98,9 @@ class TickKernels:
         cart = core.cart
         self._k.fill_state(
             core.state_buffer, self._off, q, ph._qvel_arm, ph.tau_applied, ph._gravcomp_arm,
-            core.tau_ext, core.tau_J_d, joint.q, joint.dq, joint.ddq, core.q_hold, cart.T,
-            cart.v, cart.a, core.elbow_c, core.delbow_c, core.ddelbow_c, fk, ph._xmat,
-            self._links, self._const, flags,
+            ph.dq_before, ph.drive_terms, ph.constraint_arm, core.tau_J_d, joint.q, joint.dq,
+            joint.ddq, core.q_hold, cart.T, cart.v, cart.a, core.elbow_c, core.delbow_c,
+            core.ddelbow_c, fk, ph._xmat, self._links, self._const, flags,
         )  # fmt: skip
         core._fill_contacts(core._T_view["O_T_EE"])
         return True

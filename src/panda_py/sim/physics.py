@@ -105,6 +105,11 @@ class Physics:
         self._gravcomp_arm = self.data.qfrc_gravcomp[sl]
         self._applied_arm = self.data.qfrc_applied[sl]
         self._bias_arm = self.data.qfrc_bias[sl]
+        self._constraint_arm = self.data.qfrc_constraint[sl]
+        # The drives' part of the plant (motor side of the joints' torque sensors): the
+        # reflected rotor inertia and the viscous friction, rows of ``drive_terms``.
+        self._drive = np.array([m.dof_armature[sl], m.dof_damping[sl]])
+        self._dq_before = np.zeros(7)  # the arm's joint velocities before the last step
         self._qpos, self._qvel, self._ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         self._xmat = self.data.xmat
         # Scratch of the robot's IK (flange kinematics of the same parameters).
@@ -160,6 +165,7 @@ class Physics:
             self.data.qpos[self.finger_q2] = width / 2
         mujoco.mj_forward(self.model, self.data)
         self.tau_applied[:] = 0.0
+        self._dq_before[:] = 0.0
 
     def place_body(self, name: str, position: np.ndarray) -> None:
         """Put the free body ``name`` (e.g. the cube), upright and at rest, with its origin
@@ -188,6 +194,42 @@ class Physics:
     def gravity_torque(self) -> np.ndarray:
         """Torque the robot spends holding the arm and hand against gravity [Nm]."""
         return self._gravcomp_arm
+
+    @property
+    def dq_before(self) -> np.ndarray:
+        """The arm's joint velocities before the last step [rad/s] (a live buffer)."""
+        return self._dq_before
+
+    @property
+    def constraint_arm(self) -> np.ndarray:
+        """The constraint forces on the arm's joints over the last step [Nm] (a live view:
+        the joints' dry friction and limits, and the contacts)."""
+        return self._constraint_arm
+
+    @property
+    def drive_terms(self) -> np.ndarray:
+        """The drives' reflected rotor inertia [kg m^2] and viscous friction [Nm s/rad] of
+        the arm's joints, rows of a (2, 7) array (read only by convention)."""
+        return self._drive
+
+    def sensor_torque(self, out: np.ndarray) -> np.ndarray:
+        """The link-side joint torques over the last step [Nm] without the contacts' part,
+        into ``out``: what the drives deliver past the joints' torque sensors (the applied
+        and the gravity-compensating torque, less the rotor inertia's and the viscous
+        friction's share, with the dry friction's and the limits' constraint forces), as
+        in MuJoCo's equation of motion for the implicit step: ``(M + B) a + D dq =
+        tau + g - bias + f_constraint``, so ``M a + c + g = tau_J + tau_contacts``. The
+        contacts' torques are the external ones; the caller takes them away
+        (:meth:`contact_torques`). ``_tick_jit.fill_state`` computes the same."""
+        B, D = self._drive
+        dq = self._qvel_arm
+        np.subtract(dq, self._dq_before, out=out)
+        out *= -(1.0 / DT) * B
+        out += self.tau_applied
+        out += self._gravcomp_arm
+        out -= D * dq
+        out += self._constraint_arm
+        return out
 
     def coriolis(self) -> np.ndarray:
         """C(q, dq) dq of the arm [Nm] (the bias force less gravity)."""
@@ -261,6 +303,7 @@ class Physics:
         if self.finger_act >= 0:
             self._ctrl[self.finger_act] = finger_force
         self.tau_applied[:] = tau
+        self._dq_before[:] = self._qvel_arm
         mujoco.mj_step(self.model, self.data)
 
     # -- internal controllers -----------------------------------------------------------

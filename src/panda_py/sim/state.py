@@ -18,8 +18,16 @@ from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import CartesianSignal, JointSignal
 from panda_py.sim.settings import CollisionThresholds
 
-# First-order filter constant of tau_ext_hat_filtered (about 16 Hz at 1 kHz).
-_EXT_FILTER = 0.1
+# The robot's external torque estimate is its model's residual, low-pass filtered
+# (libfranka's robot_state.h: tau_ext_hat_filtered is "the error between tau_J and the
+# expected torques given by the robot model", "low-pass filtered"). The filter of a
+# generalised-momentum observer, the estimator of joint-torque-sensing arms (S. Haddadin,
+# A. De Luca, A. Albu-Schaeffer, "Robot Collisions: A Survey on Detection, Isolation, and
+# Identification", IEEE T-RO 33(6), 2017), is first order, r = K_O / (s + K_O) tau_ext.
+# Franka publishes neither its estimator nor its gain: K_O is a judgement (a 16 Hz
+# corner, 10 ms time constant), discretised as the observer's rectangle rule.
+OBSERVER_GAIN = 100.0  # [1/s] K_O
+_EXT_FILTER = OBSERVER_GAIN * DT  # the observer's step per tick
 _NO_TORQUE = np.zeros(7)  # tau_ext of no contact (read only)
 _NO_TORQUE.flags.writeable = False
 
@@ -75,6 +83,7 @@ class StateAssembly:
         """The state: named float64 views into one buffer laid out in the wire's field
         order (see :mod:`panda_py.sim.wire`), so a connection copies it in a few blocks."""
         self._fast: TickKernels | None = None
+        self._tau_J_scratch = np.zeros(7)
         total = sum(_STATE_SIZES.values())
         self.state_buffer = np.zeros(total)
         self.state_offsets: dict[str, tuple[int, int]] = {}
@@ -155,7 +164,9 @@ class StateAssembly:
             if self._filled_mode != mg:  # zeros stand until a Cartesian motion
                 for name in ("delbow_c", "ddelbow_c", "O_dP_EE_d", "O_dP_EE_c", "O_ddP_EE_c"):
                     s[name][:] = 0.0
-        tau_J = ph.tau_applied + ph.gravity_torque() - self.tau_ext
+        # the link-side torque sensors: what the drives deliver, the contacts' torques
+        # taken away in _fill_contacts (they act on the links, past the sensors)
+        tau_J = ph.sensor_torque(self._tau_J_scratch)
         np.subtract(tau_J, s["tau_J"], out=s["dtau_J"])
         s["dtau_J"] *= 1.0 / DT
         s["tau_J"][:] = tau_J
@@ -189,9 +200,23 @@ class StateAssembly:
             np.matmul(self._kin.fk(q), self.NE_T_EE, out=out)
 
     def _fill_contacts(self, O_T_EE: np.ndarray) -> None:
+        """The contacts' part of the fill: their torques taken from the sensors' reading,
+        and the robot's estimate of the external torques and wrench.
+
+        The robot's model of its links is the plant's here (the drives' rotor inertia and
+        friction are on the motor side of the sensors, outside the model, as on a real
+        robot), so the residual tau_J - (M ddq + c + g) the robot filters is exactly the
+        torques the contacts exert on the links (``Physics.sensor_torque``): they are
+        taken from MuJoCo's contact forces rather than through the model's inverse
+        dynamics each tick; ``tests/sim/test_sim_contact_estimate.py`` computes the
+        residual from the published tau_J, q, dq and the client's model and finds the
+        same estimate."""
         s, t = self.state, self.thresholds
         raw = self.physics.contact_torques()
         touching = raw is not None and bool(raw.any())
+        if raw is not None and touching:
+            s["tau_J"] -= raw
+            s["dtau_J"] -= raw * (1.0 / DT)
         if not self.contact_active and not touching:
             return  # no contact now or lately: the zeros written last time stand
         self.tau_ext += _EXT_FILTER * ((_NO_TORQUE if raw is None else raw) - self.tau_ext)

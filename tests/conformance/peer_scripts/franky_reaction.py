@@ -23,8 +23,9 @@ from peer_io import Scenarios, floats
 
 robot = Robot(sys.argv[1], realtime_config=RealtimeConfig.Ignore)
 robot.relative_dynamics_factor = 0.01
-# The simulated contact is stiffer than a robot's (the impact's first millisecond reads tens
-# of newtons): thresholds high enough that the reaction, not the reflex, ends the motion.
+# The robot-wide factor slows the stop motion too: the commanded pose runs on into the
+# table after the reaction fires and the robot presses there (test_conf_franky_guarded):
+# thresholds high enough that the reaction, not the reflex, ends the motion.
 robot.set_collision_behavior(100.0, 100.0)
 
 
