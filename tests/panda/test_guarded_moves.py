@@ -110,8 +110,20 @@ def test_an_impact_at_speed_ends_in_a_reflex(panda: panda_py.Panda) -> None:
     assert handle.result is not None and handle.result.error is not None
     assert push.max() > CONTACT_THRESHOLD
     assert "cartesian_reflex" in panda.get_state().last_motion_errors
-    panda.recover()  # the reflex held the arm pressed on the table: lift it off again
-    assert panda.move_to_pose(above_table())
+    assert lift_off(panda)  # the reflex held the arm pressed on the table
+
+
+def lift_off(panda: panda_py.Panda, tries: int = 3) -> bool:
+    """After a reflex that left the arm pressed on the table: recover and lift it back above
+    the table under the contact task's thresholds (the push it starts with is above the
+    default ones); again if the lift itself ended in a reflex (a suite run on a loaded
+    machine saw one), so the module's next test finds the arm free."""
+    for _ in range(tries):
+        panda.recover()
+        allow_contact(panda)
+        if panda.move_to_pose(above_table()):
+            return True
+    return False
 
 
 def test_a_guarded_descent_stops_on_contact_gently(panda: panda_py.Panda) -> None:
