@@ -213,6 +213,7 @@ def test_16_the_cube_is_placed_where_the_table_pushes_back(tmp_path: Path) -> No
     assert number(r"TCP ([\d.]+) mm above the table", out) == pytest.approx(25.0, abs=3.0)
 
 
+@pytest.mark.exclusive  # the hand's command leaves as the script's wall clock goes
 def test_14_the_arm_and_the_hand_move_together(tmp_path: Path) -> None:
     out = run_example("14", cwd=tmp_path)
     assert "homed while the arm moved: True" in out

@@ -49,6 +49,7 @@ def _stalled_motion(sim) -> dict:
     return sim.stats()
 
 
+@pytest.mark.exclusive  # a realtime robot, its stall judged on the wall clock
 def test_a_stalled_simulator_does_not_blame_the_client(sim):
     """After the stall the simulator catches up on ticks the client could never answer;
     those are excused and the motion completes. (A realtime client on a loaded machine
