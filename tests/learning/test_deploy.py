@@ -7,6 +7,7 @@ test_droid.py."""
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -167,17 +168,25 @@ def test_the_gripper_command_closes_and_opens_the_hand(rig: Rig) -> None:
         assert gripper.read_once().width == pytest.approx(0.08, abs=0.002)
 
 
-def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Rig) -> None:
-    chunk = velocity_chunk(12)
-    calls: list[float] = []
+def thinking(rig: Rig, chunk: np.ndarray, calls: list[float]) -> Any:
+    """A policy that thinks for 3.2 periods of the robot's clock, then answers ``chunk``;
+    the time of each observation it saw goes to ``calls``."""
 
-    def slow_policy(obs: dict) -> np.ndarray:  # thinks for 3.2 periods of the robot's clock
+    def slow_policy(obs: dict) -> np.ndarray:
         calls.append(obs["time"])
         until, deadline = obs["time"] + 3.2 / RATE, time.monotonic() + 60
         while robot_s(rig) < until:
             assert time.monotonic() < deadline
             time.sleep(0.001)
         return chunk
+
+    return slow_policy
+
+
+def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Rig) -> None:
+    chunk = velocity_chunk(12)
+    calls: list[float] = []
+    slow_policy = thinking(rig, chunk, calls)
 
     with rad_per_s(rig) as actions:
         start = actions.target.copy()
@@ -194,14 +203,7 @@ def test_a_slow_policy_makes_late_steps_and_the_chunk_keeps_its_timeline(rig: Ri
 def test_a_slow_policy_has_its_chunk_run_in_order_as_openpi_does(rig: Rig) -> None:
     chunk = velocity_chunk(12)
     calls: list[float] = []
-
-    def slow_policy(obs: dict) -> np.ndarray:  # thinks for 3.2 periods of the robot's clock
-        calls.append(obs["time"])
-        until, deadline = obs["time"] + 3.2 / RATE, time.monotonic() + 60
-        while robot_s(rig) < until:
-            assert time.monotonic() < deadline
-            time.sleep(0.001)
-        return chunk
+    slow_policy = thinking(rig, chunk, calls)
 
     with rad_per_s(rig) as actions:
         start = actions.target.copy()

@@ -252,6 +252,19 @@ class TorqueController(ControlLaw):
             self._bounds = bounds
         return list(bounds)
 
+    def _joint_target(self, q: Any) -> list[float]:
+        """User side: joint positions ``q`` [rad] checked against the joint limits the
+        control process published (outputs ``q_min``, ``q_max``); ValueError otherwise."""
+        values = checks.fast_floats("q", q, 7, "[rad]")
+        low, high = self._published_bounds(("q_min", "q_max"))
+        for i, v in enumerate(values):
+            if not low[i] <= v <= high[i]:
+                raise ValueError(
+                    f"q: expected joint positions within the robot's joint limits; joint {i + 1}"
+                    f" is {v} rad, outside [{low[i]}, {high[i]}] rad"
+                )
+        return values
+
     def get_time(self) -> float:
         """Time since this controller was started [s] (of the robot's clock)."""
         return float(self._outputs()[0])

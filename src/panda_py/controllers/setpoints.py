@@ -101,14 +101,7 @@ class HybridJointImpedance(TorqueController):
 
     def set_target(self, q: Any) -> None:
         """Follow the joint positions ``q`` [rad] from now on (within the joint limits)."""
-        values = checks.fast_floats("q", q, 7, "[rad]")
-        low, high = self._published_bounds(("q_min", "q_max"))
-        for i, v in enumerate(values):
-            if not low[i] <= v <= high[i]:
-                raise ValueError(
-                    f"q: expected joint positions within the robot's joint limits; joint {i + 1}"
-                    f" is {v} rad, outside [{low[i]}, {high[i]}] rad"
-                )
+        values = self._joint_target(q)
         self._send(0, values)
 
     @property
