@@ -129,11 +129,10 @@ def _forward_solve(L, B, Y):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
-    """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
-    definite): the damped pseudo-inverse of J^T."""
-    # J J^T + lambda^2 I (loops: numba's @ calls BLAS, dearer here; the temporaries on the
-    # stack, jit.stack)
+def _damped_gram_factor(J, L):  # type: ignore[no-untyped-def,unused-ignore]
+    """The Cholesky factor ``L`` (6, 6: its lower triangle, all the solves read) of ``J J^T
+    + lambda^2 I`` (symmetric positive definite). Loops: numba's @ calls BLAS, dearer
+    here; the temporaries on the stack (jit.stack)."""
     A = stack_array(36).reshape((6, 6))
     for i in range(6):
         for j in range(i + 1):
@@ -143,8 +142,15 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
             A[i, j] = s
             A[j, i] = s
         A[i, i] += PINV_DAMPING * PINV_DAMPING
-    L = stack_array(36).reshape((6, 6))  # (_cholesky writes the lower triangle only,
-    _cholesky(A, L)  # which is all the solves read)
+    _cholesky(A, L)
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
+    definite): the damped pseudo-inverse of J^T."""
+    L = stack_array(36).reshape((6, 6))
+    _damped_gram_factor(J, L)
     Y = stack_array(42).reshape((6, 7))  # solve L L^T x = J: L y = J, then L^T x = y
     _forward_solve(L, J, Y)
     for c in range(J.shape[1]):
@@ -156,12 +162,9 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
-    """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
-    ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
-    (6,) and the damped pseudo-inverse of J (laws.damped_pinv) into ``J_pinv`` (7, 6); ``N``
-    is the damped nullspace projector (laws.nullspace_projector). No Coriolis term (the
-    caller adds it). ``O_T_EE`` flat column-major (16,)."""
+def _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, D, err, F):  # type: ignore[no-untyped-def,unused-ignore]
+    """The pose error ``e`` (laws.cartesian_error) into ``err`` (6,) and the impedance's
+    wrench ``-K e - D (J dq - v_d)`` into ``F`` (6,)."""
     R = stack_array(9).reshape((3, 3))
     for r in range(3):
         for c in range(3):
@@ -187,12 +190,22 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
         for c in range(7):
             acc += J[k, c] * dq[c]
         v[k] = acc
-    F = stack_array(6)
     for k in range(6):
         acc = 0.0
         for c in range(6):
             acc -= K[k, c] * err[c] + D[k, c] * v[c]
         F[k] = acc
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
+    """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
+    ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
+    (6,) and the damped pseudo-inverse of J (laws.damped_pinv) into ``J_pinv`` (7, 6); ``N``
+    is the damped nullspace projector (laws.nullspace_projector). No Coriolis term (the
+    caller adds it). ``O_T_EE`` flat column-major (16,)."""
+    F = stack_array(6)
+    _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, D, err, F)
     P = stack_array(42).reshape((6, 7))
     _damped_pinv_T(J, P)
     for i in range(7):
@@ -217,12 +230,40 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, tau):  # type: ignore[no-untyped-def,unused-ignore]
-    """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
+    """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``),
+    without the pseudo-inverse itself: its product with the nullspace torque ``u`` is
+    ``(J J^T + lambda^2 I)^-1 (J u)``, one solve where the pseudo-inverse takes seven."""
     v_d = stack_array(6)
     for k in range(6):
         v_d[k] = 0.0
-    impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, Kd, q_n, k_n, tau, stack_array(6),
-                     stack_array(42).reshape((7, 6)))  # fmt: skip
+    err = stack_array(6)
+    F = stack_array(6)
+    _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, Kd, err, F)
+    s = 2.0 * math.sqrt(k_n)
+    u = stack_array(7)
+    for i in range(7):
+        u[i] = k_n * (q_n[i] - q[i]) - s * dq[i]
+    L = stack_array(36).reshape((6, 6))
+    _damped_gram_factor(J, L)
+    y = stack_array(6)  # L y = J u, then L^T Pu = y
+    for i in range(6):
+        acc = 0.0
+        for c in range(7):
+            acc += J[i, c] * u[c]
+        for k in range(i):
+            acc -= L[i, k] * y[k]
+        y[i] = acc / L[i, i]
+    Pu = stack_array(6)
+    for i in range(5, -1, -1):
+        acc = y[i]
+        for k in range(i + 1, 6):
+            acc -= L[k, i] * Pu[k]
+        Pu[i] = acc / L[i, i]
+    for i in range(7):  # J^T F + u - (J^T pinv(J^T)) u
+        acc = u[i]
+        for k in range(6):
+            acc += J[k, i] * (F[k] - Pu[k])
+        tau[i] = acc
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
