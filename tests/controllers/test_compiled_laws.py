@@ -573,3 +573,76 @@ def test_the_fused_kernels_never_compile_in_the_loop() -> None:
         fused.joint_tracking_step(strided, z7, *arm, z7, z7, z7, z7, z7, z7, z7, 0.01, 10.0,
                                   np.empty(7))  # fmt: skip
     assert [len(k.signatures) for k in kernels] == [1, 1, 1, 1]
+
+
+_NO_ALLOCATION = """
+import numba
+import numpy as np
+from numba.core.runtime import rtsys
+from panda_py import dynamics, kinematics
+from panda_py.controllers import _builtin, _fused, tracking
+
+def ro(a):
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+rng = np.random.default_rng(3)
+q, dq = ro(rng.normal(size=7)), ro(rng.normal(size=7))
+T = ro(kinematics.get_kinematics("fer").fk(q).reshape(16, order="F"))
+arm = dynamics.LoadedArm("fer").arrays
+chain = kinematics.get_kinematics("fer").chain_constants
+ctrl = _builtin.CartesianImpedance()
+at = np.array([ctrl._sig_layout[n][0] for n in _builtin._FUSED_SIGNALS], dtype=np.int64)
+at.flags.writeable = False
+values = ro(ctrl._values)
+filtered = np.zeros(_builtin._FILTERED_SIZE)
+filtered[78] = 1.0
+J, tau, z7, z6 = np.empty((1, 6, 7)), np.empty(7), ro(np.zeros(7)), ro(np.zeros(6))
+law = tracking.PoseImpedance(np.eye(6) * 100.0, 1.0, np.zeros(7), 1.0).compiled_inputs(1e-3)
+quat = ro([0.0, 0.0, 0.0, 1.0])
+traj, I3 = ro(np.zeros((6, _fused._ONLINE.ROW))), ro(np.eye(3))
+tick = ro([1.0, 0.0, 0.0, 0.0, 0.0])
+p, v, a, pos, ori = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(3), np.array(quat)
+tw, acc, out = np.zeros(6), np.zeros(6), np.zeros(20)
+
+@numba.njit
+def run(n, values, at, filtered, Kd_t, T, q, dq, chain, o, ca, sa, m, h, I, J, tau, z7, z6, p_d,
+        quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, target, out):
+    for _ in range(n):
+        _fused.cartesian_impedance_step(values, at, filtered, Kd_t, T, q, dq, chain, o, ca, sa,
+                                        m, h, I, J, tau)
+        _fused.joint_tracking_step(q, dq, o, ca, sa, m, h, I, z7, z7, z7, z7, q, dq, dq, 0.01,
+                                   10.0, tau)
+        for update in (0.0, 1.0):  # the mass matrix and the damping too (every 20 ticks)
+            law[6], law[7] = update, 1.0
+            _fused.pose_tracking_step(T, q, dq, chain, o, ca, sa, m, h, I, z7, z7, p_d, quat,
+                                      z6, z6, law, tau)
+        _fused.pose_target_step(tick, traj, p, v, a, I3, I3, I3, quat, pos, ori, tw, acc, T, q,
+                                dq, chain, o, ca, sa, m, h, I, z7, z7, law, target, out, tau)
+
+args = (values, at, filtered, ro(np.eye(6)), T, q, dq, chain, *arm, J, tau, z7, z6,
+        ro(T[12:15]), quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, ro(np.zeros(7)), out)
+counts = []
+for n in (1, 51):  # (numba's runtime counts the arguments' unboxing too: once a call)
+    before = rtsys.get_allocation_stats().alloc
+    run(n, *args)
+    counts.append(rtsys.get_allocation_stats().alloc - before)
+print((counts[1] - counts[0]) / 50)
+"""
+
+
+def test_the_fused_steps_allocate_nothing_per_tick() -> None:
+    """The fused steps' temporaries live on the stack (jit.stack): running every one of
+    them from a compiled loop (the Cartesian impedance, the pose and joint tracking with
+    and without the mass matrix's update, a streamed target with its generator's sample)
+    allocates nothing in numba's runtime (counted by its statistics, on in a fresh
+    process: before the stack arrays, 220 allocations a round)."""
+    import subprocess
+    import sys
+
+    assert laws.fused() is not None
+    env = {**os.environ, "NUMBA_NRT_STATS": "1"}
+    out = subprocess.run([sys.executable, "-c", _NO_ALLOCATION], capture_output=True,
+                         text=True, env=env, timeout=600, check=True)  # fmt: skip
+    assert float(out.stdout.split()[-1]) == 0.0, out.stdout

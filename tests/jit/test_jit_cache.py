@@ -37,15 +37,17 @@ def test_the_cache_lives_under_panda_py_cache(monkeypatch, tmp_path: Path) -> No
 def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles() -> None:
     """The fused laws inline the Jacobian (kinematics), the recursions (dynamics), the
     online generator's sampling, and read PoseImpedance's buffer at its layout's offsets
-    (tracking): an edit to any of them must compile them afresh."""
+    (tracking), with their temporaries on the stack (jit.stack): an edit to any of them
+    must compile them afresh."""
     from panda_py.controllers import tracking
+    from panda_py.jit import stack
     from panda_py.motion import _online_jit
 
     fused = laws.fused()
     assert fused is not None
     kin, dyn = kinematics.compiled_kernels(), dynamics.compiled_kernels()
     sources = [Path(fused.__file__), Path(laws.compiled().__file__), Path(dyn.__file__),
-               Path(tracking.__file__), Path(_online_jit.__file__),
+               Path(tracking.__file__), Path(_online_jit.__file__), Path(stack.__file__),
                *Path(kin.__file__).parent.glob("*.py")]  # fmt: skip
     assert fused.KEY == jitcache.source_key(sources)
     fused.warmup()
@@ -54,14 +56,19 @@ def test_the_fused_law_is_keyed_over_the_kinematics_and_the_dynamics_it_compiles
 
 def test_every_compiled_module_caches_under_a_key_over_its_own_file() -> None:
     """The laws, the dynamics, the online generator's helpers and the simulator's tick
-    compile nothing from elsewhere: each is keyed over its file, so a fresh checkout of
-    the same sources loads what an earlier one compiled, and an edit compiles afresh."""
+    compile nothing from elsewhere but the stack arrays' helper (jit.stack): each is keyed
+    over its file (and that helper's, where it uses it), so a fresh checkout of the same
+    sources loads what an earlier one compiled, and an edit compiles afresh."""
     import panda_py.controllers._kernels as kernels
     import panda_py.dynamics._compiled as compiled
     import panda_py.motion._online_jit as online
     import panda_py.sim._tick_jit as tick
+    from panda_py.jit import stack
 
-    for module, kernel in ((kernels, kernels.finalize_torques), (compiled, compiled.rnea),
-                           (online, online.publish_pose), (tick, tick.fill_state)):  # fmt: skip
-        assert module.KEY == jitcache.source_key([Path(module.__file__)]), module.__name__
+    helper = [Path(stack.__file__)]
+    for module, kernel, extra in ((kernels, kernels.finalize_torques, helper),
+                                  (compiled, compiled.rnea, helper),
+                                  (online, online.publish_pose, helper),
+                                  (tick, tick.fill_state, [])):  # fmt: skip
+        assert module.KEY == jitcache.source_key([Path(module.__file__), *extra]), module.__name__
         assert kernel.stats.cache_path == str(jitcache.cache_dir(module.KEY)), module.__name__

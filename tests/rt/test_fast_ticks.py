@@ -311,3 +311,24 @@ def test_queued_states_the_newest_is_answered_and_logged(rig: Rig) -> None:
         assert rig.law.dt == pytest.approx(3e-3)  # the robot's clock: three ticks on
     finally:
         log.close()
+
+
+def test_more_states_queued_than_one_receive_takes_the_newest_is_answered(rig: Rig) -> None:
+    """Eleven datagrams queued (more than a receive takes at once: RECV_BATCH), the
+    newest third from the end, a stray short datagram and stale ones after it: all are
+    taken in one tick and the newest is answered, the queue left empty."""
+    tick = fastloop.kernels()
+    states = [rig.next_state() for _ in range(9)]
+    newest = rig.mid
+    queue = [*states[:-1], b"\x01\x02\x03", states[-1], states[0]]
+    assert len(queue) > 2 * tick.RECV_BATCH
+    queue[-3], queue[-2] = queue[-2], queue[-3]  # the newest before the stray one
+    for data in queue:
+        rig.robot.send(data)
+    outcome = rig.run()
+    assert outcome.ticks == 1
+    reply = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+    assert int(reply["message_id"]) == newest
+    assert rig.law.dt == pytest.approx(9e-3)
+    with pytest.raises(BlockingIOError):  # nothing left for the next tick
+        rig.client.recv(4096)

@@ -3,14 +3,15 @@ buffers: ``CartesianImpedance``'s step (the input filter, the end effector's Jac
 law, the Coriolis torques), and the moves' and the streamed targets' tracking, Cartesian
 (``tracking.PoseImpedance``: the Jacobian, the mass matrix, the damping from the arm's
 inertia, the tracking torque with its feed-forward, the Coriolis torques) and in joint
-space (``tracking.joint_impedance_torque``: the mass matrix, the impedance, the inertial
-and friction feed-forward, the Coriolis torques).
+space (``tracking.joint_impedance_torque``: the impedance, the friction feed-forward, and
+the inertial feed-forward with the Coriolis torques in one recursion).
 
 The same kernels the separate calls run (:mod:`._kernels`' filter and laws, the
 kinematics' Jacobian, the dynamics' recursions), called from one kernel: one dispatch a
 tick where there were four or five, and none of the Python between them (in the loop,
 where code runs on cold caches once a millisecond, that Python cost more than the
-arithmetic).
+arithmetic). Their temporaries live on the stack (:mod:`panda_py.jit.stack`): a tick
+allocates nothing.
 
 Compiled with the kinematics' and the dynamics' kernels inside, so cached under a key over
 all of their sources (:mod:`panda_py.jit.cache`): an edit to any of them compiles afresh.
@@ -28,7 +29,8 @@ from numba import types
 
 from panda_py import dynamics, kinematics
 from panda_py.controllers import _kernels, tracking
-from panda_py.jit import cache
+from panda_py.jit import cache, stack
+from panda_py.jit.stack import stack_array
 from panda_py.motion import online
 
 _KIN = kinematics.compiled_kernels()
@@ -44,7 +46,7 @@ __all__ = [
 
 KEY = cache.source_key([
     Path(__file__), Path(_kernels.__file__), Path(_DYN.__file__), Path(tracking.__file__),
-    Path(_ONLINE.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
+    Path(_ONLINE.__file__), Path(stack.__file__), *Path(_KIN.__file__).parent.glob("*.py"),
 ])  # fmt: skip
 _jacobian_one = _KIN.jacobian_one
 _rnea = _DYN.rnea
@@ -74,12 +76,25 @@ def _jacobian_or_nan(q, chain, J, tau):  # type: ignore[no-untyped-def,unused-ig
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _add_inverse_dynamics(origin, ca, sa, mass, h, inertia, q, dq, ddq, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """``tau += M(q) ddq + C(q, dq) dq`` of the arm ``origin ... inertia``: the recursion
+    without gravity (one call, the arrays on the stack)."""
+    out = stack_array(7)
+    zero = stack_array(3)
+    for k in range(3):
+        zero[k] = 0.0
+    _rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, zero, out)
+    for i in range(7):
+        tau[i] += out[i]
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """``tau += C(q, dq) dq`` of the arm ``origin ... inertia``."""
-    coriolis = np.empty(7)
-    _rnea(origin, ca, sa, mass, h, inertia, q, dq, np.zeros(7), np.zeros(3), coriolis)
+    zero = stack_array(7)
     for i in range(7):
-        tau[i] += coriolis[i]
+        zero[i] = 0.0
+    _add_inverse_dynamics(origin, ca, sa, mass, h, inertia, q, dq, zero, tau)
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -179,17 +194,15 @@ def joint_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     """``tracking.joint_impedance_torque`` with the Coriolis torques, into ``tau`` (7,):
     ``K (q_d - q) + D (dq_d - dq) + (M + diag(armature)) ddq_d + coulomb tanh((dq_d +
     error_rate (q_d - q)) / friction_speed) + C(q, dq) dq``, ``M`` the arm's mass matrix
-    (``origin ... inertia``: ``dynamics.LoadedArm.arrays``)."""
-    M = np.empty((7, 7))
-    _crba(origin, ca, sa, mass, h, inertia, q, M)
+    (``origin ... inertia``: ``dynamics.LoadedArm.arrays``). ``M ddq_d + C dq`` is one
+    recursion without gravity (``rnea(q, dq, ddq_d)``), not the mass matrix and a
+    product plus a second recursion: the same torques for a third of the arithmetic."""
     for i in range(7):
         e = q_d[i] - q[i]
         acc = K[i] * e + D[i] * (dq_d[i] - dq[i]) + armature[i] * ddq_d[i]
-        for c in range(7):
-            acc += M[i, c] * ddq_d[c]
         v = (dq_d[i] + error_rate * e) / friction_speed
         tau[i] = acc + coulomb[i] * math.tanh(v)
-    _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
+    _add_inverse_dynamics(origin, ca, sa, mass, h, inertia, q, dq, ddq_d, tau)
 
 
 # One signature each, compiled (or loaded) at import, and no other: an input read-only

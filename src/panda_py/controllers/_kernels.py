@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py.jit import cache
+from panda_py.jit import cache, stack
+from panda_py.jit.stack import stack_array
 
 __all__ = [
     "cartesian_impedance_torque",
@@ -28,8 +29,9 @@ __all__ = [
     "pose_tracking_torque",
 ]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
-KEY = cache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file and the stack arrays' helper
+# (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__), Path(stack.__file__)])
 
 PINV_DAMPING = 0.01  # as laws.PINV_DAMPING
 
@@ -41,7 +43,7 @@ def joint_scales(J, Ft, Fr, lateral, vt, vr, at, ar, dq_max, ddq_max):  # type: 
     the translation and the rotation) and acceleration (``at``, ``ar``) limits under which
     ``J^+`` asks no joint for more than ``dq_max`` and ``ddq_max``; each frame's first axis
     gets the whole limit, the two others ``lateral`` of it."""
-    P = np.empty((6, 7))
+    P = stack_array(42).reshape((6, 7))
     _damped_pinv_T(J, P)  # P[k, i] = J^+[i, k]
     sv = 1.0
     sa = 1.0
@@ -127,10 +129,11 @@ def _forward_solve(L, B, Y):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
-    """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
-    definite): the damped pseudo-inverse of J^T."""
-    A = np.empty((6, 6))  # J J^T + lambda^2 I (loops: numba's @ calls BLAS, dearer here)
+def _damped_gram_factor(J, L):  # type: ignore[no-untyped-def,unused-ignore]
+    """The Cholesky factor ``L`` (6, 6: its lower triangle, all the solves read) of ``J J^T
+    + lambda^2 I`` (symmetric positive definite). Loops: numba's @ calls BLAS, dearer
+    here; the temporaries on the stack (jit.stack)."""
+    A = stack_array(36).reshape((6, 6))
     for i in range(6):
         for j in range(i + 1):
             s = 0.0
@@ -139,9 +142,16 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
             A[i, j] = s
             A[j, i] = s
         A[i, i] += PINV_DAMPING * PINV_DAMPING
-    L = np.zeros((6, 6))
     _cholesky(A, L)
-    Y = np.empty((6, J.shape[1]))  # solve L L^T x = J: L y = J, then L^T x = y
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``(J J^T + lambda^2 I)^-1 J`` (6x7) into ``out``, by Cholesky (symmetric positive
+    definite): the damped pseudo-inverse of J^T."""
+    L = stack_array(36).reshape((6, 6))
+    _damped_gram_factor(J, L)
+    Y = stack_array(42).reshape((6, 7))  # solve L L^T x = J: L y = J, then L^T x = y
     _forward_solve(L, J, Y)
     for c in range(J.shape[1]):
         for i in range(5, -1, -1):
@@ -152,17 +162,14 @@ def _damped_pinv_T(J, out):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
-    """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
-    ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
-    (6,) and the damped pseudo-inverse of J (laws.damped_pinv) into ``J_pinv`` (7, 6); ``N``
-    is the damped nullspace projector (laws.nullspace_projector). No Coriolis term (the
-    caller adds it). ``O_T_EE`` flat column-major (16,)."""
-    R = np.empty((3, 3))
+def _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, D, err, F):  # type: ignore[no-untyped-def,unused-ignore]
+    """The pose error ``e`` (laws.cartesian_error) into ``err`` (6,) and the impedance's
+    wrench ``-K e - D (J dq - v_d)`` into ``F`` (6,)."""
+    R = stack_array(9).reshape((3, 3))
     for r in range(3):
         for c in range(3):
             R[r, c] = O_T_EE[4 * c + r]
-    quat = np.empty(4)
+    quat = stack_array(4)
     _quat_from_rotation(R, quat)
     if quat_d[0] * quat[0] + quat_d[1] * quat[1] + quat_d[2] * quat[2] + quat_d[3] * quat[3] < 0.0:
         for k in range(4):
@@ -177,28 +184,38 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
     err[2] = O_T_EE[14] - p_d[2]
     for r in range(3):
         err[3 + r] = -(R[r, 0] * ex + R[r, 1] * ey + R[r, 2] * ez)
-    v = np.empty(6)
+    v = stack_array(6)
     for k in range(6):
         acc = -v_d[k]
         for c in range(7):
             acc += J[k, c] * dq[c]
         v[k] = acc
-    F = np.empty(6)
     for k in range(6):
         acc = 0.0
         for c in range(6):
             acc -= K[k, c] * err[c] + D[k, c] * v[c]
         F[k] = acc
-    P = np.empty((6, 7))
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv):  # type: ignore[no-untyped-def,unused-ignore]
+    """``tau = J^T (-K e - D (J dq - v_d)) + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` into
+    ``tau`` (7,), with ``e`` (panda-py's Cartesian error, laws.cartesian_error) into ``err``
+    (6,) and the damped pseudo-inverse of J (laws.damped_pinv) into ``J_pinv`` (7, 6); ``N``
+    is the damped nullspace projector (laws.nullspace_projector). No Coriolis term (the
+    caller adds it). ``O_T_EE`` flat column-major (16,)."""
+    F = stack_array(6)
+    _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, D, err, F)
+    P = stack_array(42).reshape((6, 7))
     _damped_pinv_T(J, P)
     for i in range(7):
         for k in range(6):
             J_pinv[i, k] = P[k, i]
     s = 2.0 * math.sqrt(k_n)
-    u = np.empty(7)
+    u = stack_array(7)
     for i in range(7):
         u[i] = k_n * (q_n[i] - q[i]) - s * dq[i]
-    Pu = np.empty(6)
+    Pu = stack_array(6)
     for k in range(6):
         acc = 0.0
         for c in range(7):
@@ -213,9 +230,40 @@ def impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, er
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def cartesian_impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, K, Kd, q_n, k_n, tau):  # type: ignore[no-untyped-def,unused-ignore]
-    """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``)."""
-    impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, np.zeros(6), K, Kd, q_n, k_n, tau,
-                     np.empty(6), np.empty((7, 6)))  # fmt: skip
+    """:func:`impedance_torque` toward a pose at rest (panda-py's ``CartesianImpedance``),
+    without the pseudo-inverse itself: its product with the nullspace torque ``u`` is
+    ``(J J^T + lambda^2 I)^-1 (J u)``, one solve where the pseudo-inverse takes seven."""
+    v_d = stack_array(6)
+    for k in range(6):
+        v_d[k] = 0.0
+    err = stack_array(6)
+    F = stack_array(6)
+    _wrench(O_T_EE, J, dq, p_d, quat_d, v_d, K, Kd, err, F)
+    s = 2.0 * math.sqrt(k_n)
+    u = stack_array(7)
+    for i in range(7):
+        u[i] = k_n * (q_n[i] - q[i]) - s * dq[i]
+    L = stack_array(36).reshape((6, 6))
+    _damped_gram_factor(J, L)
+    y = stack_array(6)  # L y = J u, then L^T Pu = y
+    for i in range(6):
+        acc = 0.0
+        for c in range(7):
+            acc += J[i, c] * u[c]
+        for k in range(i):
+            acc -= L[i, k] * y[k]
+        y[i] = acc / L[i, i]
+    Pu = stack_array(6)
+    for i in range(5, -1, -1):
+        acc = y[i]
+        for k in range(i + 1, 6):
+            acc -= L[k, i] * Pu[k]
+        Pu[i] = acc / L[i, i]
+    for i in range(7):  # J^T F + u - (J^T pinv(J^T)) u
+        acc = u[i]
+        for k in range(6):
+            acc += J[k, i] * (F[k] - Pu[k])
+        tau[i] = acc
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -301,7 +349,7 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     closes the error at ``error_rate`` [1/s], ``coulomb tanh(J^+ (v_d - error_rate err) /
     friction_speed)``. Into ``tau`` (7,), ``err`` (6,) and ``J_pinv`` (7, 6)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv)
-    a = np.empty(6)
+    a = stack_array(6)
     for r in range(6):
         s = a_d[r]
         if dt > 0.0:
@@ -310,8 +358,8 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
                 d += (J[r, c] - J_prev[r, c]) * dq[c]
             s -= d / dt
         a[r] = s
-    ddq = np.empty(7)
-    dq_d = np.empty(7)
+    ddq = stack_array(7)
+    dq_d = stack_array(7)
     for i in range(7):
         s1 = 0.0
         s2 = 0.0
@@ -430,7 +478,7 @@ def _product(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def _sandwich(A, B, out):  # type: ignore[no-untyped-def,unused-ignore]
     """``out = A B A`` for 6x6 ``A``, ``B``."""
-    T = np.empty((6, 6))
+    T = stack_array(36).reshape((6, 6))
     _product(B, A, T)
     _product(A, T, out)
 
@@ -445,14 +493,16 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
     unbounded inertia stays bounded (the reference: ``tracking.mass_damping``). In loops:
     a Cholesky solve and Jacobi's eigenvalues (:func:`_symmetric_eigen`), no BLAS or
     LAPACK call (each cost the loop's tick more than this arithmetic)."""
-    Md = M.copy()  # the driven inertia M + diag(armature) = L L^T
+    Md = stack_array(49).reshape((7, 7))  # the driven inertia M + diag(armature) = L L^T
     for i in range(7):
+        for j in range(7):
+            Md[i, j] = M[i, j]
         Md[i, i] += armature[i]
-    L = np.zeros((7, 7))
+    L = stack_array(49).reshape((7, 7))  # (its lower triangle, all the solve reads)
     _cholesky(Md, L)
-    Y = np.empty((7, 6))  # L^-1 J^T: then J M^-1 J^T = Y^T Y
+    Y = stack_array(42).reshape((7, 6))  # L^-1 J^T: then J M^-1 J^T = Y^T Y
     _forward_solve(L, J.T, Y)
-    A = np.empty((6, 6))
+    A = stack_array(36).reshape((6, 6))
     for i in range(6):
         for j in range(i + 1):
             acc = 0.0
@@ -460,11 +510,15 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
                 acc += Y[k, i] * Y[k, j]
             A[i, j] = acc
             A[j, i] = acc
-    w = np.empty(6)
-    V = np.empty((6, 6))
+    w = stack_array(6)
+    V = stack_array(36).reshape((6, 6))
     _symmetric_eigen(A, w, V)
-    S = np.zeros((6, 6))
-    S_inv = np.zeros((6, 6))
+    S = stack_array(36).reshape((6, 6))
+    S_inv = stack_array(36).reshape((6, 6))
+    for i in range(6):
+        for j in range(6):
+            S[i, j] = 0.0
+            S_inv[i, j] = 0.0
     for k in range(6):
         e = max(w[k], min_eig)
         r = math.sqrt(e)
@@ -473,7 +527,7 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
                 vv = V[i, k] * V[j, k]
                 S[i, j] += vv / r
                 S_inv[i, j] += vv * r
-    Kt = np.empty((6, 6))
+    Kt = stack_array(36).reshape((6, 6))
     _sandwich(S_inv, K, Kt)
     for i in range(6):
         for j in range(i):
@@ -481,13 +535,16 @@ def mass_damping(K, zeta, M, armature, J, min_eig, D):  # type: ignore[no-untype
             Kt[i, j] = m
             Kt[j, i] = m
     _symmetric_eigen(Kt, w, V)
-    R = np.zeros((6, 6))
+    R = stack_array(36).reshape((6, 6))
+    for i in range(6):
+        for j in range(6):
+            R[i, j] = 0.0
     for k in range(6):
         r = math.sqrt(max(w[k], 0.0))
         for i in range(6):
             for j in range(6):
                 R[i, j] += V[i, k] * V[j, k] * r
-    out = np.empty((6, 6))
+    out = stack_array(36).reshape((6, 6))
     _sandwich(S, R, out)
     for i in range(6):
         for j in range(6):

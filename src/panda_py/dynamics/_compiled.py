@@ -1,6 +1,7 @@
 """The recursive Newton-Euler and composite-rigid-body algorithms of :mod:`.dynamics`,
 compiled by numba on float64 arrays (the same recursion, term for term), for the control
-loop's model terms: about 1.5 us a call where the plain-Python recursion takes 40-110 us.
+loop's model terms: under a microsecond a call where the plain-Python recursion takes
+40-110 us (the temporaries on the stack, :mod:`panda_py.jit.stack`: no allocation).
 
 Imported by :mod:`.dynamics` on first use unless ``PANDA_PY_NO_JIT=1`` or numba is
 missing; compiled once per machine and cached on disk under a key over this file
@@ -15,26 +16,26 @@ from pathlib import Path
 import numpy as np
 
 from panda_py import progress
-from panda_py.jit import cache
+from panda_py.jit import cache, stack
+from panda_py.jit.stack import stack_array
 
 __all__ = ["crba", "rnea", "warmup"]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
-KEY = cache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file and the stack arrays' helper
+# (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__), Path(stack.__file__)])
 
 _N = 7
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _rotations(ca, sa, q):  # type: ignore[no-untyped-def,unused-ignore]
-    """R_{i-1,i} = RotX(alpha_i) RotZ(q_i), i = 1..7, as (7, 3, 3)."""
-    R = np.empty((_N, 3, 3))
+def _rotations(ca, sa, q, R):  # type: ignore[no-untyped-def,unused-ignore]
+    """R_{i-1,i} = RotX(alpha_i) RotZ(q_i), i = 1..7, into ``R`` (7, 3, 3)."""
     for i in range(_N):
         cq, sq = math.cos(q[i]), math.sin(q[i])
         R[i, 0, 0], R[i, 0, 1], R[i, 0, 2] = cq, -sq, 0.0
         R[i, 1, 0], R[i, 1, 1], R[i, 1, 2] = ca[i] * sq, ca[i] * cq, -sa[i]
         R[i, 2, 0], R[i, 2, 1], R[i, 2, 2] = sa[i] * sq, sa[i] * cq, ca[i]
-    return R
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -66,20 +67,26 @@ def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ig
     """Joint torques into ``tau`` (7,) for (q, dq, ddq) with base acceleration
     ``a_base`` (``-gravity``); links' ``mass`` (7,), first moments ``h`` (7, 3) and
     inertias about their frame origins (7, 3, 3); frame origins ``origin`` (7, 3)."""
-    R = _rotations(ca, sa, q)
-    w = np.zeros(3)
-    wd = np.zeros(3)
-    a = a_base.copy()
-    f = np.empty((_N, 3))
-    n = np.empty((_N, 3))
-    t1 = np.empty(3)
-    t2 = np.empty(3)
-    t3 = np.empty(3)
-    tmp = np.empty(3)
-    w_par = np.empty(3)
-    wd_par = np.empty(3)
-    Iwd = np.empty(3)
-    Iw = np.empty(3)
+    # (the temporaries on the stack: stack_array, no allocation per call)
+    R = stack_array(63).reshape((_N, 3, 3))
+    _rotations(ca, sa, q, R)
+    w = stack_array(3)
+    wd = stack_array(3)
+    a = stack_array(3)
+    for k in range(3):
+        w[k] = 0.0
+        wd[k] = 0.0
+        a[k] = a_base[k]
+    f = stack_array(21).reshape((_N, 3))
+    n = stack_array(21).reshape((_N, 3))
+    t1 = stack_array(3)
+    t2 = stack_array(3)
+    t3 = stack_array(3)
+    tmp = stack_array(3)
+    w_par = stack_array(3)
+    wd_par = stack_array(3)
+    Iwd = stack_array(3)
+    Iw = stack_array(3)
     for i in range(_N):
         p = origin[i]
         _cross(wd, p, t1)  # a_par
@@ -108,10 +115,13 @@ def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ig
         _cross(hi, a, t2)
         for k in range(3):
             n[i, k] = Iwd[k] + t1[k] + t2[k]
-    fo = f[_N - 1].copy()
-    no = n[_N - 1].copy()
-    fc = np.empty(3)
-    nc = np.empty(3)
+    fo = stack_array(3)
+    no = stack_array(3)
+    for k in range(3):
+        fo[k] = f[_N - 1, k]
+        no[k] = n[_N - 1, k]
+    fc = stack_array(3)
+    nc = stack_array(3)
     tau[_N - 1] = no[2]
     for i in range(_N - 2, -1, -1):
         Rn = R[i + 1]
@@ -127,15 +137,18 @@ def rnea(origin, ca, sa, mass, h, inertia, q, dq, ddq, a_base, tau):  # type: ig
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def,unused-ignore]
     """The joint-space mass matrix into ``M`` (7, 7) (arguments as :func:`rnea`)."""
-    R = _rotations(ca, sa, q)
-    cm = np.empty(_N)
-    ch = np.empty((_N, 3))
-    cI = np.empty((_N, 3, 3))
+    R = stack_array(63).reshape((_N, 3, 3))
+    _rotations(ca, sa, q, R)
+    cm = stack_array(_N)
+    ch = stack_array(21).reshape((_N, 3))
+    cI = stack_array(63).reshape((_N, 3, 3))
     cm[_N - 1] = mass[_N - 1]
-    ch[_N - 1] = h[_N - 1]
-    cI[_N - 1] = inertia[_N - 1]
-    h_r = np.empty(3)
-    I_r = np.empty((3, 3))
+    for r in range(3):
+        ch[_N - 1, r] = h[_N - 1, r]
+        for k in range(3):
+            cI[_N - 1, r, k] = inertia[_N - 1, r, k]
+    h_r = stack_array(3)
+    I_r = stack_array(9).reshape((3, 3))
     for i in range(_N - 2, -1, -1):
         Rn, p = R[i + 1], origin[i + 1]
         m = cm[i + 1]
@@ -162,11 +175,11 @@ def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def
         for k in range(3):
             ch[i, k] = h[i, k] + h_r[k] + m * p[k]
         cm[i] = mass[i] + m
-    fo = np.empty(3)
-    no = np.empty(3)
-    fc = np.empty(3)
-    nc = np.empty(3)
-    t1 = np.empty(3)
+    fo = stack_array(3)
+    no = stack_array(3)
+    fc = stack_array(3)
+    nc = stack_array(3)
+    t1 = stack_array(3)
     for j in range(_N):
         fo[0], fo[1], fo[2] = -ch[j, 1], ch[j, 0], 0.0  # z x h
         no[0], no[1], no[2] = cI[j, 0, 2], cI[j, 1, 2], cI[j, 2, 2]  # I z

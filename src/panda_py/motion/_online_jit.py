@@ -24,12 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from panda_py.jit import cache
+from panda_py.jit import cache, stack
+from panda_py.jit.stack import stack_array
 
 __all__ = ["ROW", "aim", "publish_pose", "restart_toward", "retarget", "sample", "sample_pose"]
 
-# the compile cache's key: the kernels compile this file alone (panda_py.jit.cache)
-KEY = cache.source_key([Path(__file__)])
+# the compile cache's key: the kernels compile this file and the stack arrays' helper
+# (panda_py.jit.cache)
+KEY = cache.source_key([Path(__file__), Path(stack.__file__)])
 
 # a packed profile's row (one coordinate): the brake's duration, its two phases' times,
 # jerks, accelerations, velocities and positions; the profile's phase durations (7),
@@ -48,7 +50,7 @@ def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore
     in ``traj`` (n, ROW) into ``position``, ``velocity``, ``acceleration`` (each (n,)):
     ruckig's ``Trajectory::at_time`` (its brake pre-trajectory, the profile's phase at
     ``t``, and the last phase's acceleration kept after the end), in its arithmetic."""
-    ends = np.empty(7)
+    ends = stack_array(7)  # (the per-tick temporaries on the stack: jit.stack)
     for d in range(traj.shape[0]):
         r = traj[d]
         brake = r[0]
@@ -128,7 +130,7 @@ def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel): 
     translation in frame ``Ft``, rotation vector about the anchor ``q0``/``R0`` in frame
     ``Fr``): ``position`` (3,), ``orientation`` (4, x y z w), ``twist`` and ``accel``
     (6,) in the base frame, in place."""
-    xs = np.empty(3)
+    xs = stack_array(3)
     _mv(Fr, p, 3, xs, 0)
     x0, x1, x2 = xs[0], xs[1], xs[2]
     th2 = x0 * x0 + x1 * x1 + x2 * x2
@@ -144,7 +146,7 @@ def publish_pose(p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel): 
     orientation[2] = qw * ez + qx * ey - qy * ex + qz * ew
     orientation[3] = qw * ew - qx * ex - qy * ey - qz * ez
     _mv(Ft, p, 0, position, 0)
-    scratch = np.empty(6)
+    scratch = stack_array(6)
     _rates(v, twist, Ft, Fr, R0, xs, scratch)
     _rates(a, accel, Ft, Fr, R0, xs, scratch)
 

@@ -94,7 +94,8 @@ class FastTicks:
         self.pfd = np.zeros(4, dtype=np.int32)  # two struct pollfd: (fd, events | revents)
         self.pfd[0] = self.torque_io.udp
         self.buf = np.zeros(STATE_MAX, dtype=np.uint8)
-        self.scratch = np.zeros(STATE_MAX, dtype=np.uint8)
+        # (RECV_BATCH states a receive, with their recvmmsg headers)
+        self.scratch = np.zeros(tick.RECV_BATCH * (STATE_MAX + tick.SCRATCH_PER_STATE), np.uint8)
         self.answered = np.zeros(STATE_MAX, dtype=np.uint8)
         self.key = np.zeros(STATE_MAX, dtype=np.uint8)
         header, states, signals, outputs = block.arrays()
