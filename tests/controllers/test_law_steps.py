@@ -15,7 +15,13 @@ import pytest
 from panda_py import controllers, fci, kinematics
 from panda_py.controllers.law import ControlLaw
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import JointMove, PoseMove, tracker_for
+from panda_py.controllers.moves import (
+    MOVE_ERROR_RATE,
+    MOVE_FRICTION_SPEED,
+    JointMove,
+    PoseMove,
+    tracker_for,
+)
 from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.libfranka import RobotState
 from panda_py.motion.online import OnlineLimits
@@ -183,11 +189,13 @@ def test_joint_move_tracks_its_samples_with_the_model_feed_forward() -> None:
     for k in (0, 10, 20):
         law.t = k * 1e-3
         tau = law.step(STATE0, MODEL)
+        e = plan.q[k] - Q0
         expected = (
-            plan.stiffness * (plan.q[k] - Q0)
+            plan.stiffness * e
             + plan.damping * plan.dq[k]
+            + MODEL.viscous * plan.dq[k]  # the drives' viscous friction, fed forward
             + MODEL.driven_mass_of(STATE0) @ plan.ddq[k]
-            + MODEL.friction_for(plan.dq[k])
+            + MODEL.coulomb * np.tanh((plan.dq[k] + MOVE_ERROR_RATE * e) / MOVE_FRICTION_SPEED)
             + MODEL.coriolis_of(STATE0)
         )
         np.testing.assert_allclose(tau, expected, rtol=1e-9, atol=1e-9)

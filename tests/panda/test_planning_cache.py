@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from panda_py.motion.online import OnlineLimits
 from panda_py.panda import planning
 from panda_py.robots.params import get_robot
 
@@ -40,8 +41,12 @@ def test_the_online_limits_are_kept_per_robot_and_speed_factor() -> None:
     assert planning.joint_online(slow, 0.2).limits.velocity[0] == pytest.approx(
         0.5 * planning.joint_online(fr3, 0.2).limits.velocity[0]
     )
-    # the stop's limits: at least STOP_SPEED_FACTOR of the robot's
-    assert (
-        planning.joint_online(fr3, 0.1).stop_limits
-        == planning.joint_online(fr3, planning.STOP_SPEED_FACTOR).limits
+    # the stop's limits: at least STOP_SPEED_FACTOR of the robot's, at the robot's jerk
+    assert planning.joint_online(fr3, 0.1).stop_limits == OnlineLimits.joints(
+        fr3, planning.STOP_SPEED_FACTOR
     )
+    # a lead-in's acceleration ramps over at least RAMP_TIME (its jerk at most a / RAMP_TIME)
+    lead = planning.joint_online(fr3, 0.2).limits
+    assert lead.acceleration == OnlineLimits.joints(fr3, 0.2).acceleration
+    assert all(j * planning.RAMP_TIME <= a * (1 + 1e-12)
+               for j, a in zip(lead.jerk, lead.acceleration, strict=True))  # fmt: skip

@@ -48,6 +48,7 @@ class ControlModel(Model):
         self._armature = np.array(self.spec.drives.armature)
         self._rotors = np.diag(self._armature)
         self._coulomb = np.array(self.spec.drives.coulomb)
+        self._viscous = np.array(self.spec.drives.viscous)
         # compile (or load) the model's kernels now, not in the loop's first tick
         dynamics.LoadedArm(self.spec).coriolis(np.zeros(7), np.zeros(7))
 
@@ -129,6 +130,11 @@ class ControlModel(Model):
         """The drives' reflected rotor inertia (7,) [kg m^2], the diagonal
         :meth:`driven_mass_of` adds to the links' mass matrix."""
         return self._armature
+
+    @property
+    def viscous(self) -> FloatArray:
+        """The drives' viscous friction (7,) [Nm s/rad] (``JointDrives.viscous``)."""
+        return self._viscous
 
     @property
     def coulomb(self) -> FloatArray:

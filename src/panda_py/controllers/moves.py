@@ -46,24 +46,41 @@ _NO_GUARD = np.zeros((0, 2), dtype=np.int64)
 FloatArray = NDArray[np.float64]
 
 SETTLE_JOINT = 2e-4  # [rad] at goal: every joint within this
-# [1/s] integral gain per unit stiffness once the trajectory ended: fast enough that a
-# joint at panda-py's wrist stiffness (50 Nm/rad) breaks free of the wrist's dry friction
-# within the settle time; a pose's lower, as its Cartesian damping is lighter.
-SETTLE_INTEGRAL = 10.0
+# [1/s] integral gain per unit stiffness once a Cartesian move's trajectory ended: fast
+# enough that the wrist breaks free of its dry friction within the settle time
 SETTLE_INTEGRAL_POSE = 2.0
-# [1/s] once the trajectory ended, a push of the drives' friction level toward the goal (as
-# if the joints moved there at this rate times the error), on top of the tracking's own
-# cancelling of it (tracking.FRICTION_ERROR_RATE): a joint that friction holds breaks free
-# at once. Measured without it: a Cartesian move and the FR3 path ran into SETTLE_TIMEOUT,
-# the FER's 15 cm move settled 0.55 s after its trajectory instead of 0.22 s
+# [1/s] once a Cartesian move's trajectory ended, a push of the drives' friction level
+# toward the goal (as if the joints moved there at this rate times the error), on top of
+# the tracking's own cancelling of it (tracking.FRICTION_ERROR_RATE): a joint that friction
+# holds breaks free at once. Measured without it: a Cartesian move and the FR3 path ran
+# into SETTLE_TIMEOUT, the FER's 15 cm move settled 0.55 s after its trajectory instead of
+# 0.22 s
 SETTLE_RATE = 10.0
-SETTLE_RATE_JOINT = 50.0  # [1/s] the same for a joint move, whose errors are smaller
+# once a joint move's trajectory ended, its friction is cancelled along the way back to
+# the goal as if the joint moved there at SETTLE_RATE_JOINT [1/s] times its error, in full
+# beyond SETTLE_DEADBAND [rad] and not at all within it: a joint held off the goal breaks
+# free, one within half the settle tolerance stays at rest. The integral and the push on
+# top of the tracking's cancelling it replaced (the friction cancelled up to twice over)
+# moved joints already within 1e-4 rad at 7 mrad/s, above dq_threshold, for 20-30 ms
+SETTLE_RATE_JOINT = 100.0
+SETTLE_DEADBAND = 0.5 * SETTLE_JOINT
 SETTLE_POSITION = 2e-3  # [m]
 # [rad] a Cartesian move that replaced another on the FR3 came to rest 2.2-2.4 mrad off
 # its orientation (40 Nm/rad against the wrist's dry friction) and, at 2 mrad, ended only
 # at SETTLE_TIMEOUT, a second later; 3 mrad is 0.3 mm at 10 cm from the flange
 SETTLE_ORIENTATION = 3e-3
 SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
+# A joint move cancels the drives' dry friction in full on a joint planned faster than
+# MOVE_FRICTION_SPEED [rad/s] or behind its reference by more than that over
+# MOVE_ERROR_RATE [1/s] (tanh-shaped below: tracking.joint_impedance_torque). At the
+# general 1e-2 rad/s and 10/s (model.FRICTION_SPEED, tracking.FRICTION_ERROR_RATE) the
+# wrist's friction held a joint up to 1 mrad behind a plan that ends slowly (0.3 mrad,
+# a joint the plan hardly moves, for the whole move), which the settling then took 50-80
+# ms to remove; at these it stays within 0.1 mrad. (A Cartesian move keeps the general
+# ones: without the viscous feed-forward its compiled tracking lacks, these left it
+# further from its goal at the trajectory's end.)
+MOVE_FRICTION_SPEED = 3e-3
+MOVE_ERROR_RATE = 60.0
 # a move whose arm is farther than this from its plan's start at its first tick was planned
 # while another move ran: it leads in from where the arm is (the plan's own start is the
 # arm's state when it was planned, within the robot's joint limits)
@@ -205,6 +222,8 @@ class Tracker(ControlLaw):
         self.ref: tuple[FloatArray, ...] = ()  # this tick's reference (the subclass's space)
 
     replaceable = True
+    # [rad/s], [1/s] the friction's cancelling: its speed and error rate (see _times)
+    friction: tuple[float, float] = (FRICTION_SPEED, FRICTION_ERROR_RATE)
 
     def begin(self, state: StateView, model: ControlModel) -> None:
         """Planned while another move ran, which ended before it arrived: the arm is not
@@ -362,7 +381,7 @@ class Tracker(ControlLaw):
     def _times(self) -> FloatArray:
         """The plan's clock as a compiled loop reads it: the trajectory's end, the law's
         time at plan time 0, the period, the friction's speed and error rate."""
-        return np.array([self.t_end, self.t0, PERIOD, FRICTION_SPEED, FRICTION_ERROR_RATE])
+        return np.array([self.t_end, self.t0, PERIOD, *self.friction])
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
@@ -381,10 +400,14 @@ class Tracker(ControlLaw):
 
 
 class JointMove(Tracker):
-    """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + coriolis`` along sampled ``q_d``,
-    ``dq_d``, ``ddq_d`` (the inertial and friction feed-forward keep the arm on the planned
-    path instead of lagging behind it). Once the trajectory has ended, an integral of the error
-    to the goal removes what friction and model errors leave (panda-py stops there)."""
+    """``tau = M ddq_d + K (q_d - q) + D (dq_d - dq) + b dq_d + coriolis`` along sampled
+    ``q_d``, ``dq_d``, ``ddq_d`` (the inertial, viscous ``b`` and dry friction feed-forward
+    keep the arm on the planned path instead of lagging behind it: see _damped_velocity,
+    MOVE_FRICTION_SPEED). Once the trajectory has ended, the dry friction is cancelled along
+    the way back to the goal outside a deadband (SETTLE_RATE_JOINT), so a joint friction
+    held short of it breaks free and one at it stays at rest (panda-py stops there)."""
+
+    friction = (MOVE_FRICTION_SPEED, MOVE_ERROR_RATE)
 
     def __init__(self, plan: JointPlan) -> None:
         super().__init__(len(plan.q), plan.dq_threshold)
@@ -393,10 +416,28 @@ class JointMove(Tracker):
         self.success_threshold = plan.success_threshold
         self.goal = plan.q[-1]
         self.join = plan.join % len(plan.q)
-        self.integral = np.zeros(7)
         self.gen = OnlineGenerator(plan.limits)
         self.stop_limits = plan.stop_limits or plan.limits
         self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
+        self.viscous_gain: FloatArray | None = None  # (see _damped_velocity)
+        self._dq_law: FloatArray | None = None  # the plan's velocities times viscous_gain
+
+    def _damped_velocity(self, model: ControlModel) -> FloatArray:
+        """The drives' viscous friction ``b dq_d`` fed forward through the damping:
+        ``D (g dq_d - dq) = D (dq_d - dq) + b dq_d`` with ``g = 1 + b / D`` per joint (1
+        where there is no damping), so the compiled tracking, which knows no viscous term,
+        computes the same torques from the plan's velocities times ``g``."""
+        gain = self.viscous_gain
+        if gain is None:
+            viscous = getattr(model, "viscous", None)
+            gain = np.ones(7)
+            if viscous is not None:
+                D = np.asarray(self.D, dtype=np.float64)
+                np.divide(viscous, D, out=gain, where=D > 0.0)
+                gain[D > 0.0] += 1.0
+                gain[D <= 0.0] = 1.0
+            self.viscous_gain = gain
+        return gain
 
     def handover(self, prev: Tracker | None, state: StateView, model: ControlModel) -> None:
         """Replace ``prev`` mid-motion: lead in from its reference (from the arm at rest
@@ -471,8 +512,10 @@ class JointMove(Tracker):
         if not self._follows_plan(model):
             return None
         chain, arm = model.kernel_arrays(state)
+        if self._dq_law is None:
+            self._dq_law = self.dq * self._damped_velocity(model)
         arrays = (
-            _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self.dq),
+            _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
             readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
         )  # fmt: skip
@@ -481,12 +524,19 @@ class JointMove(Tracker):
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
-        tau = joint_impedance_torque(self.K, self.D, q_d, dq_d, ddq_d, state, model)
+        tau = joint_impedance_torque(self.K, self.D, q_d, dq_d * self._damped_velocity(model),
+                                     ddq_d, state, model, MOVE_FRICTION_SPEED,
+                                     MOVE_ERROR_RATE)  # fmt: skip
         if self.t > self.t_end and not self.stopping:
+            # the friction's cancelling along the way back to the goal, in full outside
+            # SETTLE_DEADBAND and not at all within it (in place of the tracking's own): a
+            # joint friction holds off the goal breaks free, one at it stays at rest
             error = self.goal - state.q
-            self.integral += self.dt * error
-            tau += SETTLE_INTEGRAL * self.K * self.integral
-            tau += model.friction_for(error * SETTLE_RATE_JOINT)  # as PoseMove's
+            push = np.where(np.abs(error) > SETTLE_DEADBAND, error * SETTLE_RATE_JOINT, 0.0)
+            scale = FRICTION_SPEED / MOVE_FRICTION_SPEED  # (friction_for's speed is the general)
+            tau += model.friction_for(push * scale) - model.friction_for(
+                error * (MOVE_ERROR_RATE * scale)
+            )
         if self.until is not None:
             self.check_until(state, Progress(self.t, float(np.abs(self.goal - state.q).max())))
         return self._blended(tau, state, model)  # (the law's torque has the Coriolis')

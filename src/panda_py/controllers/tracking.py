@@ -53,25 +53,27 @@ _K, _QN, _J = LAW_LAYOUT["K"][0], LAW_LAYOUT["q_n"][0], LAW_LAYOUT["J"][0]
 
 def joint_impedance_torque(
     K: FloatArray, D: FloatArray, q_d: FloatArray, dq_d: FloatArray, ddq_d: FloatArray,
-    state: StateView, model: ControlModel,
+    state: StateView, model: ControlModel, friction_speed: float = FRICTION_SPEED,
+    error_rate: float = FRICTION_ERROR_RATE,
 ) -> FloatArray:  # fmt: skip
-    """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d + FRICTION_ERROR_RATE (q_d -
-    q)) + C(q, dq) dq`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm
+    """``K (q_d - q) + D (dq_d - dq) + M ddq_d + friction(dq_d + error_rate (q_d - q)) +
+    C(q, dq) dq`` [Nm]: joint impedance (stiffness ``K`` [Nm/rad], damping ``D`` [Nm
     s/rad]) around the reference ``q_d``, ``dq_d`` with the inertial (links and rotors)
-    feed-forward of its motion, the dry friction cancelled along it and the way back to it,
-    and the Coriolis torques (compiled in one call with the model terms where numba is
+    feed-forward of its motion, the dry friction cancelled along it and the way back to it
+    (in full above ``friction_speed`` [rad/s]: ``coulomb tanh(v / friction_speed)``), and
+    the Coriolis torques (compiled in one call with the model terms where numba is
     installed: ``_fused.joint_tracking_step``)."""
     fused = laws.fused()
     if fused is not None and type(model) is ControlModel:
         tau = np.empty(7)
         fused.joint_tracking_step(state.q, state.dq, *model.kernel_arrays(state)[1],
                                   model.armature, model.coulomb, K, D, q_d, dq_d, ddq_d,
-                                  FRICTION_SPEED, FRICTION_ERROR_RATE, tau)  # fmt: skip
+                                  friction_speed, error_rate, tau)  # fmt: skip
         return tau
     e = q_d - state.q
     tau = K * e + D * (dq_d - state.dq)
     tau += model.driven_mass_of(state) @ ddq_d
-    tau += model.friction_for(dq_d + FRICTION_ERROR_RATE * e)
+    tau += model.friction_for((dq_d + error_rate * e) * (FRICTION_SPEED / friction_speed))
     return tau + model.coriolis_of(state)
 
 

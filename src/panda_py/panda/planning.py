@@ -71,6 +71,14 @@ POSE_MOVE_DEFAULTS: dict[str, Any] = {
 # that mode (the path is the same straight line, solved by IK at every 1 ms sample).
 POSE_MOVE_JOINT_OPTIONS = ("stiffness", "damping")
 SMOOTHING = round(SMOOTHING_TIME / PERIOD)  # [samples] a move's moving average
+# [s] a joint plan's acceleration steps ramped over this (a moving average, as a Cartesian
+# plan's over SMOOTHING_TIME), and the online generator's acceleration no faster (its jerk
+# at most a_max / RAMP_TIME): unramped, a joint move's arrival (-2.5 rad/s^2 to 0 in one
+# sample) was a 3.5 Nm torque step on joint 2 that the torque rate limit spread over 9 ms,
+# pushing the arm on past the goal for 25 ms after its trajectory; ramped, it ends within
+# 5 ms (10 ms was enough; the move gets 10 ms longer)
+RAMP_TIME = 0.01
+JOINT_SMOOTHING = round(RAMP_TIME / PERIOD)  # [samples]
 
 
 @dataclass(frozen=True)
@@ -365,10 +373,12 @@ def joint_move(q_now: FloatArray, waypoints: FloatArray, opts: JointMoveOptions,
         return JointPlan(goal, z, z, opts.stiffness, opts.damping, opts.dq_threshold,
                          opts.success_threshold, **online)  # fmt: skip
     s = traj.sample(_times(traj.get_duration()))
+    w = JOINT_SMOOTHING  # its acceleration steps ramped (see RAMP_TIME)
+    positions = box_filter(s.positions, w)
     return JointPlan(
-        s.positions, s.velocities, s.accelerations, opts.stiffness, opts.damping,
-        opts.dq_threshold, opts.success_threshold,
-        join=_join(s.positions, waypoints),
+        positions, box_filter(s.velocities, w), box_filter(s.accelerations, w), opts.stiffness,
+        opts.damping, opts.dq_threshold, opts.success_threshold,
+        join=_join(positions, waypoints),
         **joint_online(spec, opts.speed_factor)._asdict(),
     )  # fmt: skip
 
@@ -408,11 +418,26 @@ def _online(kind: str, spec: RobotSpec, speed_factor: float) -> Online:
     if hit is not None and hit[0] is spec:
         return hit[1]
     make = OnlineLimits.joints if kind == "joint" else OnlineLimits.cartesian
-    online = Online(make(spec, speed_factor), make(spec, max(speed_factor, STOP_SPEED_FACTOR)))
+    limits = make(spec, speed_factor)
+    # a joint lead-in's acceleration ramped (a stop's is not: it must brake as soon as it
+    # can, a guarded move's on what it touched)
+    online = Online(_ramped(limits) if kind == "joint" else limits,
+                    make(spec, max(speed_factor, STOP_SPEED_FACTOR)))  # fmt: skip
     if len(_ONLINE) >= 64:  # many speed factors (a policy's): keep the newest
         _ONLINE.clear()
     _ONLINE[key] = (spec, online)
     return online
+
+
+def _ramped(limits: OnlineLimits) -> OnlineLimits:
+    """``limits`` with each jerk at most its acceleration over RAMP_TIME: at the robot's
+    jerk (scaled by the speed factor) a lead-in's acceleration rose and fell within 2 ms,
+    a torque step the robot's torque rate limit (1000 Nm/s) spread over 10 ms, and the arm
+    arrived with the rest of it as a push past its goal (a replacing joint move overshot
+    0.24 mrad and crept back for 140 ms)."""
+    jerk = tuple(min(j, a / RAMP_TIME) for j, a in zip(limits.jerk, limits.acceleration,
+                                                       strict=True))  # fmt: skip
+    return OnlineLimits(limits.velocity, limits.acceleration, jerk)
 
 
 def joint_goal(goal: FloatArray, opts: JointMoveOptions, spec: RobotSpec) -> JointPlan:

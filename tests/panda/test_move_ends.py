@@ -1,0 +1,140 @@
+"""Moves that end when their trajectory ends (issue 46, part 2): a joint move ends at rest
+at its goal within 20 ms of its trajectory's end, on the FER and on the FR3 (2-4x its
+joints' dry friction), without passing its goal; a joint move that replaces a running one
+reaches its goal within 1.1x of the fastest trajectory our limits allow from the state it
+took over in. Lockstep simulators: the figures do not depend on the machine's load."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+import panda_py
+from panda_py import constants
+from panda_py.controllers.moves import SETTLE_JOINT
+from panda_py.motion.online import OnlineGenerator
+from panda_py.panda import planning
+from panda_py.robots.params import get_robot
+
+pytestmark = pytest.mark.timeout(600)
+
+END_WITHIN = 0.020  # [s] after the trajectory's end (issue 46)
+OVERSHOOT = 0.5 * SETTLE_JOINT  # [rad] the farthest a joint may pass its goal
+REPLACE_WITHIN = 1.1  # of the fastest trajectory from the state the move took over in
+
+
+@pytest.fixture(scope="module", params=["fer", "fr3"])
+def robot_panda(request: pytest.FixtureRequest) -> Iterator[tuple[str, panda_py.Panda]]:
+    from panda_py.sim import Simulator, free_loopback_host
+
+    with (
+        Simulator(free_loopback_host(), robot=request.param, lockstep=True) as sim,
+        panda_py.Panda(sim.host) as panda,
+    ):
+        yield request.param, panda
+
+
+def test_joint_moves_end_at_rest_at_their_goal_within_20_ms_of_their_trajectory(
+    robot_panda: tuple[str, panda_py.Panda],
+) -> None:
+    """Random moves of up to 0.3 rad a joint around the start pose: each ends within 20 ms
+    of its trajectory, every joint within SETTLE_JOINT of its goal and below panda-py's
+    dq_threshold, and no joint passes its goal by more than OVERSHOOT on the way (before:
+    46-80 ms on the FER, 44-84 ms on the FR3, a joint held up to 1 mrad short by the
+    wrist's friction and walked in by the settling)."""
+    name, panda = robot_panda
+    panda.move_to_start()
+    rng = np.random.default_rng(46)
+    late = []
+    for _ in range(5):
+        start = panda.q
+        goal = np.array(constants.JOINT_POSITION_START) + rng.uniform(-0.3, 0.3, 7)
+        panda.enable_logging(5_000)
+        handle = panda.move_to_joint_position(goal, asynchronous=True)
+        assert handle.wait(30.0) is True
+        result = handle.result
+        assert result is not None and result.success
+        late.append(result.elapsed - result.duration)
+        assert result.joint_error <= SETTLE_JOINT
+        state = panda.get_state()
+        assert np.abs(state.dq).max() <= 1e-3  # panda-py's dq_threshold: at rest
+        np.testing.assert_allclose(state.q, goal, atol=SETTLE_JOINT)
+        q = np.array(panda.get_log()["q"])
+        way = goal - start
+        past = -(goal - q) * np.sign(way)  # > 0: beyond the goal, along the way there
+        assert past[:, np.abs(way) > 1e-3].max() <= OVERSHOOT, name
+    assert max(late) <= END_WITHIN, (name, late)
+
+
+def _state_at(log: dict[str, list[np.ndarray]], k: int) -> tuple[np.ndarray, ...]:
+    """The logged joint positions, velocities and accelerations at sample ``k``."""
+    q, dq = np.array(log["q"]), np.array(log["dq"])
+    return q[k], dq[k], (dq[k + 1] - dq[k - 1]) / 2e-3
+
+
+def test_a_replacing_joint_move_reaches_its_goal_within_1_1x_of_the_fastest_trajectory(
+    robot_panda: tuple[str, panda_py.Panda],
+) -> None:
+    """A move started while another runs, at random instants: from the state it takes over
+    in, the fastest trajectory within our limits (the online generator at the move's
+    limits) bounds how soon it can be at its goal; it ends within 1.1x of that (before: up
+    to 1.19x, the lead-in's acceleration falling within 2 ms at its arrival, a torque step
+    the robot's rate limit turned into a push past the goal)."""
+    name, panda = robot_panda
+    spec = get_robot(name)
+    limits = planning.joint_online(spec, 0.2).limits
+    rng = np.random.default_rng(7)
+    q0 = np.array(constants.JOINT_POSITION_START)
+    ratios = []
+    for _ in range(4):
+        panda.move_to_start()
+        panda.enable_logging(10_000)
+        first = panda.move_to_joint_position(q0 + rng.uniform(-0.3, 0.3, 7), asynchronous=True)
+        ticks = panda.get_state().time.to_msec()
+        while panda.get_state().time.to_msec() - ticks < rng.uniform(100.0, 400.0):
+            pass
+        goal = q0 + rng.uniform(-0.3, 0.3, 7)
+        second = panda.move_to_joint_position(goal, asynchronous=True)
+        assert second.wait(30.0) is True
+        a, b = first.result, second.result
+        assert a is not None and b is not None and a.cancelled and b.success
+        log = panda.get_log()
+        t = np.array(log["time"]).ravel()
+        # the first move's first tick: the last logged state before its first command
+        # moved the arm; the hand-over a.elapsed after it
+        moving = np.nonzero(np.abs(np.diff(np.array(log["q"]), axis=0)).max(axis=1) > 0)[0]
+        k = int(moving[0]) + round(a.elapsed / 1e-3)
+        assert t[k + 1] - t[k - 1] == 2  # consecutive ticks
+        gen = OnlineGenerator(limits)
+        gen.reset(*_state_at(log, k))
+        gen.set_target(goal)
+        gen.step()
+        ratios.append(b.elapsed / gen.duration)
+    assert max(ratios) <= REPLACE_WITHIN, (name, ratios)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 46's target for Cartesian moves, not met: they end 150-350 ms after their "
+    "trajectory, the arm 0.5-1 mm and 2-6 mrad behind its reference at the end (the drives' "
+    "viscous friction is not fed forward in the compiled Cartesian tracking; in Python, with "
+    "it, 4 of 6 moves ended within 14 ms)",
+)
+def test_pose_moves_end_within_20_ms_of_their_trajectory(
+    robot_panda: tuple[str, panda_py.Panda],
+) -> None:
+    name, panda = robot_panda
+    panda.move_to_start()
+    rng = np.random.default_rng(46)
+    late = []
+    for _ in range(3):
+        pose = panda_py.fk(np.array(constants.JOINT_POSITION_START))
+        pose[:3, 3] += rng.uniform(-0.12, 0.12, 3)
+        handle = panda.move_to_pose(pose, asynchronous=True)
+        assert handle.wait(30.0) is True
+        result = handle.result
+        assert result is not None and result.success
+        late.append(result.elapsed - result.duration)
+    assert max(late) <= END_WITHIN, (name, late)
