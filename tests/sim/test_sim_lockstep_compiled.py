@@ -1,8 +1,8 @@
 """The server's compiled lockstep ticks (``sim/lockstep.py``) against its Python reference,
 in lockstep: a client's torque commands give the same states byte for byte, with what
 the kernel hands back on the way (a datagram of the wrong size, a late answer, a lost
-command, a TCP request, the hand's client and its states) and the same reflex at the
-same tick, the same final answer and the same counts of received, lost and bad commands.
+command, a TCP request) and the same reflex at the same tick, the same hand's states to
+its client, the same final answer and the same counts of received, lost and bad commands.
 The loop runs in this process (the kernel releases the GIL)."""
 
 from __future__ import annotations
@@ -66,9 +66,23 @@ def _torques(k: int) -> np.ndarray:
     return tau
 
 
-def _drive(host: str, version: int) -> tuple[list[bytes], Any, Any]:
+def _hand_states(hand: GripperProbe) -> list[bytes]:
+    """The hand's states of the motion (from its start's tick on) its client received."""
+    hand.udp.setblocking(False)
+    found = []
+    while True:
+        try:
+            data = hand.udp.recv(64)
+        except BlockingIOError:
+            return found
+        if int.from_bytes(data[:4], "little") > START_TICK:
+            found.append(data)
+
+
+def _drive(host: str, version: int) -> tuple[list[bytes], Any, Any, list[bytes]]:
     """One motion driven by a raw client (the hand's client connected beside it): every
-    state of the motion as received, the Move's final status and the recovery's answer."""
+    state of the motion as received, the Move's final status, the recovery's answer and
+    the hand's states."""
     hand = GripperProbe(host)
     c = RawClient(host, version)
     d = c.dialect
@@ -107,13 +121,13 @@ def _drive(host: str, version: int) -> tuple[list[bytes], Any, Any]:
         final, _ = c.response(Command.MOVE, cid)
         assert recovery is not None
         answer, _ = c.response(Command.AUTOMATIC_ERROR_RECOVERY, recovery)
-        return states, final, answer
+        return states, final, answer, _hand_states(hand)
     finally:
         c.close()
         hand.close()
 
 
-def _run(version: int, *, compiled: bool) -> tuple[list[bytes], Any, Any, tuple[int, ...], int]:
+def _run(version: int, *, compiled: bool) -> tuple[Any, ...]:
     robot = "fer" if version in get_robot("fer").protocol_versions else "fr3"
     srv = SyncedServer(SimConfig(host=free_loopback_host(), robot=robot, lockstep=True,
                                  lockstep_timeout=LOST_WAIT))  # fmt: skip
@@ -125,7 +139,7 @@ def _run(version: int, *, compiled: bool) -> tuple[list[bytes], Any, Any, tuple[
     loop = threading.Thread(target=srv.serve_forever, daemon=True)
     loop.start()
     try:
-        states, final, answer = _drive(srv.config.host, version)
+        states, final, answer, hand = _drive(srv.config.host, version)
         st = srv.stats
         counts = (st.commands_received, st.commands_lost, st.bad_datagrams)
         ran = srv._lockstep.ticks_run if srv._lockstep is not None else 0
@@ -133,13 +147,13 @@ def _run(version: int, *, compiled: bool) -> tuple[list[bytes], Any, Any, tuple[
         srv.shutdown()
         loop.join(10)
     assert not loop.is_alive()
-    return states, final, answer, counts, ran
+    return states, final, answer, counts, ran, hand
 
 
 @pytest.mark.parametrize("version", [5, 10])
 def test_the_compiled_lockstep_sends_the_reference_states(version: int) -> None:
-    fast, f_final, f_answer, f_counts, ran = _run(version, compiled=True)
-    slow, s_final, s_answer, s_counts, _ = _run(version, compiled=False)
+    fast, f_final, f_answer, f_counts, ran, f_hand = _run(version, compiled=True)
+    slow, s_final, s_answer, s_counts, _, s_hand = _run(version, compiled=False)
     assert ran > 400  # most ticks ran compiled
     assert f_final == s_final == MoveStatus.REFLEX_ABORTED
     assert f_answer == s_answer == ErrorRecoveryStatus.COMMAND_NOT_POSSIBLE_REJECTED
@@ -155,6 +169,8 @@ def test_the_compiled_lockstep_sends_the_reference_states(version: int) -> None:
     assert ids == list(range(ids[0], ids[0] + len(ids)))  # a tick per state, none skipped
     for k, (a, b) in enumerate(zip(fast, slow, strict=True)):
         assert a == b, f"state {k} of the motion"
+    # the hand's state every 10 ticks, the same too (its id the tick's)
+    assert len(f_hand) >= REFLEX_AT // 10 and f_hand == s_hand
 
 
 def test_without_the_jit_lockstep_runs_the_reference() -> None:

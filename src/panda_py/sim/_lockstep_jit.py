@@ -61,8 +61,13 @@ _BUDGET, _WAITING, _REQUEST, _DATAGRAM, _COMMAND, _AFTER = (int(s) for s in Stop
 # io: the kernel's integer words (in and out)
 (UDP, NFDS, BUDGET, SPIN_NS, WAIT_NS, UNTIL_NS, DEADLINE_NS, LAST_ID, TICK, CMD_SIZE,
  TAU_AT, DQ_AT, MG_DONE_AT, TQ_DONE_AT, STATE_SIZE, RATE_AT, RATE_SIZE, WINDOW, DESK,
- STATUS, TICKS, SIZE, MID, ROBOT_STATUS, ERRNO) = range(25)  # fmt: skip
-IO_SIZE = 28
+ STATUS, TICKS, SIZE, MID, ROBOT_STATUS, ERRNO, HAND_FD, HAND_PERIOD, FINGER_Q,
+ FINGER_Q2) = range(29)  # fmt: skip
+IO_SIZE = 32
+# the hand's state datagram (fci.GRIPPER_STATE_DTYPE): its fields' offsets, and ``hand``'s
+# values (float64): its max width [m], a held grasp's width range (NaN: none)
+HAND_ID_AT, HAND_WIDTH_AT, HAND_GRASPED_AT = 0, 4, 20
+HAND_MAX_WIDTH, HAND_GRASP_LO, HAND_GRASP_HI = 0, 1, 2
 # the Desk's shared block (panda_py.sim.desk.link): its switches and move counters
 _BRAKES_OPEN, _FCI_ACTIVE, _MOVE_REQUESTED, _MOVE_DONE = 0, 1, 5, 6
 
@@ -211,9 +216,28 @@ def _encode(io, sb, runs, state, tmp, rate):  # type: ignore[no-untyped-def,unus
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def _send_hand_state(io, tick, qpos, hand, hand_target, hand_state, tmp):  # type: ignore[no-untyped-def,unused-ignore]
+    """The hand's state datagram of ``tick`` (GripperSession._send_gripper_state): its
+    template ``hand_state`` (max width and temperature written) with the message id, the
+    width the hand measures and whether it holds its grasp."""
+    fq = io[FINGER_Q]
+    opening = qpos[fq] + qpos[io[FINGER_Q2]] if fq >= 0 else 0.0
+    width = min(max(opening, 0.0), hand[HAND_MAX_WIDTH])
+    raw = tmp.view(np.uint8)
+    tmp.view(np.uint32)[0] = np.uint32(tick & 0xFFFFFFFF)
+    hand_state[HAND_ID_AT : HAND_ID_AT + 4] = raw[:4]
+    tmp[0] = width
+    hand_state[HAND_WIDTH_AT : HAND_WIDTH_AT + 8] = raw[:8]
+    grasped = hand[HAND_GRASP_LO] <= width <= hand[HAND_GRASP_HI]  # (False for NaN)
+    hand_state[HAND_GRASPED_AT] = 1 if grasped else 0
+    _sendto(io[HAND_FD], hand_state.ctypes.data, hand_state.size, 0, hand_target.ctypes.data,
+            _SOCKADDR_IN)  # fmt: skip
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, pfd, ts, target, source, addrlen, scratch, command, state, sb, runs, tmp, tau,
-    desk, robot,
+    desk, qpos, hand, hand_target, hand_state, robot,
 ):  # fmt: skip
     """Lockstep ticks of a torque-controlled motion until Python must act (the module's
     docstring; the reason in ``io[STATUS]``, the ticks done in ``io[TICKS]``).
@@ -226,7 +250,10 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     buffer (``CommandWire``) and state datagram (``StateWire``), uint8; ``sb``: the
     robot's state buffer; ``runs``: ``_encode``'s; ``tmp``: float64 scratch, as long as
     the longest run; ``tau`` (7,): the command's torques; ``desk``: the Desk's block
-    (read only if ``io[DESK]``); ``robot``: :func:`~panda_py.sim.compiled.torque_tick`'s
+    (read only if ``io[DESK]``); ``qpos``: MuJoCo's positions, ``hand``, ``hand_target``
+    and ``hand_state``: the hand's values, its client's ``struct sockaddr_in`` and its
+    state datagram (sent every ``io[HAND_PERIOD]`` ticks where ``io[HAND_FD]`` is a
+    socket, not -1: ``_send_hand_state``); ``robot``: :func:`~panda_py.sim.compiled.torque_tick`'s
     arguments after the torques (``CompiledTick.enter``)."""
     ints = robot[0]
     ticks = 0
@@ -313,4 +340,7 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
         rate = np.float64(ints[compiled.I_SUCCESS_COUNT]) / np.float64(io[WINDOW])
         _encode(io, sb, runs, state, tmp, rate)
         _sendto(udp, state.ctypes.data, io[STATE_SIZE], 0, target.ctypes.data, _SOCKADDR_IN)
+        tick = io[TICK] + ticks
+        if io[HAND_FD] >= 0 and tick % io[HAND_PERIOD] == 0:
+            _send_hand_state(io, tick, qpos, hand, hand_target, hand_state, tmp)
         io[DEADLINE_NS] = _now(ts) + io[WAIT_NS]

@@ -133,6 +133,11 @@ class CompiledTick:
         )  # fmt: skip
 
     @property
+    def physics(self) -> Any:
+        """The robot's physics (its MuJoCo data and the fingers' indices)."""
+        return self._physics
+
+    @property
     def success_window(self) -> int:
         """The ticks the command success rate is counted over."""
         return len(self._core.success)

@@ -13,6 +13,7 @@ Built only where the robot's tick runs compiled (numba, ``PANDA_PY_NO_JIT`` unse
 
 from __future__ import annotations
 
+import math
 import selectors
 import socket
 import struct
@@ -20,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from panda_py.sim.connections import RobotConnection
+from panda_py import fci
+from panda_py.sim.connections import GripperConnection, RobotConnection
 from panda_py.sim.desk.link import SIZE as DESK_SIZE
 from panda_py.sim.fast_tick import CompiledTick
 from panda_py.sim.gripper import GripperCore
@@ -46,6 +48,15 @@ class Ran:
         self.deadline, self.size, self.mid = deadline, size, mid
 
 
+def _sockaddr(address: tuple[str, int]) -> np.ndarray:
+    """``address`` (an IPv4 address, a port) as a ``struct sockaddr_in``."""
+    host, port = address
+    return np.frombuffer(
+        struct.pack("<H", socket.AF_INET) + struct.pack(">H", port) + socket.inet_aton(host)
+        + bytes(8), dtype=np.uint8,
+    ).copy()  # fmt: skip
+
+
 class _Wires:
     """One connection's buffers and addresses as the kernel takes them."""
 
@@ -61,11 +72,7 @@ class _Wires:
         runs, self.rate_at, self.rate_size = state.kernel_layout()
         self.runs = np.array(runs, dtype=np.int64).reshape(-1, 4)
         self.state = np.frombuffer(state.buffer, dtype=np.uint8)
-        host, port = conn.udp_target
-        self.target = np.frombuffer(
-            struct.pack("<H", socket.AF_INET) + struct.pack(">H", port)
-            + socket.inet_aton(host) + bytes(8), dtype=np.uint8,
-        ).copy()  # fmt: skip
+        self.target = _sockaddr(conn.udp_target)
         self.longest = int(self.runs[:, 3].max()) if len(self.runs) else 1
 
 
@@ -86,6 +93,18 @@ class LockstepTicks:
         self._tmp = np.zeros(max(state_floats, 16))
         self._no_desk = np.zeros(DESK_SIZE)
         self._pfd = np.zeros(2, dtype=np.int32)
+        ph = fast.physics
+        self._qpos = ph.data.qpos
+        self._fingers = (ph.finger_q, ph.finger_q2)
+        self._hand = np.zeros(3)
+        self._hand_target = np.zeros(16, dtype=np.uint8)
+        self._hand_to: tuple[str, int] | None = None
+        self._hand_state = np.zeros(fci.GRIPPER_STATE_DTYPE.itemsize, dtype=np.uint8)
+        offsets = [fci.GRIPPER_STATE_DTYPE.fields[n][1]  # type: ignore[index]
+                   for n in ("message_id", "width", "is_grasped")]  # fmt: skip
+        if offsets != [_lockstep_jit.HAND_ID_AT, _lockstep_jit.HAND_WIDTH_AT,
+                       _lockstep_jit.HAND_GRASPED_AT]:  # fmt: skip
+            raise ImportError("the hand's state is not laid out as the kernel writes it")
         self._wires: _Wires | None = None
         self._entry: Any = None
         self.ticks_run = 0  # ticks the kernel ran, in all (diagnostics, tests)
@@ -112,21 +131,24 @@ class LockstepTicks:
         args = self._fast.warm_arguments(hand)
         self._call(io, self._pfd, self._ts, buf, self._source, self._addrlen, buf.copy(),
                    buf.copy(), buf.copy(), self._tmp, np.zeros((0, 4), dtype=np.int64),
-                   self._tmp, self._tau, self._no_desk, args)  # fmt: skip
+                   self._tmp, self._tau, self._no_desk, self._qpos, self._hand,
+                   self._hand_target, self._hand_state, args)  # fmt: skip
         if io[k.STATUS] != k.Stop.BUDGET or io[k.TICKS] != 0:
             raise RuntimeError(f"the lockstep kernel's warm-up ran a tick ({io[k.STATUS]})")
 
     def run(
         self, conn: RobotConnection, args: tuple[Any, ...], sel: selectors.BaseSelector, *,
         tick_count: int, budget: int, spin: float, wait: float, deadline: float,
-        until: float, desk: np.ndarray | None,
+        until: float, desk: np.ndarray | None, hand: GripperCore | None,
+        hand_client: GripperConnection | None, hand_period: int,
     ) -> Ran:  # fmt: skip
         """Run up to ``budget`` lockstep ticks on ``conn`` (its last state sent, its
         command awaited until ``deadline``, each next one ``wait`` [s] after its state)
         with the robot's compiled tick on ``args`` (``CompiledTick.enter``), spinning
         ``spin`` [s] for each command before sleeping on it, until the wall clock's
         ``until`` [s, monotonic]; every descriptor ``sel`` watches but the robot's UDP
-        socket ends the call when ready."""
+        socket ends the call when ready. The hand's state goes to ``hand_client`` (None:
+        no client) every ``hand_period`` ticks."""
         k, io = self._k, self.io
         w = self._wires
         if w is None or w.state_wire is not conn.state_wire:
@@ -161,11 +183,33 @@ class LockstepTicks:
         io[k.STATE_SIZE], io[k.RATE_AT], io[k.RATE_SIZE] = w.state.size, w.rate_at, w.rate_size
         io[k.WINDOW] = self._fast.success_window
         io[k.DESK] = desk is not None
+        io[k.HAND_FD] = -1
+        if hand is not None and hand_client is not None:
+            udp_hand, to = hand_client.udp, hand_client.udp_target
+            if udp_hand is not None and to is not None:
+                self._hand_values(hand, to)
+                io[k.HAND_FD], io[k.HAND_PERIOD] = udp_hand.fileno(), hand_period
+                io[k.FINGER_Q], io[k.FINGER_Q2] = self._fingers
         self._call(io, self._pfd, self._ts, w.target, self._source, self._addrlen, w.scratch,
                    w.command, w.state, self._fast.state_buffer, w.runs, self._tmp, self._tau,
-                   self._no_desk if desk is None else desk, args)  # fmt: skip
+                   self._no_desk if desk is None else desk, self._qpos, self._hand,
+                   self._hand_target, self._hand_state, args)  # fmt: skip
         ticks = int(io[k.TICKS])
         self.ticks_run += ticks
         stop = int(io[k.STATUS])
         return Ran(stop, ticks, int(io[k.ROBOT_STATUS]) if stop == k.Stop.AFTER else 0,
                    io[k.DEADLINE_NS] / 1e9, int(io[k.SIZE]), int(io[k.MID]))  # fmt: skip
+
+    def _hand_values(self, hand: GripperCore, to: tuple[str, int]) -> None:
+        """The hand's state datagram's template and values as
+        ``GripperSession._send_gripper_state`` writes them, and its client's address."""
+        if to != self._hand_to:
+            self._hand_target[:] = _sockaddr(to)
+            self._hand_to = to
+        rec = np.zeros((), fci.GRIPPER_STATE_DTYPE)
+        rec["max_width"] = hand.max_width
+        rec["temperature"] = hand.temperature
+        self._hand_state[:] = np.frombuffer(rec.tobytes(), dtype=np.uint8)
+        g = hand.grasp
+        self._hand[:] = (hand.max_width, math.nan, math.nan) if g is None else (
+            hand.max_width, g.width - g.eps_in, g.width + g.eps_out)  # fmt: skip

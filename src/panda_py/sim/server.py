@@ -338,11 +338,9 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         ):
             return None
         budget = LOCKSTEP_BATCH
-        # the ticks that publish to the Desk's page and send the hand's state are Python's
+        # the ticks that publish to the Desk's page are Python's
         if self.desk is not None:
             budget = min(budget, (-self.tick_count - 1) % PUBLISH_EVERY)
-        if self.gripper is not None and self.gripper_conn is not None:
-            budget = min(budget, (-self.tick_count - 1) % GRIPPER_STATE_PERIOD)
         until = self._next_check  # (the look for idle connections is Python's)
         if budget <= 0 or time.monotonic() >= until:
             return None
@@ -352,7 +350,8 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         ran = loop.run(
             conn, args, self._sel, tick_count=self.tick_count, budget=budget,
             spin=self.config.lockstep_spin, wait=self._lockstep_wait(), deadline=deadline,
-            until=until, desk=None if self.desk is None else self.desk.view,
+            until=until, desk=None if self.desk is None else self.desk.view, hand=self.gripper,
+            hand_client=self.gripper_conn, hand_period=GRIPPER_STATE_PERIOD,
         )  # fmt: skip
         k = loop.stops
         if ran.ticks:
