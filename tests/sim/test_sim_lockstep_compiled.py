@@ -1,9 +1,10 @@
 """The server's compiled lockstep ticks (``sim/lockstep.py``) against its Python reference,
 in lockstep: a client's torque commands give the same states byte for byte, with what
 the kernel hands back on the way (a datagram of the wrong size, a late answer, a lost
-command, a TCP request) and the same reflex at the same tick, the same hand's states to
-its client, the same final answer and the same counts of received, lost and bad commands.
-The loop runs in this process (the kernel releases the GIL)."""
+command, a TCP request, the Desk's page published), the same reflex at the same tick,
+the same hand's states to its client, the same final answer and the same counts of
+received, lost and bad commands. The loop runs in this process (the kernel releases the
+GIL)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ from panda_py.fci import (
 from panda_py.robots.params import get_robot
 from panda_py.sim import free_loopback_host
 from panda_py.sim.config import SimConfig
+from panda_py.sim.desk.link import DeskLink
 from panda_py.sim.gripper import GripperCore
 from panda_py.sim.probe import GripperProbe, RawClient
 from panda_py.sim.server import ENGAGE_WAIT, SimServer
@@ -129,8 +131,9 @@ def _drive(host: str, version: int) -> tuple[list[bytes], Any, Any, list[bytes]]
 
 def _run(version: int, *, compiled: bool) -> tuple[Any, ...]:
     robot = "fer" if version in get_robot("fer").protocol_versions else "fr3"
+    desk = DeskLink.create(locked=False)  # (its page's ticks are Python's)
     srv = SyncedServer(SimConfig(host=free_loopback_host(), robot=robot, lockstep=True,
-                                 lockstep_timeout=LOST_WAIT))  # fmt: skip
+                                 lockstep_timeout=LOST_WAIT, desk_link=desk.array))  # fmt: skip
     if compiled and srv._lockstep is None:
         srv.close()
         pytest.skip("no compiled ticks here (numba missing or PANDA_PY_NO_JIT=1)")
