@@ -84,13 +84,14 @@ class Simulator:
     ``lockstep`` makes simulated time advance one tick per command during motions (tests);
     otherwise it runs at 1 kHz on the wall clock like a real robot; in lockstep it polls
     for each answer ``lockstep_spin`` seconds before sleeping on it (0: sleep at once, less
-    CPU, about 1.4x slower); ``lockstep_max_speed`` caps how fast its time runs against the
-    wall clock (1.0: never ahead of it, so a user's loop on the wall clock sees the robot's
-    timing and no CPU goes on running ahead, while every command is still waited for;
-    None: as fast as the client answers). ``cpus`` pins its process to these CPUs (Linux),
-    e.g. to the core ``Panda(host, cpus=...)`` pins the control loop to: where a core
-    stalls now and then (a VM's host takes it), robot and loop then stall together, and
-    no command is lost to it. By default it accepts the protocol versions the
+    CPU; a torque motion's compiled ticks run about as fast either way, the Python ticks
+    of other motions about 1.4x slower); ``lockstep_max_speed`` caps how fast its time runs
+    against the wall clock (1.0: never ahead of it, so a user's loop on the wall clock sees
+    the robot's timing and no CPU goes on running ahead, while every command is still
+    waited for; None: as fast as the client answers). ``cpus`` pins its process to these
+    CPUs (Linux), e.g. to the core ``Panda(host, cpus=...)`` pins the control loop to:
+    where a core stalls now and then (a VM's host takes it), robot and loop then stall
+    together, and no command is lost to it. By default it accepts the protocol versions the
     simulated robot's systems speak (a FER 3-5, an FR3 10, an ``"fr3-pre-5.9"`` 6-9),
     chosen from the client's Connect request; ``versions`` pins a subset of them (a real
     robot speaks exactly one). ``desk`` adds the simulated Desk (HTTPS/WSS on ``host``,

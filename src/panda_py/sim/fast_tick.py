@@ -132,14 +132,33 @@ class CompiledTick:
             links, const, self._scratch, measured,
         )  # fmt: skip
 
+    @property
+    def physics(self) -> Any:
+        """The robot's physics (its MuJoCo data and the fingers' indices)."""
+        return self._physics
+
+    @property
+    def success_window(self) -> int:
+        """The ticks the command success rate is counted over."""
+        return len(self._core.success)
+
+    @property
+    def state_buffer(self) -> np.ndarray:
+        """The robot's state buffer the kernel fills (``RobotCore.state_buffer``)."""
+        return self._core.state_buffer
+
+    def warm_arguments(self, hand: GripperCore | None) -> tuple[Any, ...]:
+        """Arguments of the kernel's types that no state passes: with measured limits
+        nothing is within, the kernel returns at once, changing nothing (for a warm-up)."""
+        never = np.full(7, np.inf)
+        self._update(hand)
+        return self._arguments((never, -never, -never))
+
     def warm(self, hand: GripperCore | None) -> None:
         """Compile (or load) the kernel for this robot's arguments now, not at a motion's
         first tick: one call with measured limits no state passes (it returns at once,
         changing nothing)."""
-        never = np.full(7, np.inf)
-        self._update(hand)
-        args = self._arguments((never, -never, -never))
-        status = self.tick(np.zeros(7), args)
+        status = self.tick(np.zeros(7), self.warm_arguments(hand))
         if status != self._k.Tick.ROBOT:
             raise RuntimeError(f"the compiled tick's warm-up ran the tick ({status})")
 

@@ -269,26 +269,34 @@ class FciSession(ServerState):
                 return
             except OSError:
                 return  # e.g. ICMP port unreachable from a vanished client
-            if mid < 0 or mid > conn.last_sent_id:
-                # wrong size, not from the client, or answering a state never sent
-                self.stats.bad_datagrams += 1
-                if self.stats.bad_datagrams <= 3 or self.stats.bad_datagrams % 1000 == 0:
-                    log.warning(
-                        "dropping a %d-byte command datagram (protocol v%d expects %d from "
-                        "%s:%d, answering a state sent)",
-                        size,
-                        conn.dialect.version if conn.dialect else 0,
-                        wire.size,
-                        *(conn.udp_target or ("?", 0)),
-                    )
-                continue
-            if self.drop_commands > 0:
-                self.drop_commands -= 1
-                continue
-            if mid < conn.last_sent_id and self.core.async_gen is None:
-                continue  # late: answers a state older than the newest one sent
-            # (an asynchronous motion's commands are targets, whatever state they answer)
-            conn.command = wire.accept(mid)
+            self._take_datagram(conn, size, mid)
+
+    def _take_datagram(self, conn: RobotConnection, size: int, mid: int) -> None:
+        """The command datagram just received (``size`` bytes, its message id, -1: not a
+        command from the client): the connection's command if it answers the newest
+        state, else dropped (counted if bad)."""
+        wire = conn.command_wire
+        assert wire is not None
+        if mid < 0 or mid > conn.last_sent_id:
+            # wrong size, not from the client, or answering a state never sent
+            self.stats.bad_datagrams += 1
+            if self.stats.bad_datagrams <= 3 or self.stats.bad_datagrams % 1000 == 0:
+                log.warning(
+                    "dropping a %d-byte command datagram (protocol v%d expects %d from "
+                    "%s:%d, answering a state sent)",
+                    size,
+                    conn.dialect.version if conn.dialect else 0,
+                    wire.size,
+                    *(conn.udp_target or ("?", 0)),
+                )
+            return
+        if self.drop_commands > 0:
+            self.drop_commands -= 1
+            return
+        if mid < conn.last_sent_id and self.core.async_gen is None:
+            return  # late: answers a state older than the newest one sent
+        # (an asynchronous motion's commands are targets, whatever state they answer)
+        conn.command = wire.accept(mid)
 
     def _send_state(self, conn: RobotConnection) -> None:
         wire = conn.state_wire

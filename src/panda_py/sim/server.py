@@ -37,12 +37,12 @@ from panda_py.robots.params import get_robot
 from panda_py.sim.config import LATE_THRESHOLD, SimConfig, Stats
 from panda_py.sim.connections import Client, GripperConnection, RobotConnection
 from panda_py.sim.control import ControlRpc
-from panda_py.sim.desk.link import DeskLink
+from panda_py.sim.desk.link import PUBLISH_EVERY, DeskLink
 from panda_py.sim.fast_tick import compiled_tick
 from panda_py.sim.fci_session import FciSession
 from panda_py.sim.frames import FrameTaps
 from panda_py.sim.gripper import GripperCore
-from panda_py.sim.gripper_session import GripperSession
+from panda_py.sim.gripper_session import GRIPPER_STATE_PERIOD, GripperSession
 from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.robot import Command as RobotCommand
@@ -65,6 +65,9 @@ IDLE_CHECK_PERIOD = 0.1
 # second instead of 1000 (the Desk's page shows the arm at 20 Hz). A woken process runs its
 # first ticks several times slower than the next, so this halves an idle simulator's CPU.
 UNWATCHED_BATCH = 0.05
+# Lockstep: the most ticks of a torque motion one compiled call runs (sim/lockstep.py)
+# before the loop looks round itself (it looks sooner for anything it must do).
+LOCKSTEP_BATCH = 1000
 
 
 class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDelivery, ControlRpc):
@@ -88,6 +91,13 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
         self._fast = compiled_tick(self.core) if self.pump is None else None
         if self._fast is not None:
             self._fast.warm(self.gripper)
+        # lockstep: a torque motion's ticks in compiled calls (None: one tick at a time)
+        self._lockstep: Any = None
+        if self._fast is not None and config.lockstep:
+            from panda_py.sim.lockstep import LockstepTicks
+
+            self._lockstep = LockstepTicks(self._fast, self.core.state_buffer.size)
+            self._lockstep.warm(self.gripper)
         self.stats = Stats()
         # the simulated Desk's view of this robot (brakes, FCI), read without waiting
         self.desk = DeskLink(config.desk_link) if config.desk_link is not None else None
@@ -163,8 +173,15 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
                     and conn.awaiting
                     and now >= paced_tick - self.config.lockstep_spin  # (paced: sleeps anyway)
                 ):
-                    self._spin_for_command(conn)
+                    ran = None if pace else self._compiled_lockstep(conn, lockstep_deadline)
+                    if ran is None:
+                        self._spin_for_command(conn)
+                    elif ran[1]:  # ticks ran
+                        lockstep_deadline = ran[0]
+                        next_tick = time.monotonic() + DT
                     now = time.monotonic()
+                    if not self._running:
+                        continue
                 if waiting:
                     if conn is not None and conn.command is not None:
                         timeout = max(0.0, paced_tick - now)
@@ -279,6 +296,11 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             if self.pump is not None:
                 self.pump.tick()
             self.core.tick(command if moving else None, excused=excused)
+        self._tick_tail(conn)
+
+    def _tick_tail(self, conn: RobotConnection | None) -> None:
+        """A tick's end, once the robot ticked: counted, shown, published, its state sent,
+        the hand's answers and state sent."""
         self.tick_count += 1
         self.stats.ticks += 1
         if self.frames is not None:
@@ -295,6 +317,62 @@ class SimServer(Sockets, FciSession, GripperSession, VacuumSession, ModelDeliver
             self._flush_gripper()
         else:
             self._flush_vacuum()
+
+    def _compiled_lockstep(
+        self, conn: RobotConnection, deadline: float
+    ) -> tuple[float, bool] | None:
+        """Lockstep: the motion's next ticks in one compiled call where they may run
+        compiled (:mod:`.lockstep`), ``deadline`` [s, monotonic] the awaited command's;
+        None where the next tick is Python's (nothing done), else the command's lockstep
+        deadline after the call and whether ticks ran. What the kernel left (a datagram, a
+        command, a tick's end) is done here as the reference would."""
+        loop, core = self._lockstep, self.core
+        if (
+            loop is None
+            or self.frames is not None
+            or self.drop_commands
+            or self._model_requests
+            or self._backlogged()
+            or core.async_gen is not None
+            or any(c is not None and c.out for c in (conn, self.gripper_conn))
+        ):
+            return None
+        budget = LOCKSTEP_BATCH
+        # the ticks that publish to the Desk's page are Python's
+        if self.desk is not None:
+            budget = min(budget, (-self.tick_count - 1) % PUBLISH_EVERY)
+        until = self._next_check  # (the look for idle connections is Python's)
+        if budget <= 0 or time.monotonic() >= until:
+            return None
+        args = self._fast.enter(self.gripper) if self._fast is not None else None
+        if args is None:
+            return None
+        ran = loop.run(
+            conn, args, self._sel, tick_count=self.tick_count, budget=budget,
+            spin=self.config.lockstep_spin, wait=self._lockstep_wait(), deadline=deadline,
+            until=until, desk=None if self.desk is None else self.desk.view, hand=self.gripper,
+            hand_client=self.gripper_conn, hand_period=GRIPPER_STATE_PERIOD,
+        )  # fmt: skip
+        k = loop.stops
+        if ran.ticks:
+            assert self._fast is not None
+            after = ran.stop == k.AFTER
+            full = ran.ticks - after
+            self._fast.leave(ran.ticks, ran.after, self.gripper)
+            self.stats.commands_received += ran.ticks
+            self.tick_count += full
+            self.stats.ticks += full
+            if full:
+                conn.last_sent_id = self.tick_count + 1
+            if after:  # the last tick's fill was the reference's: its end is too
+                self._tick_deadline = time.monotonic()
+                self._tick_tail(conn)
+                return time.monotonic() + self._lockstep_wait(), True
+        if ran.stop == k.DATAGRAM:
+            self._take_datagram(conn, ran.size, ran.mid)
+        elif ran.stop == k.COMMAND and conn.command_wire is not None:
+            conn.command = conn.command_wire.accept(ran.mid)
+        return (ran.deadline, True) if ran.ticks else (deadline, False)
 
     def _compiled_tick(self, command: RobotCommand) -> bool:
         """The hand's and the robot's tick with ``command`` compiled, where it may run

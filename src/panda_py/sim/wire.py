@@ -52,9 +52,11 @@ class StateWire:
             else:
                 run = [offset, offset + size, start, stop]
                 runs.append((run, field.base))
+        self._runs: list[tuple[int, int, int, int]] = []  # (offset, float size, start, count)
         for (offset, _, start, stop), base in runs:
             wire = np.ndarray((stop - start,), base, buffer=self.buffer, offset=offset)
             self._copies.append((wire, core.state_buffer[start:stop]))
+            self._runs.append((offset, base.itemsize, start, stop - start))
         # The tail: motion generator and controller modes, errors, reflex reasons, robot
         # mode and command success rate, contiguous in every layout.
         n = d.errors_count
@@ -65,6 +67,13 @@ class StateWire:
         self._tail = struct.Struct(f"<BB{n}s{n}sB{'f' if rate.itemsize == 4 else 'd'}")
         self._tail_offset = first
         self._n_errors = n
+        self._rate = (first + 3 + 2 * n, rate.itemsize)
+
+    def kernel_layout(self) -> tuple[list[tuple[int, int, int, int]], int, int]:
+        """What a compiled fill writes (``sim._lockstep_jit``): the runs of the robot's
+        state buffer (wire offset, float size 4 or 8, buffer start, count), the success
+        rate's offset and size; the tail's modes and errors are :meth:`fill`'s."""
+        return list(self._runs), *self._rate
 
     def fill(self, message_id: int, success_rate: float) -> bytearray:
         """Write the core's current state with ``message_id``; returns the datagram."""
@@ -103,6 +112,15 @@ class CommandWire:
             return out
 
         names = dt.names or ()
+        for name in ("tau_J_d", "dq_c"):
+            if dt.fields[name][0] != np.dtype(("<f8", (7,))):  # type: ignore[index]
+                raise RuntimeError(f"command field {name}: expected 7 float64")
+        self._kernel_offsets = (
+            dt.fields["tau_J_d"][1],  # type: ignore[index]
+            dt.fields["dq_c"][1],  # type: ignore[index]
+            dt.fields["motion_generation_finished"][1],  # type: ignore[index]
+            dt.fields["torque_command_finished"][1] if "torque_command_finished" in names else -1,  # type: ignore[index]
+        )
         self._flag_offsets = tuple(
             dt.fields[n][1] if n in names else -1  # type: ignore[index]
             for n in ("valid_elbow", "motion_generation_finished", "torque_command_finished")
@@ -119,6 +137,13 @@ class CommandWire:
             tau_J_d=view("tau_J_d"),
             torque_command_finished=False,
         )
+
+    def kernel_layout(self) -> tuple[bytearray, bytearray, tuple[int, int, int, int]]:
+        """What a compiled receive reads and writes (``sim._lockstep_jit``): the scratch
+        buffer a datagram is received into, the buffer :meth:`accept` copies it to, and
+        the offsets of tau_J_d, dq_c (float64 each), motion_generation_finished and
+        torque_command_finished (-1: the layout has none)."""
+        return self._scratch, self._buffer, self._kernel_offsets
 
     def receive(self, sock: socket.socket, source: tuple[str, int] | None) -> tuple[int, int]:
         """Read one datagram into the scratch buffer: (its size, its message id or -1);
