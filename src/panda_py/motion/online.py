@@ -381,15 +381,21 @@ class OnlineGenerator:
         trajectory packed if ruckig's step just calculated it, the time advanced one period
         (returned: when to sample), ``finished`` (as ruckig's: once the time passed the
         duration)."""
+        self.pack()
+        self._time += PERIOD
+        self._moved = True
+        self.finished = self._time > self.duration
+        return self._time
+
+    def pack(self) -> None:
+        """Where ruckig's step has just calculated a trajectory, pack it for the compiled
+        steps that sample it (the next compiled step would; a compiled loop that samples
+        it itself packs it first)."""
         if self._fresh:
             out = self._out
             _pack(out.trajectory, self._packed)
             self._time = out.time
             self._fresh = False
-        self._time += PERIOD
-        self._moved = True
-        self.finished = self._time > self.duration
-        return self._time
 
     def _step_ruckig(self) -> bool:
         """:meth:`step` by ruckig's ``update``."""
@@ -664,6 +670,10 @@ class OnlinePose:
             self.step()
             return None
         return g._advance()
+
+    def pack(self) -> None:
+        """:meth:`OnlineGenerator.pack` of its generator."""
+        self.gen.pack()
 
     def sampling(self) -> tuple[Any, ...]:
         """What ``_online_jit.sample_pose`` takes after the time (see :meth:`advance`): the
