@@ -122,8 +122,10 @@ class _Streamed(TorqueController):
         calculates its trajectory) and its trajectory packed for the compiled sampling.
         True: the loop's kernel runs the rest of that tick with the generator standing
         where this step left it, and the ticks after it as usual. False, and nothing
-        changed: no news (or the first tick, which needs :meth:`step`)."""
+        changed but the packing of a trajectory ruckig's step has just calculated: no
+        news (or the first tick, which needs :meth:`step`)."""
         if not self._pending(self.t + dt) or not self._news_ready():
+            self._gen.pack()
             return False
         self.tick(dt)
         self._take(self._news(), None, model)
