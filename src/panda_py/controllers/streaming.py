@@ -125,15 +125,19 @@ class _Streamed(TorqueController):
         changed but the packing of a trajectory ruckig's step has just calculated: no
         news (or the first tick, which needs :meth:`step`)."""
         if not self._pending(self.t + dt) or not self._news_ready():
-            self._gen.pack()
+            self._generator().pack()
             return False
         self.tick(dt)
         self._take(self._news(), None, model)
-        gen = self._gen
+        gen = self._generator()
         if not gen.finished:
             gen.step()
         gen.pack()
         return True
+
+    def _generator(self) -> OnlineGenerator | OnlinePose:
+        """The generator (control process: made in start)."""
+        raise NotImplementedError
 
     def _news_ready(self) -> bool:
         """Whether :meth:`compiled_news` can take the news without the tick's state."""
@@ -217,6 +221,9 @@ class JointTarget(_Streamed):
         out[o + 14 : o + 21] = gen.acceleration
         out[o + 21] = float(np.abs(target - gen.position).max())
         out[o + 22] = float(self._stale)
+
+    def _generator(self) -> OnlineGenerator:
+        return self._gen
 
     def _take(self, news: int, state: StateView | None, model: ControlModel) -> None:
         gen = self._gen
@@ -346,6 +353,9 @@ class CartesianTarget(_Streamed):
         out[o + 13] = math.sqrt((x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2)
         out[o + 14] = 2.0 * math.acos(min(1.0, abs(a * e + b * f + c * g + d * h)))
         out[o + 15] = 1.0 if self._stale else 0.0
+
+    def _generator(self) -> OnlinePose:
+        return self._gen
 
     def _news_ready(self) -> bool:
         return self._law.J_prev is not None

@@ -12,8 +12,10 @@ them. Nothing is random: the same commands give the same episode.
 
 Where numba runs, the ticks of the two streamed controllers (``JointTarget``,
 ``CartesianTarget``) run compiled, many in one call (:mod:`._world_jit`: the law, the
-finishing and the robot's compiled tick, ``mj_step`` included); a tick that needs more (a
-new target, a stale one, a reflex, a contact, the hand moving) runs in Python, and the
+finishing and the robot's compiled tick, ``mj_step`` included). A tick with a new target
+(or targets gone stale) has only its generator's step in Python first (ruckig calculates:
+the controller's ``compiled_news``) and the rest in the kernel; a tick that needs more (a
+reflex, a contact, the hand moving, a controller's first tick) runs in Python, and the
 compiled ticks equal the Python ones (``tests/learning/test_world_compiled.py``).
 ``PANDA_PY_NO_JIT=1`` runs them all in Python.
 """
@@ -238,9 +240,10 @@ class _CompiledLoop:
     world: gathers the controller's, the finishing's and the robot's arrays and scalars
     for a run, and gives them back after it.
 
-    It reads the controllers' and their generators' inner state (their per-tick
+    A tick's news goes through the controllers' public hook (``compiled_news``); for the
+    rest it reads the controllers' and their generators' inner state (their per-tick
     bookkeeping has no public view yet): the compiled steps replace exactly the calls
-    ``CartesianTarget.step`` and ``JointTarget.step`` make on a tick without news."""
+    ``CartesianTarget.step`` and ``JointTarget.step`` make after the news."""
 
     def __init__(self, world: FastWorld) -> None:
         from panda_py.learning import _world_jit

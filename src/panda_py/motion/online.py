@@ -182,7 +182,7 @@ def _byte_view(out: FloatArray) -> memoryview:
     writes through)."""
     if out.dtype != np.float64 or not out.flags.c_contiguous or not out.flags.writeable:
         raise ValueError("out: expected a writable C-contiguous float64 array")
-    return memoryview(out).cast("B")
+    return out.data.cast("B")
 
 
 _NO_BRAKE = [0.0] * 10
