@@ -13,7 +13,7 @@ import gymnasium
 import numpy as np
 import pytest
 
-from panda_py.controllers import CartesianTarget
+from panda_py.controllers import CartesianTarget, JointTarget
 from panda_py.learning import ActionKind, pick_and_place_policy, reach_policy
 from panda_py.learning.world import FastWorld
 from panda_py.robots.params import START_POSE
@@ -115,3 +115,34 @@ def test_a_reflex_comes_at_the_same_tick_with_the_same_flags() -> None:
     assert ticks_a == ticks_b
     assert np.array_equal(q_a, q_b) and np.array_equal(tau_a, tau_b)
     assert np.array_equal(state_a, state_b)
+
+
+@pytest.mark.parametrize("kind", ["pose", "joints"])
+def test_only_a_controllers_first_tick_runs_in_python(kind: str) -> None:
+    """New targets every 40 ms, then none (the targets go stale): every tick but the
+    controller's first runs compiled (a new target's generator step through the
+    controller's ``compiled_news``), with the same states as the reference."""
+    states = []
+    for compiled in (True, False):
+        world = FastWorld(compiled=compiled)
+        try:
+            ctrl: Any = (CartesianTarget if kind == "pose" else JointTarget)(0.3, timeout=0.1)
+            world.start(ctrl)
+            before = 0 if world._fast is None else world._fast.compiled_ticks
+            T, q = world.robot.O_T_EE, world.robot.q
+            for i in range(10):
+                if kind == "pose":
+                    ctrl.set_target(T[:3, 3] + 0.004 * i, np.array([1.0, 0.0, 0.0, 0.0]))
+                else:
+                    ctrl.set_target(q + 0.004 * i)
+                world.advance(world.ticks + 40)
+            world.advance(world.ticks + 300)  # stale after 100 ms: brought to rest
+            assert world.failure() is None
+            assert ctrl.stale
+            if compiled:
+                assert world._fast is not None
+                assert world._fast.compiled_ticks - before == 10 * 40 + 300 - 1
+            states.append(world.robot.core.state_buffer.copy())
+        finally:
+            world.close()
+    assert np.array_equal(states[0], states[1])

@@ -96,17 +96,57 @@ class _Streamed(TorqueController):
     def _news(self) -> int:
         """Control process, each tick: ``_NEW`` if a target arrived, ``_STALE`` if the
         timeout just passed without one, else 0."""
-        count = float(self._values[self._count_at])
-        if count != self._seen:
-            self._seen = count
+        news = self._pending(self.t)
+        if news == _NEW:
+            self._seen = float(self._values[self._count_at])
             self._t_target = self.t
             self._stale = False
+        elif news == _STALE:
+            self._stale = True
+        return news
+
+    def _pending(self, t: float) -> int:
+        """What :meth:`_news` would find at time ``t`` [s] (nothing changed)."""
+        if float(self._values[self._count_at]) != self._seen:
             return _NEW
         timeout = self.timeout
-        if not self._stale and timeout is not None and self.t - self._t_target > timeout:
-            self._stale = True
+        if not self._stale and timeout is not None and t - self._t_target > timeout:
             return _STALE
         return 0
+
+    def compiled_news(self, dt: float, model: ControlModel) -> bool:
+        """For a compiled loop that runs this controller's ticks (the fast world's): where
+        the next tick brings news (a new target, or the targets gone stale), that tick's
+        part of :meth:`step` before its compiled step, in Python: the clock advanced
+        ``dt`` [s] (:meth:`tick`), the news taken, the generator stepped (ruckig
+        calculates its trajectory) and its trajectory packed for the compiled sampling.
+        True: the loop's kernel runs the rest of that tick with the generator standing
+        where this step left it, and the ticks after it as usual. False, and nothing
+        changed but the packing of a trajectory ruckig's step has just calculated: no
+        news (or the first tick, which needs :meth:`step`)."""
+        if not self._pending(self.t + dt) or not self._news_ready():
+            self._generator().pack()
+            return False
+        self.tick(dt)
+        self._take(self._news(), None, model)
+        gen = self._generator()
+        if not gen.finished:
+            gen.step()
+        gen.pack()
+        return True
+
+    def _generator(self) -> OnlineGenerator | OnlinePose:
+        """The generator (control process: made in start)."""
+        raise NotImplementedError
+
+    def _news_ready(self) -> bool:
+        """Whether :meth:`compiled_news` can take the news without the tick's state."""
+        return True
+
+    def _take(self, news: int, state: StateView | None, model: ControlModel) -> None:
+        """Take the news (``_NEW`` or ``_STALE``) into the generator: a new target, or rest
+        (``state``: this tick's, where the controller needs it; None where it does not)."""
+        raise NotImplementedError
 
     @property
     def lag(self) -> float:
@@ -182,16 +222,22 @@ class JointTarget(_Streamed):
         out[o + 21] = float(np.abs(target - gen.position).max())
         out[o + 22] = float(self._stale)
 
-    def step(self, state: StateView, model: ControlModel) -> FloatArray:
+    def _generator(self) -> OnlineGenerator:
+        return self._gen
+
+    def _take(self, news: int, state: StateView | None, model: ControlModel) -> None:
         gen = self._gen
-        target = self.signal("q")
-        news = self._news()
         if news == _NEW:
             gen.set_limits(self._follow)
-            gen.set_target(target)
+            gen.set_target(self.signal("q"))
         elif news == _STALE:
             gen.set_limits(self._stop)
             gen.set_rest()
+
+    def step(self, state: StateView, model: ControlModel) -> FloatArray:
+        gen = self._gen
+        target = self.signal("q")
+        self._take(self._news(), state, model)
         if not gen.finished:
             gen.step()
         q_d, dq_d, ddq_d = gen.position, gen.velocity, gen.acceleration
@@ -308,22 +354,33 @@ class CartesianTarget(_Streamed):
         out[o + 14] = 2.0 * math.acos(min(1.0, abs(a * e + b * f + c * g + d * h)))
         out[o + 15] = 1.0 if self._stale else 0.0
 
+    def _generator(self) -> OnlinePose:
+        return self._gen
+
+    def _news_ready(self) -> bool:
+        return self._law.J_prev is not None
+
+    def _take(self, news: int, state: StateView | None, model: ControlModel) -> None:
+        gen = self._gen
+        if news == _NEW:
+            gen.set_target(self.signal("position"), self.signal("orientation"))
+            limits = self._follow
+        elif news == _STALE:
+            gen.set_rest()
+            limits = self._stop
+        else:
+            return
+        # within the joints' limits where the arm is (a Cartesian bound can ask a joint
+        # for more; the last tick's Jacobian, where the law has one)
+        J = self._law.J_prev
+        if J is None:
+            assert state is not None  # (compiled_news waits for a tick's Jacobian)
+            J = model.ee_jacobian(state)
+        gen.set_limits(joint_capped(limits, J, model.spec, gen.frames, STREAM_JOINT_SHARE))
+
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         gen = self._gen
-        news = self._news()
-        if news:
-            if news == _NEW:
-                gen.set_target(self.signal("position"), self.signal("orientation"))
-                limits = self._follow
-            else:
-                gen.set_rest()
-                limits = self._stop
-            # within the joints' limits where the arm is (a Cartesian bound can ask a
-            # joint for more; the last tick's Jacobian, where the law has one)
-            J = self._law.J_prev
-            if J is None:
-                J = model.ee_jacobian(state)
-            gen.set_limits(joint_capped(limits, J, model.spec, gen.frames, STREAM_JOINT_SHARE))
+        self._take(self._news(), state, model)
         fused = laws.fused()
         if fused is not None and type(model) is ControlModel:
             return self._fused_step(fused, state, model)

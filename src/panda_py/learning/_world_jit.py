@@ -5,9 +5,11 @@ tick the law's compiled step (``controllers._fused``), the control process's fin
 and the robot's compiled tick (:func:`panda_py.sim.compiled.torque_tick`: its checks,
 the hand, ``mj_step``, the state's fill), with no Python between ticks.
 
-A kernel runs the ticks the Python reference would run the same way: where a tick needs
-more (a new target's trajectory, the targets going stale, the robot's checks failing, a
-non-finite torque, a contact) it stops before that tick, or hands the rest of it back,
+A kernel runs the ticks the Python reference would run the same way. A tick with news
+for the law (a new target: ruckig calculates) has its part before the law's compiled step
+done in Python first (``CartesianTarget.compiled_news``; ``S_STEPPED``), and the kernel
+runs the rest of it. Where a tick needs more (the robot's checks failing, a non-finite
+torque, a contact) it stops before that tick, or hands the rest of it back,
 with a status (:class:`Stop`) saying which; :class:`panda_py.learning.world.FastWorld`
 does that part in Python and goes on. Imported where numba runs (else ImportError);
 cached under a key over its sources and theirs (:mod:`panda_py.jit.cache`).
@@ -68,8 +70,8 @@ _DONE, _WHOLE, _AT_ROBOT, _NON_FINITE = (
 # indices of the scalars ``s`` (float64), synchronised with the controller by the caller
 S_T, S_T_TARGET, S_TIMEOUT, S_STALE, S_GEN_TIME, S_GEN_FINISHED, S_DURATION = 0, 1, 2, 3, 4, 5, 6
 S_DAMPING_DUE, S_DT, S_GAIN, S_DTAU_MAX, S_DAMPING_TICKS, S_FRICTION_SPEED = 7, 8, 9, 10, 11, 12
-S_ERROR_RATE, S_OUT = 13, 14
-SCALARS = 15
+S_ERROR_RATE, S_OUT, S_STEPPED = 13, 14, 15
+SCALARS = 16
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -139,15 +141,18 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     q, dq, O_T_EE, tau_J_d, tau, cmd = buf
     scalars = law[0:8]
     for k in range(n):
-        if not _before_tick(s):
-            return k, _WHOLE
-        read_state(sb, at, single, q, dq, O_T_EE, tau_J_d)
-        s[S_T] += s[S_DT]  # ctrl.tick
-        t = _advance(s)
-        if t < 0.0:
+        if k == 0 and s[S_STEPPED] != 0.0:  # its clock and generator stepped (news)
             tick[0] = 0.0
         else:
-            tick[0], tick[1], tick[2] = 1.0, s[S_DURATION], t
+            if not _before_tick(s):
+                return k, _WHOLE
+            s[S_T] += s[S_DT]  # ctrl.tick
+            t = _advance(s)
+            if t < 0.0:
+                tick[0] = 0.0
+            else:
+                tick[0], tick[1], tick[2] = 1.0, s[S_DURATION], t
+        read_state(sb, at, single, q, dq, O_T_EE, tau_J_d)
         tick[3] = s[S_STALE]
         # PoseImpedance.compiled_inputs(dt)
         s[S_DAMPING_DUE] -= 1.0
@@ -183,13 +188,14 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     q, dq, O_T_EE, tau_J_d, tau, cmd = buf
     o = int(s[S_OUT])
     for k in range(n):
-        if not _before_tick(s):
-            return k, _WHOLE
+        if k > 0 or s[S_STEPPED] == 0.0:  # (else its clock and generator stepped: news)
+            if not _before_tick(s):
+                return k, _WHOLE
+            s[S_T] += s[S_DT]
+            t = _advance(s)
+            if t >= 0.0:
+                _sample(traj, s[S_DURATION], t, position, velocity, acceleration)
         read_state(sb, at, single, q, dq, O_T_EE, tau_J_d)
-        s[S_T] += s[S_DT]
-        t = _advance(s)
-        if t >= 0.0:
-            _sample(traj, s[S_DURATION], t, position, velocity, acceleration)
         _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
                              position, velocity, acceleration, s[S_FRICTION_SPEED],
                              s[S_ERROR_RATE], tau)  # fmt: skip

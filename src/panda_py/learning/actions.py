@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from panda_py import checks
 from panda_py.robots.params import RobotSpec
 
 __all__ = [
@@ -92,6 +93,7 @@ class ActionMap:
         if hand:
             low, high = np.append(low, -1.0), np.append(high, 1.0)
         self.low, self.high = low, high
+        self._low, self._high = low.tolist(), high.tolist()
         self.size = low.size
 
     def check(self, action: Any) -> FloatArray:
@@ -103,16 +105,19 @@ class ActionMap:
             raise ValueError(f"action: expected {what}, got {action!r}") from None
         if a.shape != (self.size,):
             raise ValueError(f"action: expected {what}, shape ({self.size},); got shape {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action: expected finite values, got {a.tolist()}")
-        out = np.flatnonzero((a < self.low - _TOLERANCE) | (a > self.high + _TOLERANCE))
-        if out.size:
-            i = int(out[0])
-            raise ValueError(
-                f"action: expected each value within the action space; value {i} is {a[i]}, "
-                f"outside [{self.low[i]}, {self.high[i]}]"
-            )
-        return np.clip(a, self.low, self.high)
+        # in scalars: a policy step's NumPy calls on these short arrays cost it more
+        values = a.tolist()
+        if not checks.all_finite(values):
+            raise ValueError(f"action: expected finite values, got {values}")
+        clipped = []
+        for i, (v, low, high) in enumerate(zip(values, self._low, self._high, strict=True)):
+            if v < low - _TOLERANCE or v > high + _TOLERANCE:
+                raise ValueError(
+                    f"action: expected each value within the action space; value {i} is {v}, "
+                    f"outside [{low}, {high}]"
+                )
+            clipped.append(high if v > high else low if v < low else v)  # (np.clip's)
+        return np.array(clipped)
 
     def target(self, action: FloatArray, q: FloatArray, position: FloatArray) -> FloatArray:
         """The target of a checked ``action`` from the measured joints ``q`` [rad] and end

@@ -12,8 +12,10 @@ them. Nothing is random: the same commands give the same episode.
 
 Where numba runs, the ticks of the two streamed controllers (``JointTarget``,
 ``CartesianTarget``) run compiled, many in one call (:mod:`._world_jit`: the law, the
-finishing and the robot's compiled tick, ``mj_step`` included); a tick that needs more (a
-new target, a stale one, a reflex, a contact, the hand moving) runs in Python, and the
+finishing and the robot's compiled tick, ``mj_step`` included). A tick with a new target
+(or targets gone stale) has only its generator's step in Python first (ruckig calculates:
+the controller's ``compiled_news``) and the rest in the kernel; a tick that needs more (a
+reflex, a contact, the hand moving, a controller's first tick) runs in Python, and the
 compiled ticks equal the Python ones (``tests/learning/test_world_compiled.py``).
 ``PANDA_PY_NO_JIT=1`` runs them all in Python.
 """
@@ -170,10 +172,10 @@ class FastWorld(Backend):
         stopped (a reflex)."""
         fast = self._fast
         while self.ticks < ms:
-            if fast is not None and self._controller is not None:
-                fast.run(ms - self.ticks)
-                if self.ticks >= ms or self._fail is not None:
+            if fast is not None and self._controller is not None and fast.run(ms - self.ticks):
+                if self._fail is not None:
                     return
+                continue
             self._tick()
             if self._fail is not None:
                 return
@@ -238,9 +240,10 @@ class _CompiledLoop:
     world: gathers the controller's, the finishing's and the robot's arrays and scalars
     for a run, and gives them back after it.
 
-    It reads the controllers' and their generators' inner state (their per-tick
+    A tick's news goes through the controllers' public hook (``compiled_news``); for the
+    rest it reads the controllers' and their generators' inner state (their per-tick
     bookkeeping has no public view yet): the compiled steps replace exactly the calls
-    ``CartesianTarget.step`` and ``JointTarget.step`` make on a tick without news."""
+    ``CartesianTarget.step`` and ``JointTarget.step`` make after the news."""
 
     def __init__(self, world: FastWorld) -> None:
         from panda_py.learning import _world_jit
@@ -296,21 +299,24 @@ class _CompiledLoop:
             chain, arm = model.kernel_arrays(state)
             self._chain, self._arm = chain, (*arm, model.armature, model.coulomb)
 
-    def run(self, n: int) -> None:
-        """Up to ``n`` ticks compiled; returns where the next tick is the reference's
-        (or all ran), the part of a tick the kernel left done."""
+    def run(self, n: int) -> bool:
+        """Up to ``n`` ticks compiled, the part of a tick the kernel left done; False
+        where none ran (the next tick is the reference's)."""
         world = self.world
         running = world._controller
         if running is None or self._kind is None or type(running) is not self._kind:
-            return
+            return False
         ctrl: Any = running
-        if not self._ready(ctrl):
-            return
         args = self.robot.enter(world.robot.hand)
         if args is None:
-            return
+            return False
+        # a tick with news: its part before the law's compiled step in Python (ruckig)
+        stepped = ctrl.compiled_news(DT, world.model)
+        if not stepped and not self._ready(ctrl):
+            return False
         k, s = self._k, self._s
         self._load(ctrl)
+        s[k.S_STEPPED] = 1.0 if stepped else 0.0
         if self._kind is CartesianTarget:
             ticks, stop = self._call(k.pose_target_ticks, n, s, ctrl._tick,
                                      ctrl._gen.sampling(), ctrl._law.buffer,
@@ -334,10 +340,13 @@ class _CompiledLoop:
             tau = self._buf[4]
             world._failed(f"the controller commanded non-finite torques: {tau.tolist()}")
             world._robot_tick(None)
+        elif ticks == 0:
+            return False
+        return True
 
     def _ready(self, ctrl: Any) -> bool:
-        """No news for the law this tick that needs Python (a new target: ruckig
-        calculates; a trajectory just calculated: packed first)."""
+        """No news for the law this tick that the kernel cannot take (a target that
+        arrived before the law's first tick; a trajectory calculated, not packed)."""
         if float(ctrl._values[ctrl._count_at]) != ctrl._seen:
             return False
         if self._kind is CartesianTarget:

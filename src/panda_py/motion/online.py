@@ -24,6 +24,7 @@ in frames aligned with where the motion must go (see there).
 from __future__ import annotations
 
 import math
+import struct
 from dataclasses import dataclass
 from typing import Any
 
@@ -152,11 +153,12 @@ def _factor(value: float) -> float:
 _ROW = 49  # _online_jit.ROW (a test holds them equal): importing it would load numba
 
 
-def _pack(traj: Trajectory, out: FloatArray) -> None:
+def _pack(traj: Trajectory, out: FloatArray, into: Any = None) -> None:
     """A one-section trajectory's profiles into ``out`` (n, _ROW), a row per coordinate,
     as ``_online_jit.sample`` reads them: the brake's duration, and its two phases'
     times, jerks, accelerations, velocities, positions; the profile's phase durations and
-    jerks (7 each), accelerations, velocities and positions (8 each)."""
+    jerks (7 each), accelerations, velocities and positions (8 each). ``into``: a byte
+    view of ``out`` (:func:`_byte_view`), where the caller keeps one."""
     flat: list[float] = []
     for profile in traj.profiles[0]:
         brake = profile.brake
@@ -167,10 +169,24 @@ def _pack(traj: Trajectory, out: FloatArray) -> None:
         else:
             flat += _NO_BRAKE
         flat += [*profile.t, *profile.j, *profile.a, *profile.v, *profile.p]
-    out.reshape(-1)[:] = flat
+    # struct writes the doubles as they are, at a third of the cost of NumPy's conversion
+    # of a list (the most of a new target's packing)
+    packer = _PACKERS.get(len(flat))
+    if packer is None:
+        packer = _PACKERS[len(flat)] = struct.Struct(f"={len(flat)}d")
+    packer.pack_into(_byte_view(out) if into is None else into, 0, *flat)
+
+
+def _byte_view(out: FloatArray) -> memoryview:
+    """A writable byte view of the C-contiguous float64 array ``out`` (what :func:`_pack`
+    writes through)."""
+    if out.dtype != np.float64 or not out.flags.c_contiguous or not out.flags.writeable:
+        raise ValueError("out: expected a writable C-contiguous float64 array")
+    return out.data.cast("B")
 
 
 _NO_BRAKE = [0.0] * 10
+_PACKERS: dict[int, struct.Struct] = {}
 
 
 # The checks and tests of a hand-over's inputs are in scalars: each NumPy call costs 20-30
@@ -214,6 +230,7 @@ class OnlineGenerator:
         # changed since; _fresh: ruckig's step calculated it, not packed yet; _moved: the
         # state advanced since the input last had it
         self._packed = np.zeros((n, _ROW))
+        self._packed_bytes = _byte_view(self._packed)
         self._time = 0.0
         self._changed = True
         self._fresh = False
@@ -381,15 +398,21 @@ class OnlineGenerator:
         trajectory packed if ruckig's step just calculated it, the time advanced one period
         (returned: when to sample), ``finished`` (as ruckig's: once the time passed the
         duration)."""
-        if self._fresh:
-            out = self._out
-            _pack(out.trajectory, self._packed)
-            self._time = out.time
-            self._fresh = False
+        self.pack()
         self._time += PERIOD
         self._moved = True
         self.finished = self._time > self.duration
         return self._time
+
+    def pack(self) -> None:
+        """Where ruckig's step has just calculated a trajectory, pack it for the compiled
+        steps that sample it (the next compiled step would; a compiled loop that samples
+        it itself packs it first)."""
+        if self._fresh:
+            out = self._out
+            _pack(out.trajectory, self._packed, self._packed_bytes)
+            self._time = out.time
+            self._fresh = False
 
     def _step_ruckig(self) -> bool:
         """:meth:`step` by ruckig's ``update``."""
@@ -664,6 +687,10 @@ class OnlinePose:
             self.step()
             return None
         return g._advance()
+
+    def pack(self) -> None:
+        """:meth:`OnlineGenerator.pack` of its generator."""
+        self.gen.pack()
 
     def sampling(self) -> tuple[Any, ...]:
         """What ``_online_jit.sample_pose`` takes after the time (see :meth:`advance`): the

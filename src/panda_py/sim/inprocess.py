@@ -63,6 +63,7 @@ class InProcessRobot:
             motion_generation_finished=False, tau_J_d=np.zeros(7), torque_command_finished=False,
         )  # fmt: skip
         self.ticks = 0  # [ms] the robot's clock
+        self._bodies: dict[str, int] = {}  # body names' ids
         self._compiled = compiled_tick(self.core) if compiled else None
         if self._compiled is not None:
             self._compiled.warm(self.hand)
@@ -107,7 +108,10 @@ class InProcessRobot:
 
     def body_position(self, name: str) -> np.ndarray:
         """Where the scene's body ``name`` (e.g. ``"cube"``) is [m] (a copy)."""
-        return self.physics.data.body(name).xpos.copy()
+        at = self._bodies.get(name)
+        if at is None:  # (MuJoCo's accessor by name: most of this call's cost, once)
+            at = self._bodies[name] = self.physics.model.body(name).id
+        return self.physics.data.xpos[at].copy()
 
     def reflex_flags(self) -> list[str]:
         """The error flags of the last reflex (libfranka's ``Errors`` names)."""
