@@ -3,6 +3,7 @@ source file a kernel compiles, so an edit to any of them selects a new directory
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import pytest
@@ -72,3 +73,17 @@ def test_every_compiled_module_caches_under_a_key_over_its_own_file() -> None:
                                   (tick, tick.fill_state, [])):  # fmt: skip
         assert module.KEY == jitcache.source_key([Path(module.__file__), *extra]), module.__name__
         assert kernel.stats.cache_path == str(jitcache.cache_dir(module.KEY)), module.__name__
+
+
+def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> None:
+    """The control loop's ticks and the simulator's lockstep ticks call the C library
+    through one module's intrinsics (jit.libc): both keys cover it, so an edit to a call's
+    declaration compiles both afresh instead of loading machine code made for the old."""
+    import panda_py.rt._tick as loop
+    import panda_py.sim._lockstep_jit as lockstep
+    from panda_py.jit import libc
+    from panda_py.sim import compiled
+
+    assert loop.KEY.startswith(jitcache.source_key([Path(loop.__file__), Path(libc.__file__)]))
+    sources = jitcache.source_key([Path(lockstep.__file__), Path(libc.__file__)]) + compiled.KEY
+    assert lockstep.KEY == hashlib.sha256(sources.encode()).hexdigest()[:20]

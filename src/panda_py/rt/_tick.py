@@ -34,16 +34,11 @@ offsets of the state datagram: ``lay``, built from the FCI dialect by
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
 from panda_py.controllers import laws
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 
 _FUSED, _KERNELS = laws.fused(), laws.compiled()
 if _FUSED is None or _KERNELS is None:  # plain Python: the loop runs its Python ticks
@@ -58,7 +53,7 @@ __all__ = [
     "joint_move_ticks", "joint_position_ticks", "pose_move_ticks",
 ]  # fmt: skip
 
-KEY = cache.source_key([Path(__file__)]) + _FUSED.KEY[:12]
+KEY = cache.source_key([Path(__file__), Path(libc.__file__)]) + _FUSED.KEY[:12]
 
 # io: the kernel's integer words (in and out)
 UDP, CHAN, LAST_ID, MG, CTRL, MOVE, TAKEN, BUDGET, LOGGING, SLOTS, RECORD = range(11)
@@ -83,86 +78,9 @@ RECV_BATCH = 4
 MMSG_BYTES, IOVEC_BYTES = 64, 16
 SCRATCH_PER_STATE = MMSG_BYTES + IOVEC_BYTES
 
-_I8P = ir.IntType(8).as_pointer()
-
-
-def _call(builder, name, restype, argtypes, args):  # type: ignore[no-untyped-def,unused-ignore]
-    """A call of the C library's ``name``; integer arguments standing for pointers (``ir``
-    pointer types) converted, the result widened to 64 bits."""
-    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(restype, argtypes), name)
-    values = []
-    for value, want in zip(args, argtypes, strict=True):
-        if isinstance(want, ir.PointerType):
-            value = builder.inttoptr(value, want)
-        elif value.type != want:
-            value = builder.trunc(value, want)
-        values.append(value)
-    result = builder.call(fn, values)
-    return result if result.type == _I64 else builder.sext(result, _I64)
-
-
-_I32, _I64 = ir.IntType(32), ir.IntType(64)
-_IO = [_I32, _I8P, _I64, _I32]  # (fd, buffer, length, flags)
-
-
-def _send_typer(typingctx, fd, buffer, length, flags):  # type: ignore[no-untyped-def,unused-ignore]
-    """``send(fd, buffer, length, flags)``; ``buffer`` an address."""
-    sig = types.int64(types.int64, types.intp, types.int64, types.int64)
-    return sig, lambda context, builder, s, args: _call(builder, "send", _I64, _IO, args)
-
-
-_send: Any = intrinsic(_send_typer)
-
-
-def _recvmmsg_typer(typingctx, fd, msgs, vlen, flags):  # type: ignore[no-untyped-def,unused-ignore]
-    """``recvmmsg(fd, msgs, vlen, flags, NULL)``; ``msgs`` the address of the ``struct
-    mmsghdr`` array (Linux)."""
-    sig = types.int64(types.int64, types.intp, types.int64, types.int64)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
-        return _call(builder, "recvmmsg", _I32, [_I32, _I8P, _I32, _I32, _I8P],
-                     [*args, ir.Constant(_I64, 0)])  # fmt: skip
-
-    return sig, codegen
-
-
-_recvmmsg: Any = intrinsic(_recvmmsg_typer)
-
-
-def _poll_typer(typingctx, fds, nfds, timeout):  # type: ignore[no-untyped-def,unused-ignore]
-    """``poll(fds, nfds, timeout)``; ``fds`` the address of the ``struct pollfd`` array."""
-    sig = types.int64(types.intp, types.int64, types.int64)
-    return sig, lambda context, builder, s, args: _call(builder, "poll", _I32,
-                                                        [_I8P, _I64, _I32], args)  # fmt: skip
-
-
-_poll: Any = intrinsic(_poll_typer)
-
-
-def _errno_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
-    """The C library's errno of this thread."""
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
-        fn = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(_I32.as_pointer(), []), "__errno_location"
-        )
-        return builder.sext(builder.load(builder.call(fn, [])), _I64)
-
-    return types.int64(), codegen
-
-
-_errno: Any = intrinsic(_errno_typer)
-
-
-def _fence_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
-        builder.fence("seq_cst")
-        return context.get_dummy_value()
-
-    return types.void(), codegen
-
-
-_fence: Any = intrinsic(_fence_typer)
+# the C library's calls and the fence, as intrinsics (panda_py.jit.libc)
+_send, _recvmmsg, _poll = libc.send, libc.recvmmsg, libc.poll
+_errno, _fence = libc.errno, libc.fence
 
 
 @cache.keyed_jit(KEY, nogil=True)

@@ -24,21 +24,16 @@ from __future__ import annotations
 import enum
 import hashlib
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 from panda_py.sim import compiled
 
 __all__ = ["Stop", "lockstep_ticks"]
 
-# the compile cache's key: this file and the robot's compiled tick it calls
-_SOURCES = cache.source_key([Path(__file__)]) + compiled.KEY
+# the compile cache's key: this file, the C library's calls and the robot's compiled tick
+_SOURCES = cache.source_key([Path(__file__), Path(libc.__file__)]) + compiled.KEY
 KEY = hashlib.sha256(_SOURCES.encode()).hexdigest()[:20]
 
 _torque_tick = compiled.torque_tick
@@ -77,76 +72,9 @@ _EAGAIN = 11  # (EWOULDBLOCK on Linux)
 _CLOCK_MONOTONIC = 1
 _SOCKADDR_IN = 16  # sizeof(struct sockaddr_in)
 
-_I32, _I64 = ir.IntType(32), ir.IntType(64)
-_PTR = ir.IntType(8).as_pointer()
-
-
-def _c_call(builder, name, restype, argtypes, args):  # type: ignore[no-untyped-def,unused-ignore]
-    """Call the C library's ``name``: integers standing for pointers turned into
-    pointers, narrower integers truncated, the result widened to 64 bits."""
-    fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(restype, argtypes), name)
-    values = []
-    for value, want in zip(args, argtypes, strict=True):
-        if isinstance(want, ir.PointerType):
-            values.append(builder.inttoptr(value, want))
-        elif value.type != want:
-            values.append(builder.trunc(value, want))
-        else:
-            values.append(value)
-    result = builder.call(fn, values)
-    return result if result.type == _I64 else builder.sext(result, _I64)
-
-
-def _poll_typer(typingctx, fds, nfds, timeout):  # type: ignore[no-untyped-def,unused-ignore]
-    """``poll(fds, nfds, timeout_ms)``; ``fds`` the address of a ``struct pollfd`` array."""
-    sig = types.int64(types.int64, types.int64, types.int64)
-    return sig, lambda c, b, s, a: _c_call(b, "poll", _I32, [_PTR, _I64, _I32], a)
-
-
-def _recvfrom_typer(typingctx, fd, buf, n, flags, addr, addrlen):  # type: ignore[no-untyped-def,unused-ignore]
-    """``recvfrom(fd, buf, n, flags, addr, addrlen)``; the pointers as addresses."""
-    sig = types.int64(*(types.int64,) * 6)
-    return sig, lambda c, b, s, a: _c_call(b, "recvfrom", _I64,
-                                           [_I32, _PTR, _I64, _I32, _PTR, _PTR], a)  # fmt: skip
-
-
-def _recv_typer(typingctx, fd, buf, n, flags):  # type: ignore[no-untyped-def,unused-ignore]
-    """``recv(fd, buf, n, flags)``; ``buf`` an address."""
-    sig = types.int64(*(types.int64,) * 4)
-    return sig, lambda c, b, s, a: _c_call(b, "recv", _I64, [_I32, _PTR, _I64, _I32], a)
-
-
-def _sendto_typer(typingctx, fd, buf, n, flags, addr, addrlen):  # type: ignore[no-untyped-def,unused-ignore]
-    """``sendto(fd, buf, n, flags, addr, addrlen)``; the pointers as addresses."""
-    sig = types.int64(*(types.int64,) * 6)
-    return sig, lambda c, b, s, a: _c_call(b, "sendto", _I64,
-                                           [_I32, _PTR, _I64, _I32, _PTR, _I32], a)  # fmt: skip
-
-
-def _clock_typer(typingctx, clock, ts):  # type: ignore[no-untyped-def,unused-ignore]
-    """``clock_gettime(clock, ts)``; ``ts`` the address of a ``struct timespec``."""
-    sig = types.int64(types.int64, types.int64)
-    return sig, lambda c, b, s, a: _c_call(b, "clock_gettime", _I32, [_I32, _PTR], a)
-
-
-def _errno_typer(typingctx):  # type: ignore[no-untyped-def,unused-ignore]
-    """This thread's ``errno``."""
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def,unused-ignore]
-        fn = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(_I32.as_pointer(), []), "__errno_location"
-        )
-        return builder.sext(builder.load(builder.call(fn, [])), _I64)
-
-    return types.int64(), codegen
-
-
-_poll: Any = intrinsic(_poll_typer)
-_recvfrom: Any = intrinsic(_recvfrom_typer)
-_recv: Any = intrinsic(_recv_typer)
-_sendto: Any = intrinsic(_sendto_typer)
-_clock_gettime: Any = intrinsic(_clock_typer)
-_errno: Any = intrinsic(_errno_typer)
+# the C library's calls, as intrinsics (panda_py.jit.libc)
+_poll, _recvfrom, _recv, _sendto = libc.poll, libc.recvfrom, libc.recv, libc.sendto
+_clock_gettime, _errno = libc.clock_gettime, libc.errno
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
