@@ -29,8 +29,11 @@ from panda_py import fci, kinematics
 from panda_py.controllers import (
     AppliedTorque,
     CartesianImpedance,
+    CartesianTarget,
     IntegratedVelocity,
     JointPosition,
+    JointTarget,
+    laws,
 )
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.model import ControlModel
@@ -74,6 +77,18 @@ def _laws(state: Any, model: Any, spec: Any) -> dict[str, Any]:
         law = cls()
         law.start(state, model)
         out[cls.__name__] = law
+    # the streamed targets toward a target set before their first tick (no timeout: no
+    # news afterwards), their generators moving for the first seconds, then at rest
+    joint_target = JointTarget(timeout=None)
+    joint_target.start(state, model)
+    joint_target.set_target(np.asarray(START_POSE) + 0.3)
+    out["JointTarget"] = joint_target
+    pose_target = CartesianTarget(timeout=None)
+    pose_target.start(state, model)
+    pose_target.set_target(
+        state.O_T_EE[12:15] + np.array([0.0, 0.1, -0.1]), laws.quat_from_matrix(state.O_T_EE)
+    )
+    out["CartesianTarget"] = pose_target
     joint, pose = example_plans(state, spec)
     # a long plan that holds the arm (the moves' plan-following phase throughout)
     for name, plan in (("move_to_joint_position", joint), ("move_to_pose", pose)):

@@ -19,8 +19,10 @@ from panda_py import fci, kinematics
 from panda_py.controllers import (
     AppliedTorque,
     CartesianImpedance,
+    CartesianTarget,
     IntegratedVelocity,
     JointPosition,
+    JointTarget,
     TorqueController,
     laws,
 )
@@ -81,7 +83,11 @@ def make(kind: str, state: Any) -> Any:
     if kind in ("JointMove", "PoseMove"):
         return tracker_for(_plan(kind, np.asarray(START_POSE, dtype=float)))
     if kind == "CartesianImpedance":
-        law = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+        law: Any = CartesianImpedance(filter_coeff=0.3, damping_ratio=0.8)
+    elif kind == "JointTarget":
+        law = JointTarget(0.5, timeout=0.1)
+    elif kind == "CartesianTarget":
+        law = CartesianTarget(0.5, timeout=0.1)
     elif kind == "JointPosition":
         law = JointPosition(filter_coeff=0.2)
     elif kind == "IntegratedVelocity":
@@ -332,3 +338,90 @@ def test_more_states_queued_than_one_receive_takes_the_newest_is_answered(rig: R
     assert rig.law.dt == pytest.approx(9e-3)
     with pytest.raises(BlockingIOError):  # nothing left for the next tick
         rig.client.recv(4096)
+
+
+STREAMED = ("JointTarget", "CartesianTarget")
+
+
+def _streamed_target(kind: str, k: int) -> tuple[Any, ...]:
+    """The target sent before tick ``k``: a small joint or end-effector offset from the
+    start that changes with ``k // 100`` (the targets of one hundred ticks repeat)."""
+    dq = np.array([0.03, -0.02, 0.02, 0.04, -0.03, 0.05, 0.04]) * (1 + k // 100)
+    if kind == "JointTarget":
+        return (np.asarray(START_POSE) + dq,)
+    T = np.asarray(KIN.fk(START_POSE))
+    p = T[:3, 3] + np.array([0.01, -0.02, 0.015]) * (1 + k // 100)
+    return p, laws.quat_from_matrix(T.reshape(16, order="F"))
+
+
+@pytest.mark.timeout(600)
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("kind", STREAMED)
+def test_compiled_streamed_ticks_send_the_python_ticks_commands(kind: str, version: int) -> None:
+    """Targets every 20 ms (50 Hz), then every 40 ms (25 Hz), repeated, then silence until
+    the timeout: only the ticks with news (a target, the timeout) are Python's; every
+    command, the reference, the lag and stale equal the Python ticks' and are finite."""
+    rig = Rig(version, kind)
+    try:
+        sent_at = [*range(1, 100, 20), *range(100, 260, 40)]
+        handed_back, stale_at = [], 0
+        for k in range(1, 420):
+            if k in sent_at:
+                target = _streamed_target(kind, k)
+                rig.handle.set_target(*target)
+                rig.ref.set_target(*target)
+            data = rig.next_state()
+            rig.robot.send(data)
+            outcome = rig.run()
+            expected = rig.reference(data, 1e-3)
+            if rig.ref._stale and not stale_at:
+                stale_at = k
+            if outcome.then == "pending":
+                handed_back.append(k)
+                assert outcome.pending == data
+                sent = rig.python_tick(data, 1e-3)
+            else:
+                assert outcome.then == "wait" and outcome.ticks == 1
+                reply = rig.robot.recv(4096)
+                rec = np.frombuffer(reply, rig.dialect.command_dtype)[0]
+                assert int(rec["message_id"]) == rig.mid
+                sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+                rig.last = data
+            assert np.isfinite(sent).all()
+            np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+            rig.ref.published()
+            n = len(rig.ref._out)
+            np.testing.assert_allclose(rig.block.read_outputs(n), rig.ref._out, rtol=0.0,
+                                       atol=1e-9)  # fmt: skip
+        assert stale_at in (sent_at[-1] + 100, sent_at[-1] + 101)  # (timeout: 0.1 s)
+        assert handed_back == [*sent_at, stale_at]
+        assert rig.handle.stale and rig.ref.stale
+        assert rig.law.t == pytest.approx(rig.ref.t)
+    finally:
+        rig.close()
+
+
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("kind", STREAMED)
+def test_compiled_streamed_ticks_send_no_non_finite_torques(kind: str, version: int) -> None:
+    """A state that makes a streamed target's torques non-finite, while its generator
+    moves toward a new target: the compiled tick raises and sends nothing."""
+    rig = Rig(version, kind)
+    try:
+        rig.handle.set_target(*_streamed_target(kind, 150))
+        data = rig.next_state()
+        rig.robot.send(data)
+        assert rig.run().then == "pending"  # the new target: ruckig, in Python
+        rig.python_tick(data, 1e-3)
+        rig.mid += 1
+        r = np.frombuffer(_state(rig.dialect, rig.mid, rig.q, np.zeros(7), np.zeros(7)),
+                          rig.dialect.state_dtype).copy()  # fmt: skip
+        r["q"][0, 3] = np.nan
+        rig.robot.send(r.tobytes())
+        with pytest.raises(ControlException, match="non-finite torques"):
+            rig.run()
+        rig.robot.settimeout(0.05)
+        with pytest.raises(TimeoutError):
+            rig.robot.recv(4096)
+    finally:
+        rig.close()

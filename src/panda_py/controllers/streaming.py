@@ -32,10 +32,15 @@ from panda_py import checks
 from panda_py.controllers import laws
 from panda_py.controllers._base import FloatArray, TorqueController
 from panda_py.controllers._builtin import JOINT_DAMPING, JOINT_STIFFNESS
-from panda_py.controllers.law import StateView
-from panda_py.controllers.model import ControlModel
+from panda_py.controllers.law import CompiledTicks, StateView, readonly
+from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.moves import joint_capped
-from panda_py.controllers.tracking import PoseImpedance, joint_impedance_torque
+from panda_py.controllers.tracking import (
+    DAMPING_TICKS,
+    FRICTION_ERROR_RATE,
+    PoseImpedance,
+    joint_impedance_torque,
+)
 from panda_py.motion import rotation
 from panda_py.motion.online import OnlineGenerator, OnlineLimits, OnlinePose
 
@@ -139,6 +144,28 @@ class _Streamed(TorqueController):
         """The generator (control process: made in start)."""
         raise NotImplementedError
 
+    def _compiled_parts(self, model: ControlModel, gen: OnlineGenerator,
+                        extra: tuple[float, ...]) -> tuple[Any, ...] | None:  # fmt: skip
+        """What both compiled loop kernels take first (``rt._tick.joint_target_ticks``,
+        ``cartesian_target_ticks``): the inputs, the count of targets guarded (a new target
+        is the Python step's: ruckig calculates), and the scalars the kernel reads and
+        advances (``rt._tick.T_*``, in that order: when the last target arrived, the
+        timeout, stale, the generator's clock, then ``extra``); None where the next tick
+        is the Python step's (no numba, a model of the user's, a generator whose input
+        changed)."""
+        if laws.fused() is None or type(model) is not ControlModel or gen.sampling() is None:
+            return None
+        time, finished, duration = gen.clock()
+        timeout = math.inf if self.timeout is None else self.timeout
+        self._scalars = np.array([self._t_target, timeout, 1.0 if self._stale else 0.0, time,
+                                  1.0 if finished else 0.0, duration, *extra])  # fmt: skip
+        guard = np.array([[self._count_at, 1]], dtype=np.int64)
+        return self._values, guard, np.array([self._seen]), self._scalars
+
+    def _compiled_gen_ran(self, gen: OnlineGenerator) -> None:
+        s = self._scalars
+        gen.compiled_steps(float(s[3]), s[4] != 0.0)
+
     def _news_ready(self) -> bool:
         """Whether :meth:`compiled_news` can take the news without the tick's state."""
         return True
@@ -233,6 +260,25 @@ class JointTarget(_Streamed):
         elif news == _STALE:
             gen.set_limits(self._stop)
             gen.set_rest()
+
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
+        """Between its news: ``rt._tick.joint_target_ticks``."""
+        gen = self._gen
+        extra = (0.0, 0.0, FRICTION_SPEED, FRICTION_ERROR_RATE, float(self._sig_layout["q"][0]),
+                 float(self._out_layout["q_d"][0]))  # fmt: skip
+        parts = self._compiled_parts(model, gen, extra)
+        sampling = gen.sampling()
+        if parts is None or sampling is None:
+            return None
+        arm = model.kernel_arrays(state)[1]
+        arrays = (*parts, readonly(sampling[0]), *sampling[1:], readonly(self.stiffness),
+                  readonly(self.damping), *arm, model.armature, model.coulomb)  # fmt: skip
+        return CompiledTicks("joint_target_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
+
+    def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
+        super().compiled_ran(time, in_seq)
+        self._compiled_gen_ran(self._gen)
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         gen = self._gen
@@ -377,6 +423,26 @@ class CartesianTarget(_Streamed):
             assert state is not None  # (compiled_news waits for a tick's Jacobian)
             J = model.ee_jacobian(state)
         gen.set_limits(joint_capped(limits, J, model.spec, gen.frames, STREAM_JOINT_SHARE))
+
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
+        """Between its news, after its first tick (the tracking's Jacobian):
+        ``rt._tick.cartesian_target_ticks``."""
+        law, gen = self._law, self._gen
+        extra = (float(law.damping_due), float(DAMPING_TICKS), 0.0, 0.0, 0.0, 0.0)
+        parts = self._compiled_parts(model, gen.gen, extra)
+        if parts is None or law.J_prev is None:
+            return None
+        chain, arm = model.kernel_arrays(state)
+        traj, *sampling = gen.sampling()
+        arrays = (*parts, self._tick, readonly(traj), *sampling, law.buffer,
+                  readonly(self._target), chain, *arm, model.armature, model.coulomb)  # fmt: skip
+        return CompiledTicks("cartesian_target_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
+
+    def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
+        super().compiled_ran(time, in_seq)
+        self._compiled_gen_ran(self._gen.gen)
+        self._law.compiled_ran(int(self._scalars[6]))
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         gen = self._gen

@@ -414,6 +414,29 @@ class OnlineGenerator:
             self._time = out.time
             self._fresh = False
 
+    def sampling(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
+        """For a compiled loop that runs this generator's steps itself (``_online_jit.sample``
+        at its own :meth:`clock`): the packed trajectory and the state it samples into (the
+        arrays themselves: they are written), the trajectory packed first; None where the
+        next step is ruckig's (its input changed)."""
+        if self._changed:
+            return None
+        self.pack()
+        return self._packed, self.position, self.velocity, self.acceleration
+
+    def clock(self) -> tuple[float, bool, float]:
+        """The time [s] in the trajectory of the last step, whether it finished, and the
+        trajectory's duration [s] (what a compiled loop's steps advance)."""
+        return self._time, self.finished, self.duration
+
+    def compiled_steps(self, time: float, finished: bool) -> None:
+        """A compiled loop stepped this generator (sampling its packed trajectory, see
+        :meth:`sampling`) to ``time`` [s] in it, finished or not."""
+        if time != self._time:
+            self._time = time
+            self._moved = True
+        self.finished = finished
+
     def _step_ruckig(self) -> bool:
         """:meth:`step` by ruckig's ``update``."""
         out, inp = self._out, self._inp

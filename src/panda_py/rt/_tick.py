@@ -38,19 +38,25 @@ from pathlib import Path
 import numpy as np
 
 from panda_py.controllers import laws
+from panda_py.fci import PERIOD
 from panda_py.jit import cache, libc
+from panda_py.motion import online
 
 _FUSED, _KERNELS = laws.fused(), laws.compiled()
-if _FUSED is None or _KERNELS is None:  # plain Python: the loop runs its Python ticks
+_ONLINE = online.compiled_kernels()
+if _FUSED is None or _KERNELS is None or _ONLINE is None:  # plain Python: Python ticks
     raise ImportError("the control laws run without numba")
 _cartesian_impedance_step = _FUSED.cartesian_impedance_step
 _joint_tracking_step = _FUSED.joint_tracking_step
 _pose_tracking_step = _FUSED.pose_tracking_step
+_pose_target_step = _FUSED.pose_target_step
 _finalize_torques = _KERNELS.finalize_torques
+_sample = _ONLINE.sample
 
 __all__ = [
-    "applied_torque_ticks", "cartesian_impedance_ticks", "integrated_velocity_ticks",
-    "joint_move_ticks", "joint_position_ticks", "pose_move_ticks",
+    "applied_torque_ticks", "cartesian_impedance_ticks", "cartesian_target_ticks",
+    "integrated_velocity_ticks", "joint_move_ticks", "joint_position_ticks", "joint_target_ticks",
+    "pose_move_ticks",
 ]  # fmt: skip
 
 KEY = cache.source_key([Path(__file__), Path(libc.__file__)]) + _FUSED.KEY[:12]
@@ -69,6 +75,15 @@ LAY_SIZE = L_KEY_SPANS + 2 * 8  # up to eight spans (offset, length) of the mode
 # the shared block's header words (panda_py.rt.shm.HEADER)
 H_STATE_SEQ, H_STATE_LEN, H_TICKS, H_OUT_SEQ, H_LOG_COUNT, H_REQUESTS = 0, 1, 2, 6, 7, 8
 H_IN_SEQ = 5
+# a streamed target's scalars (controllers.streaming._Streamed.compiled): when the last
+# target arrived [s], the timeout [s] (inf: none), 1 if stale; the generator's time in its
+# trajectory [s], 1 once it finished, the trajectory's duration [s]; the ticks until the
+# tracking's damping update and their period (CartesianTarget); the friction's speed and
+# error rate, the offsets of the target among the inputs and of the reference among the
+# outputs (JointTarget)
+(T_TARGET, T_TIMEOUT, T_STALE, T_GEN_TIME, T_FINISHED, T_DURATION, T_DAMPING_DUE,
+ T_DAMPING_TICKS, T_FRICTION_SPEED, T_ERROR_RATE, T_TARGET_AT, T_OUT_AT) = range(12)  # fmt: skip
+TARGET_SCALARS = 12
 POLLIN = 1
 MSG_DONTWAIT = 0x40
 # datagrams a receive takes at most (recvmmsg), and the sizes of Linux's struct mmsghdr and
@@ -556,6 +571,123 @@ def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h, inertia,
                                 armature, coulomb, plan_p[k], plan_quat[k], plan_v[k],
                                 plan_a[k], law, tau)  # fmt: skip
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _stale_due(io, buf, law_t, s):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether the state in ``buf`` is the one at which a streamed target's timeout passes
+    (``_Streamed._pending``: that tick is Python's)."""
+    return s[T_STALE] == 0.0 and _next_time(io, buf, law_t) - s[T_TARGET] > s[T_TIMEOUT]
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _gen_advance(s):  # type: ignore[no-untyped-def,unused-ignore]
+    """``OnlineGenerator._advance`` (its input unchanged since ruckig's step, its
+    trajectory packed): the time to sample at, or -1 where it finished (it stands)."""
+    if s[T_FINISHED] != 0.0:
+        return -1.0
+    s[T_GEN_TIME] += PERIOD
+    s[T_FINISHED] = 1.0 if s[T_GEN_TIME] > s[T_DURATION] else 0.0
+    return s[T_GEN_TIME]
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, s, traj, position, velocity, acceleration, K, D, origin, ca, sa,
+    mass, h, inertia, armature, coulomb,
+):  # fmt: skip
+    """``JointTarget`` between its news (``controllers.streaming``): its generator's
+    compiled step (the trajectory ``traj`` ruckig calculated, sampled into ``position``,
+    ``velocity``, ``acceleration``), ``_fused.joint_tracking_step`` toward it and its
+    outputs. A new target (the count of targets, guarded: the inputs left unread) or the
+    timeout passing (``s``: the scalars, ``T_*``) is Python's: PENDING."""
+    io[TICKS] = 0
+    t_at, o = int(s[T_TARGET_AT]), int(s[T_OUT_AT])
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0 and _stale_due(io, buf, law_t, s):
+            status = PENDING
+        if status == 0:
+            _advance(io, buf, law_t)
+            t = _gen_advance(s)
+            if t >= 0.0:
+                _sample(traj, s[T_DURATION], t, position, velocity, acceleration)
+            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
+                                 coulomb, K, D, position, velocity, acceleration,
+                                 s[T_FRICTION_SPEED], s[T_ERROR_RATE], tau)  # fmt: skip
+            lag = 0.0
+            for i in range(7):  # (JointTarget._publish)
+                out_values[o + i] = position[i]
+                out_values[o + 7 + i] = velocity[i]
+                out_values[o + 14 + i] = acceleration[i]
+                lag = max(lag, abs(values[t_at + i] - position[i]))
+            out_values[o + 21] = lag
+            out_values[o + 22] = s[T_STALE]
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def cartesian_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, s, step, traj, p, v, a, Ft, Fr, R0, q0, position, orientation,
+    twist, accel, law, target, chain, origin, ca, sa, mass, h, inertia, armature, coulomb,
+):  # fmt: skip
+    """``CartesianTarget`` between its news, as :func:`joint_target_ticks`: one
+    ``_fused.pose_target_step`` a tick (its generator's compiled step, the tracking on the
+    tracking law's buffer ``law``, the outputs), ``step`` its per-tick scalars (sample,
+    duration, time, stale, the outputs' offset: ``CartesianTarget._fused_step``), the
+    buffer's scalars set as ``tracking.PoseImpedance.compiled_inputs`` sets them."""
+    io[TICKS] = 0
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0 and _stale_due(io, buf, law_t, s):
+            status = PENDING
+        if status == 0:
+            _advance(io, buf, law_t)
+            t = _gen_advance(s)
+            if t < 0.0:
+                step[0] = 0.0  # the reference stands
+            else:
+                step[0], step[1], step[2] = 1.0, s[T_DURATION], t
+            step[3] = s[T_STALE]
+            s[T_DAMPING_DUE] -= 1.0  # (PoseImpedance.compiled_inputs)
+            law[0] = law_t[1]
+            law[7] = 1.0  # a previous Jacobian: this law has ticked before
+            if s[T_DAMPING_DUE] < 0.0:
+                law[6] = 1.0
+                s[T_DAMPING_DUE] = s[T_DAMPING_TICKS] - 1.0
+            else:
+                law[6] = 0.0
+            _pose_target_step(step, traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist,
+                              accel, pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
+                              inertia, armature, coulomb, law, target, out_values,
+                              tau)  # fmt: skip
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
