@@ -64,6 +64,13 @@ SETTLE_RATE = 10.0
 # moved joints already within 1e-4 rad at 7 mrad/s, above dq_threshold, for 20-30 ms
 SETTLE_RATE_JOINT = 100.0
 SETTLE_DEADBAND = 0.5 * SETTLE_JOINT
+# [1/s] once a joint move's trajectory ended, an integral of the error beyond
+# SETTLE_DEADBAND, per unit stiffness: what the model does not know (a grasped object's
+# weight) holds a joint off its goal, which the friction's cancelling cannot move.
+# Measured without it: the demo's joint moves with the cube in the hand ran into
+# SETTLE_TIMEOUT, 0.53-0.57 mrad off. It holds its value within the deadband, so a joint
+# at its goal gets no push that would make it creep.
+SETTLE_INTEGRAL = 30.0
 SETTLE_POSITION = 2e-3  # [m]
 # [rad] a Cartesian move that replaced another on the FR3 came to rest 2.2-2.4 mrad off
 # its orientation (40 Nm/rad against the wrist's dry friction) and, at 2 mrad, ended only
@@ -405,7 +412,9 @@ class JointMove(Tracker):
     keep the arm on the planned path instead of lagging behind it: see _damped_velocity,
     MOVE_FRICTION_SPEED). Once the trajectory has ended, the dry friction is cancelled along
     the way back to the goal outside a deadband (SETTLE_RATE_JOINT), so a joint friction
-    held short of it breaks free and one at it stays at rest (panda-py stops there)."""
+    held short of it breaks free and one at it stays at rest, and an integral of the error
+    beyond the deadband removes what the model does not know, such as a grasped object's
+    weight (SETTLE_INTEGRAL; panda-py stops there)."""
 
     friction = (MOVE_FRICTION_SPEED, MOVE_ERROR_RATE)
 
@@ -416,6 +425,7 @@ class JointMove(Tracker):
         self.success_threshold = plan.success_threshold
         self.goal = plan.q[-1]
         self.join = plan.join % len(plan.q)
+        self.integral = np.zeros(7)  # (see SETTLE_INTEGRAL)
         self.gen = OnlineGenerator(plan.limits)
         self.stop_limits = plan.stop_limits or plan.limits
         self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
@@ -532,6 +542,9 @@ class JointMove(Tracker):
             # SETTLE_DEADBAND and not at all within it (in place of the tracking's own): a
             # joint friction holds off the goal breaks free, one at it stays at rest
             error = self.goal - state.q
+            beyond = error - np.clip(error, -SETTLE_DEADBAND, SETTLE_DEADBAND)
+            self.integral += self.dt * beyond
+            tau += SETTLE_INTEGRAL * self.K * self.integral
             push = np.where(np.abs(error) > SETTLE_DEADBAND, error * SETTLE_RATE_JOINT, 0.0)
             scale = FRICTION_SPEED / MOVE_FRICTION_SPEED  # (friction_for's speed is the general)
             tau += model.friction_for(push * scale) - model.friction_for(
