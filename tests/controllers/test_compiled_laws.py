@@ -176,9 +176,9 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
     seed: int, monkeypatch
 ) -> None:
     """PoseMove.step compiled (impedance and feed-forward in one call: (M + rotors) J^+ (a
-    - dJ dq) + friction along J^+ (v - r e); the damping from the arm's inertia) gives the
-    NumPy branch's torques, tick after tick (dJ from the previous tick; the damping
-    updated on the first tick and the 21st)."""
+    - dJ dq) + friction along J^+ (v - r e) + viscous J^+ v; the damping from the arm's
+    inertia) gives the NumPy branch's torques, tick after tick (dJ from the previous tick;
+    the damping updated on the first tick and the 21st)."""
     from panda_py.controllers.model import ControlModel
     from panda_py.controllers.moves import PoseMove
     from panda_py.controllers.plans import PosePlan
@@ -202,7 +202,7 @@ def test_the_pose_trackers_compiled_feedforward_equals_its_numpy_branch(
         states.append(s)
 
     class Model:  # the model terms the move reads, on namespaces for states
-        coulomb, armature = model.coulomb, model.armature
+        coulomb, armature, viscous = model.coulomb, model.armature, model.viscous
 
         def ee_jacobian(self, s):  # type: ignore[no-untyped-def]
             return KIN.zero_jacobian(s.q)

@@ -61,7 +61,7 @@ _target_outputs = _kernels.pose_target_outputs
 _L = tracking.LAW_LAYOUT
 _SCALARS, _K, _D, _QN = _L["scalars"][0], _L["K"][0], _L["D"][0], _L["q_n"][0]
 _ERR, _PINV, _J, _JP = _L["err"][0], _L["J_pinv"][0], _L["J"][0], _L["J_prev"][0]
-_M = _L["M"][0]
+_M, _VIS = _L["M"][0], _L["viscous"][0]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -135,7 +135,7 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
 ):  # fmt: skip
     """One tick of ``tracking.PoseImpedance`` with the Coriolis torques, into ``tau`` (7,),
     on the law's buffer ``law`` (``tracking.LAW_LAYOUT``: its scalars, K, D, q_n, err,
-    J_pinv, J, J_prev, M): the Jacobian to the end effector of ``chain`` into J (the one
+    J_pinv, J, J_prev, M, viscous): the Jacobian to the end effector of ``chain`` into J (the one
     it held copied to J_prev first, where the scalars say it is the previous tick's); where
     the scalars ask, the arm's mass matrix into M (``origin ... inertia``:
     ``dynamics.LoadedArm.arrays``) and the damping D from the arm's inertia
@@ -159,7 +159,8 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     Jp = J_prev[0] if has_prev else J[0]
     dt, k_n, speed, rate = scalars[0], scalars[1], scalars[3], scalars[4]
     _tracking(O_T_EE, J[0], Jp, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, law[_QN : _QN + 7],
-              k_n, M, armature, coulomb, speed, rate, tau, law[_ERR : _ERR + 6],
+              k_n, M, armature, coulomb, law[_VIS : _VIS + 7], speed, rate, tau,
+              law[_ERR : _ERR + 6],
               law[_PINV : _PINV + 42].reshape((7, 6)))  # fmt: skip
     _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
 

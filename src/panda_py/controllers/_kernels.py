@@ -338,7 +338,7 @@ def finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, dtau_max, tau_max
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     O_T_EE, J, J_prev, q, dq, dt, p_d, quat_d, v_d, a_d, K, D, q_n, k_n, M, armature,
-    coulomb, friction_speed, error_rate, tau, err, J_pinv,
+    coulomb, viscous, friction_speed, error_rate, tau, err, J_pinv,
 ):  # fmt: skip
     """A Cartesian reference's tracking torque in one call (the reference:
     ``tracking.PoseImpedance.torque``'s NumPy branch): :func:`impedance_torque` toward the
@@ -347,7 +347,8 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
     reflected rotor inertia, with ``dJ = (J - J_prev) / dt`` (left out when ``dt`` is 0),
     and the drives' dry friction along the joint velocity that follows the reference and
     closes the error at ``error_rate`` [1/s], ``coulomb tanh(J^+ (v_d - error_rate err) /
-    friction_speed)``. Into ``tau`` (7,), ``err`` (6,) and ``J_pinv`` (7, 6)."""
+    friction_speed)``, and their viscous friction along the reference's joint velocities,
+    ``viscous J^+ v_d``. Into ``tau`` (7,), ``err`` (6,) and ``J_pinv`` (7, 6)."""
     impedance_torque(O_T_EE, J, q, dq, p_d, quat_d, v_d, K, D, q_n, k_n, tau, err, J_pinv)
     a = stack_array(6)
     for r in range(6):
@@ -360,19 +361,23 @@ def pose_tracking_torque(  # type: ignore[no-untyped-def,unused-ignore]
         a[r] = s
     ddq = stack_array(7)
     dq_d = stack_array(7)
+    dq_v = stack_array(7)
     for i in range(7):
         s1 = 0.0
         s2 = 0.0
+        s3 = 0.0
         for k in range(6):
             s1 += J_pinv[i, k] * a[k]
             s2 += J_pinv[i, k] * (v_d[k] - error_rate * err[k])
+            s3 += J_pinv[i, k] * v_d[k]
         ddq[i] = s1
         dq_d[i] = s2
+        dq_v[i] = s3
     for i in range(7):
         f = armature[i] * ddq[i]
         for c in range(7):
             f += M[i, c] * ddq[c]
-        tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed)
+        tau[i] += f + coulomb[i] * math.tanh(dq_d[i] / friction_speed) + viscous[i] * dq_v[i]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -592,7 +597,7 @@ def warmup(advance: Callable[[], object] = lambda: None) -> None:
     advance()
     # the Cartesian moves' and CartesianTarget's tracking (tracking.PoseImpedance)
     pose_tracking_torque(T, J, J, z7, z7, 1e-3, z3, quat, np.zeros(6), np.zeros(6), K, K, z7,
-                         1.0, np.eye(7), z7, z7, 0.01, 10.0, np.empty(7), np.empty(6),
+                         1.0, np.eye(7), z7, z7, z7, 0.01, 10.0, np.empty(7), np.empty(6),
                          np.empty((7, 6)))  # fmt: skip
     advance()
     # their damping from the arm's inertia (tracking.mass_damping)

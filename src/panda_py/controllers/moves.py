@@ -579,15 +579,15 @@ class PoseMove(Tracker):
     derivatives, with a joint impedance toward the start configuration in the task's
     nullspace and an inertial feed-forward of the planned acceleration:
     ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
-    + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``, plus the drives' dry friction along
-    the planned joint velocity ``J^+ v_d`` and, once the trajectory has ended, an integral
-    of the error to the goal (as :class:`JointMove`)."""
+    + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``, plus the drives' dry and viscous
+    friction along the planned joint velocity ``J^+ v_d`` and, once the trajectory has
+    ended, an integral of the error to the goal (as :class:`JointMove`)."""
 
     def __init__(self, plan: PosePlan) -> None:
         super().__init__(len(plan.position), plan.dq_threshold)
         self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
         self.law = PoseImpedance(plan.impedance, plan.damping_ratio, plan.q_nullspace,
-                                 plan.nullspace_stiffness)  # fmt: skip
+                                 plan.nullspace_stiffness, viscous_feedforward=True)  # fmt: skip
         self.success_threshold = plan.success_threshold
         self.orientation_threshold = plan.orientation_threshold
         self.join = plan.join % len(plan.position)

@@ -43,11 +43,13 @@ MIN_INVERSE_INERTIA = 1e-2
 # PoseImpedance's arrays in its one buffer: name -> (offset, size). The scalars: dt, k_n,
 # the damping ratio, FRICTION_SPEED, FRICTION_ERROR_RATE, MIN_INVERSE_INERTIA, 1 to update
 # the mass matrix and the damping this tick (else 0), 1 if J_prev holds the previous
-# tick's Jacobian (else 0). M: the links' mass matrix as last updated. The compiled
-# tracking (_fused) reads it at these offsets (its cache key covers this file).
+# tick's Jacobian (else 0). M: the links' mass matrix as last updated. viscous: the drives'
+# viscous friction fed forward along the reference (zeros: none). The compiled tracking
+# (_fused) reads it at these offsets (its cache key covers this file).
 LAW_LAYOUT = {"scalars": (0, 8), "K": (8, 36), "D": (44, 36), "q_n": (80, 7), "err": (87, 6),
-              "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42), "M": (219, 49)}  # fmt: skip
-LAW_SIZE = 268
+              "J_pinv": (93, 42), "J": (135, 42), "J_prev": (177, 42), "M": (219, 49),
+              "viscous": (268, 7)}  # fmt: skip
+LAW_SIZE = 275
 _K, _QN, _J = LAW_LAYOUT["K"][0], LAW_LAYOUT["q_n"][0], LAW_LAYOUT["J"][0]
 
 
@@ -97,7 +99,10 @@ class PoseImpedance:
     ``q_nullspace`` in the task's nullspace and the inertial feed-forward of the reference's
     acceleration: ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
     + N (k_n (q_n - q) - 2 sqrt(k_n) dq)`` plus the drives' dry friction along
-    ``J^+ (v_d - FRICTION_ERROR_RATE e)``.
+    ``J^+ (v_d - FRICTION_ERROR_RATE e)`` and, with ``viscous_feedforward``, their viscous
+    friction along the reference's joint velocities, ``b J^+ v_d`` (``ControlModel.viscous``:
+    0.21 Nm s/rad a joint, which a Cartesian move's 30-40 Nm/rad of wrist stiffness
+    otherwise pays for with mrad of lag at the end of its trajectory).
 
     The damping gives the stiffness the damping ratio ``damping_ratio`` on the arm's own
     end-effector inertia (:func:`mass_damping`, updated every DAMPING_TICKS): panda-py's
@@ -112,7 +117,8 @@ class PoseImpedance:
     ``J_pinv`` its damped pseudo-inverse."""
 
     def __init__(self, impedance: FloatArray, damping_ratio: float, q_nullspace: FloatArray,
-                 nullspace_stiffness: float) -> None:  # fmt: skip
+                 nullspace_stiffness: float,
+                 viscous_feedforward: bool = False) -> None:  # fmt: skip
         # its arrays live in one buffer, which the compiled tracking takes whole (one
         # argument of its call where there were eight: each costs the call ~0.2 us on the
         # loop's cold caches), laid out as LAW_LAYOUT; the views other than the Jacobian's
@@ -120,6 +126,7 @@ class PoseImpedance:
         # NumPy call costs tens of microseconds)
         self.zeta = float(damping_ratio)
         self.kn = float(nullspace_stiffness)
+        self.viscous_feedforward = viscous_feedforward  # (set into the buffer on the 1st tick)
         buf = self.buffer = np.zeros(LAW_SIZE)
         buf[:8] = (0.0, self.kn, self.zeta, FRICTION_SPEED, FRICTION_ERROR_RATE,
                    MIN_INVERSE_INERTIA, 0.0, 0.0)  # fmt: skip
@@ -157,6 +164,12 @@ class PoseImpedance:
     def qn(self) -> FloatArray:
         """The nullspace's configuration (7,) [rad] (in the buffer)."""
         return self._view("q_n")
+
+    @functools.cached_property
+    def viscous(self) -> FloatArray:
+        """The drives' viscous friction fed forward (7,) [Nm s/rad] (in the buffer; zeros
+        without ``viscous_feedforward``)."""
+        return self._view("viscous")
 
     @functools.cached_property
     def err(self) -> FloatArray:
@@ -201,6 +214,10 @@ class PoseImpedance:
         """The torques [Nm] (with the Coriolis torques) toward the reference position
         ``p_d`` [m], orientation ``quat_d`` (x, y, z, w), twist ``v_d`` [m/s, rad/s] and its
         rate ``a_d`` [m/s^2, rad/s^2], ``dt`` [s] after the previous call."""
+        if self.J_prev is None and self.viscous_feedforward:  # the first tick: the drives'
+            viscous = getattr(model, "viscous", None)
+            if viscous is not None:
+                self.viscous[:] = viscous
         fused = laws.fused()
         if fused is not None and type(model) is ControlModel:  # all of it in one call
             chain, arm = model.kernel_arrays(state)
@@ -226,7 +243,7 @@ class PoseImpedance:
             kernels.pose_tracking_torque(
                 state.O_T_EE, J, J if self.J_prev is None else self.J_prev, q, dq, dt, p_d,
                 quat_d, v_d, a_d, self.K, self.D, self.qn, kn, M, model.armature, model.coulomb,
-                FRICTION_SPEED, FRICTION_ERROR_RATE, tau, self.err, self.J_pinv,
+                self.viscous, FRICTION_SPEED, FRICTION_ERROR_RATE, tau, self.err, self.J_pinv,
             )  # fmt: skip
         else:
             if self._damping_due < 0:
@@ -245,5 +262,6 @@ class PoseImpedance:
             ddq = J_pinv @ a
             tau += M @ ddq + model.armature * ddq
             tau += model.friction_for(J_pinv @ (v_d - FRICTION_ERROR_RATE * err))
+            tau += self.viscous * (J_pinv @ v_d)
         self.J_prev = J
         return tau + model.coriolis_of(state)
