@@ -128,6 +128,9 @@ def test_08_teaching_mode(tmp_path: Path) -> None:
     assert number(r"up to ([\d.]+) mm from where it started", out) < 5.0  # nobody pushed
 
 
+# its robot is held to the wall clock (PACED) and its controller is Python's: a loaded
+# suite run once ended it in a joint_velocity_violation reflex; alone it passed 3 of 3
+@pytest.mark.exclusive
 def test_09_torque_controller(tmp_path: Path) -> None:
     out = run_example("09", *PACED, cwd=tmp_path)
     assert number(r"(\d+) updates", out) >= 250
