@@ -251,6 +251,9 @@ def test_18_the_scripted_policies_succeed_on_the_fast_world_and_on_panda_sim(
 
 
 @needs("h5py", "pyarrow", "av")
+# its robot runs on the wall clock, with a camera rendered at 15 Hz: a loaded suite run
+# starved the simulator 106-129 ms at a time, past libfranka's receive timeout
+@pytest.mark.exclusive
 @pytest.mark.parametrize(("form", "recording"),
                          [("hdf5", "episodes.hdf5"), ("lerobot", "episodes_lerobot")])  # fmt: skip
 def test_19_a_chunked_policy_reaches_its_goal_and_its_episodes_are_recorded(
