@@ -96,16 +96,16 @@ def bench_laws(n: int) -> None:
 
     from panda_py.controllers import laws
     from panda_py.controllers.moves import JointMove, PoseMove, tracker_for
-    from panda_py.panda import planning
+    from panda_py.panda import move_args, planning
     from panda_py.robots.params import get_robot
 
     laws.warmup()
     spec = get_robot("fer")
-    wp, jo = planning.parse_joint_targets((Q0 + 0.3,), {})
+    wp, jo = move_args.parse_joint_targets((Q0 + 0.3,), {})
     joint = planning.joint_move(Q0, wp, jo, spec)
     T = make_state(Q0).O_T_EE.reshape(4, 4, order="F").copy()
     T[:3, 3] += [0.1, 0.1, -0.1]
-    ps, qs, po = planning.parse_pose_targets((T,), {})
+    ps, qs, po = move_args.parse_pose_targets((T,), {})
     state = make_state(Q0, np.full(7, 0.1))
     pose = planning.pose_move(state.O_T_EE[12:15].copy(), laws.quat_from_matrix(state.O_T_EE), ps,
                               qs, po, Q0, spec)  # fmt: skip

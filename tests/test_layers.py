@@ -18,7 +18,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "panda_py"
 
 # bottom first; a unit may import the units of lower layers (and itself) only
 LAYERS: list[set[str]] = [
-    {"checks", "fci", "jit", "progress", "warmstart"},
+    {"checks", "fci", "jit", "overloads", "progress", "warmstart"},
     {"robots", "desk"},
     {"constants", "kinematics", "dynamics", "motion"},
     {"libfranka", "sim"},

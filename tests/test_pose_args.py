@@ -16,7 +16,7 @@ import pytest
 import panda_py
 from panda_py import controllers
 from panda_py.motion import CartesianTrajectory
-from panda_py.panda import planning as _moves
+from panda_py.panda import move_args
 
 POSITION = [0.30689057, 0.0, 0.48688205]  # the start pose's, reachable with q7 = pi/4
 H = math.sqrt(0.5)
@@ -45,7 +45,7 @@ def _trajectory(quat: list[float]) -> Any:
 
 
 def _move_to_pose(quat: list[float]) -> Any:
-    return _moves.parse_pose_targets((POSITION, quat), {})
+    return move_args.parse_pose_targets((POSITION, quat), {})
 
 
 def _set_control(quat: list[float]) -> Any:
@@ -72,7 +72,7 @@ def test_refused_everywhere(entry: Callable[[list[float]], Any], quat: list[floa
 
 def test_accepted_quaternions_are_normalised_alike() -> None:
     quat = [1.0005, 0.0, 0.0, 0.0]
-    _, quats, _ = _moves.parse_pose_targets((POSITION, quat), {})
+    _, quats, _ = move_args.parse_pose_targets((POSITION, quat), {})
     np.testing.assert_allclose(np.linalg.norm(quats, axis=1), 1.0, atol=1e-15)
     T = panda_py.fk(_ik(quat))
     np.testing.assert_allclose(T[:3, :3], np.diag([1.0, -1.0, -1.0]), atol=1e-9)
@@ -123,7 +123,7 @@ def _trajectory_poses(T: np.ndarray) -> Any:
 
 
 def _move_to_pose_pose(T: np.ndarray) -> Any:
-    return _moves.parse_pose_targets((T,), {})
+    return move_args.parse_pose_targets((T,), {})
 
 
 def _set_k(T: np.ndarray) -> Any:

@@ -15,7 +15,7 @@ from panda_py.controllers.moves import JointMove, PoseMove, Tracker, tracker_for
 from panda_py.controllers.plans import Progress
 from panda_py.controllers.tracking import joint_impedance_torque
 from panda_py.fci import PERIOD
-from panda_py.panda import planning
+from panda_py.panda import move_args, planning
 from panda_py.robots.params import get_robot
 
 FER = get_robot("fer")
@@ -23,7 +23,7 @@ OFFSET = np.array([0.3, 0.2, -0.2, 0.2, 0.3, 0.3, 0.5])
 
 
 def joint_law(start: np.ndarray, *targets: np.ndarray, speed: float = 0.2) -> JointMove:
-    waypoints, opts = planning.parse_joint_targets((np.array(targets),), {"speed_factor": speed})
+    waypoints, opts = move_args.parse_joint_targets((np.array(targets),), {"speed_factor": speed})
     plan = planning.joint_move(start, waypoints, opts, FER)
     assert plan is not None
     law = tracker_for(plan)
@@ -35,7 +35,7 @@ def pose_law(start_q: np.ndarray, dp: np.ndarray) -> PoseMove:
     T = KIN.fk(start_q)
     target = T.copy()
     target[:3, 3] += dp
-    positions, quats, opts = planning.parse_pose_targets((target,), {})
+    positions, quats, opts = move_args.parse_pose_targets((target,), {})
     flat = T.reshape(16, order="F")
     plan = planning.pose_move(T[:3, 3], laws.quat_from_matrix(flat), positions, quats, opts,
                               start_q, FER)  # fmt: skip

@@ -19,7 +19,7 @@ from panda_py.controllers.model import ControlModel
 from panda_py.controllers.plans import rotation_angle
 from panda_py.libfranka.errors import InvalidOperationException
 from panda_py.motion import rotation
-from panda_py.panda import planning
+from panda_py.panda import move_args
 from panda_py.robots.params import get_robot
 from panda_py.rt.shm import SharedBlock
 
@@ -174,7 +174,7 @@ def test_the_limits_are_the_robots_the_control_process_knows() -> None:
 
 
 def test_the_defaults_are_the_moves() -> None:
-    joint, pose = planning.JOINT_MOVE_DEFAULTS, planning.POSE_MOVE_DEFAULTS
+    joint, pose = move_args.JOINT_MOVE_DEFAULTS, move_args.POSE_MOVE_DEFAULTS
     j, c = controllers.JointTarget(), controllers.CartesianTarget()
     np.testing.assert_array_equal(j.stiffness, joint["stiffness"])
     np.testing.assert_array_equal(j.damping, joint["damping"])

@@ -362,8 +362,11 @@ def test_agrees_with_the_simulators_mujoco_model() -> None:
         (lambda: kin_mod.ik(np.zeros(3), np.array([0, 0, 0, 2.0])), "orientation: expected a unit"),
         (lambda: kin_mod.ik(np.zeros(3), np.zeros(3)), "orientation: expected a quaternion"),
         (lambda: kin_mod.ik(np.eye(4), q7_search=-1.0), "q7_search: expected a finite number"),
-        (lambda: kin_mod.ik(np.eye(4), np.zeros(7), q_init=np.zeros(7)), "q_init: given both"),
-        (lambda: kin_mod.ik_full(np.eye(4), None, 0.5, q_7=0.5), "q_7: given both"),
+        (
+            lambda: kin_mod.ik(np.eye(4), np.zeros(7), q_init=np.zeros(7)),
+            "values for argument 'q_init'",
+        ),
+        (lambda: kin_mod.ik_full(np.eye(4), None, 0.5, q_7=0.5), "values for argument 'q_7'"),
         (
             lambda: kin_mod.ik_full(np.eye(4)[None].repeat(3, 0), np.zeros((2, 7))),
             "q_init: expected",

@@ -64,7 +64,7 @@ def test_quaternions_are_averaged_across_a_sign_flip() -> None:
 def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
     from panda_py import fk
     from panda_py.controllers import laws
-    from panda_py.panda import planning
+    from panda_py.panda import move_args, planning
     from panda_py.robots.params import get_robot
 
     q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])
@@ -72,7 +72,7 @@ def test_a_move_to_a_pose_is_planned_with_bounded_jerk() -> None:
     p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
     offsets = np.array([[0.12, 0, 0], [0.12, 0.12, 0], [0, 0.12, 0.05]])
     points = p0 + offsets
-    positions, quats, opts = planning.parse_pose_targets(
+    positions, quats, opts = move_args.parse_pose_targets(
         (points, np.tile(quat, (3, 1))), {"speed_factor": 0.2, "max_deviation": 0.02}
     )
     plan = planning.pose_move(p0, quat, positions, quats, opts, q0, get_robot("fr3"))
@@ -105,7 +105,7 @@ def test_a_move_to_a_pose_runs_slower_where_its_joints_need_it() -> None:
     from panda_py import fk
     from panda_py.controllers import laws
     from panda_py.motion import CartesianTrajectory
-    from panda_py.panda import planning
+    from panda_py.panda import move_args, planning
     from panda_py.robots.params import get_robot
 
     fer = get_robot("fer")
@@ -117,7 +117,7 @@ def test_a_move_to_a_pose_runs_slower_where_its_joints_need_it() -> None:
     for offset in ([0.065, -0.09, -0.11], [0.1, 0.0, 0.0], [0.0, 0.0, 0.03], [-0.1, 0.05, 0.1]):
         target = T.copy()
         target[:3, 3] += offset
-        positions, quats, opts = planning.parse_pose_targets((target,), {})
+        positions, quats, opts = move_args.parse_pose_targets((target,), {})
         plan = planning.pose_move(p0, quat, positions, quats, opts, q0, fer)
         assert plan is not None
         ddq = _planned_joint_accelerations(plan, q0)
@@ -140,14 +140,14 @@ def test_a_move_from_the_start_pose_keeps_its_time_whatever_the_arms_noise() -> 
     the way, past q2 = 0 too (where the start pose's case of the inverse kinematics ends)."""
     from panda_py import fk
     from panda_py.controllers import laws
-    from panda_py.panda import planning
+    from panda_py.panda import move_args, planning
     from panda_py.robots.params import START_POSE, get_robot
 
     fer = get_robot("fer")
     start = np.array(START_POSE)
     target = fk(start)
     target[:3, 3] = (0.5, 0.0, 0.17)
-    positions, quats, opts = planning.parse_pose_targets((target,), {})
+    positions, quats, opts = move_args.parse_pose_targets((target,), {})
     rng = np.random.default_rng(7)
     durations = []
     for noise in [np.zeros(7), *(rng.normal(scale=1e-4, size=7) for _ in range(4))]:
@@ -180,7 +180,7 @@ def _joint_space_plan(q0: np.ndarray, goal: tuple[float, float, float]) -> objec
     from panda_py import fk
     from panda_py.controllers import laws
     from panda_py.kinematics import Kinematics
-    from panda_py.panda import planning
+    from panda_py.panda import move_args, planning
     from panda_py.robots.params import START_POSE, get_robot
 
     fer = get_robot("fer")
@@ -189,7 +189,7 @@ def _joint_space_plan(q0: np.ndarray, goal: tuple[float, float, float]) -> objec
     T = fk(q0)
     p0, quat = T[:3, 3].copy(), laws.quat_from_matrix(T.reshape(16, order="F"))
     kwargs = {"stiffness": [600.0] * 7, "damping": [50.0] * 7}
-    positions, quats, opts = planning.parse_pose_targets((target,), kwargs)
+    positions, quats, opts = move_args.parse_pose_targets((target,), kwargs)
     plan = planning.pose_move(p0, quat, positions, quats, opts, q0, fer)
     hand = Kinematics("fer").F_T_EE  # the robot's default end effector
     return planning.pose_move_in_joint_space(plan, opts, q0, fer, hand)

@@ -10,23 +10,23 @@ import numpy as np
 import pytest
 
 from panda_py.motion.online import OnlineLimits
-from panda_py.panda import planning
+from panda_py.panda import move_args, planning
 from panda_py.robots.params import get_robot
 
 Q = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 1.571, 0.785])
 
 
 def test_the_default_joint_options_are_checked_once_and_shared_read_only() -> None:
-    _, a = planning.parse_joint_targets((Q,), {})
-    _, b = planning.parse_joint_targets((Q + 0.1,), {})
+    _, a = move_args.parse_joint_targets((Q,), {})
+    _, b = move_args.parse_joint_targets((Q + 0.1,), {})
     assert a is b
     with pytest.raises(ValueError, match="read-only"):
         a.stiffness[0] = 0.0
-    _, c = planning.parse_joint_targets((Q,), {"speed_factor": 0.5})
+    _, c = move_args.parse_joint_targets((Q,), {"speed_factor": 0.5})
     assert c is not a and c.speed_factor == 0.5
     assert np.array_equal(c.stiffness, a.stiffness)
     with pytest.raises(ValueError, match=r"speed_factor: expected a number in \(0, 1\]"):
-        planning.parse_joint_targets((Q,), {"speed_factor": 2.0})
+        move_args.parse_joint_targets((Q,), {"speed_factor": 2.0})
 
 
 def test_the_online_limits_are_kept_per_robot_and_speed_factor() -> None:

@@ -9,7 +9,7 @@ import pytest
 
 from panda_py.kinematics import get_kinematics
 from panda_py.motion import rotation
-from panda_py.panda import planning
+from panda_py.panda import move_args, planning
 from panda_py.robots.params import START_POSE, get_robot
 
 # a configuration whose pose has no solution at Q_NOW's q7, only at its own (found by a
@@ -20,18 +20,18 @@ Q_NOW = np.array([*Q[:6], -1.971677])
 
 def test_one_joint_target_parses_as_the_general_path_and_is_refused_alike() -> None:
     q = np.array(START_POSE) + np.linspace(-0.1, 0.1, 7)
-    fast, opts = planning.parse_joint_targets((q,), {})  # a float64 (7,): in scalars
-    general, general_opts = planning.parse_joint_targets((q.tolist(),), {})  # a list: NumPy
+    fast, opts = move_args.parse_joint_targets((q,), {})  # a float64 (7,): in scalars
+    general, general_opts = move_args.parse_joint_targets((q.tolist(),), {})  # a list: NumPy
     assert fast.shape == (1, 7) and fast.dtype == np.float64
     assert opts is general_opts  # panda-py's defaults, checked once
     np.testing.assert_array_equal(fast, general)
     q[3] = np.nan
     for target in (q, q.tolist()):
         with pytest.raises(ValueError, match=r"waypoints\[0\]\[3\]: expected a finite number"):
-            planning.parse_joint_targets((target,), {})
+            move_args.parse_joint_targets((target,), {})
     q[3] = np.inf
     with pytest.raises(ValueError, match=r"waypoints\[0\]\[3\]: expected a finite number"):
-        planning.parse_joint_targets((q,), {})
+        move_args.parse_joint_targets((q,), {})
 
 
 def test_a_pose_reachable_only_at_another_q7_passes_and_one_out_of_reach_is_refused() -> None:

@@ -54,7 +54,7 @@ STOP_SPEED_FACTOR = 0.5
 # lead-ins take moves.JOINT_SHARE, 0.6: their hand-overs overshoot more; a stream's
 # targets, 50 ms apart, were measured within the limits at this)
 STREAM_JOINT_SHARE = 0.7
-# move_to_pose's defaults (panda.planning.POSE_MOVE_DEFAULTS; a test holds them equal)
+# move_to_pose's defaults (panda.move_args.POSE_MOVE_DEFAULTS; a test holds them equal)
 POSE_IMPEDANCE = np.diag([800.0, 800.0, 800.0, 40.0, 40.0, 40.0])  # [N/m, Nm/rad]
 POSE_DAMPING_RATIO = 1.0
 POSE_NULLSPACE_STIFFNESS = 15.0  # [Nm/rad]

@@ -1,5 +1,6 @@
-"""ik's arguments: panda-py's two overloads sorted into arrays, and the error for the
-first pose a kernel refused.
+"""ik's arguments: panda-py's two overloads bound (:func:`panda_py.overloads.bind`, as
+``Panda``'s moves' are) and sorted into arrays, and the error for the first pose a kernel
+refused.
 
 The values are not tested here: the ik kernels test each pose, q_init and q_7 while
 solving (``_ik.ik_range``) and mark a bad one, and :func:`raise_invalid` then words the
@@ -9,6 +10,7 @@ error for the first of them, naming its batch index.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -16,6 +18,7 @@ from numpy.typing import NDArray
 
 from panda_py import checks
 from panda_py.kinematics import _ik, _input
+from panda_py.overloads import Form, bind
 from panda_py.robots.params import START_POSE
 
 DEFAULT_Q7 = math.pi / 4
@@ -23,6 +26,21 @@ DEFAULT_Q7 = math.pi / 4
 joint's position, chosen before the analytical solution is found."""
 
 FloatArray = NDArray[np.float64]
+
+
+def _is_position(args: Sequence[Any]) -> bool:
+    """``(position, orientation, ...)``: a 3-vector first, or (N, 3) positions before
+    quaternions (N, 4)."""
+    first = args[0] if isinstance(args[0], np.ndarray) else np.asarray(args[0])
+    if first.shape == (3,):
+        return True
+    return first.ndim == 2 and first.shape[1] == 3 and np.shape(args[1:2])[-1:] == (4,)
+
+
+IK_FORMS = (
+    Form(("O_T_EE",), ("q_init", "q_7"), fits=lambda args: not _is_position(args)),
+    Form(("position", "orientation"), ("q_init", "q_7"), fits=_is_position),
+)
 
 
 def parse_ik(
@@ -34,41 +52,25 @@ def parse_ik(
     q_7: Any,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Sort ``(O_T_EE, q_init, q_7)`` and ``(position, orientation, q_init, q_7)``,
-    positional or keyword, into (T (4, 4) or (N, 4, 4), q_init (7,) or (N, 7), q_7 () or
-    (N,)), checked for shape (a quaternion also for norm)."""
-    rest = list(args)
-    if O_T_EE is None and position is None and rest:
-        first = np.asarray(rest[0]) if not isinstance(rest[0], np.ndarray) else rest[0]
-        second = rest[1] if len(rest) > 1 else orientation
-        is_position = first.shape == (3,) or (
-            first.ndim == 2 and first.shape[1] == 3 and np.shape(second)[-1:] == (4,)
-        )
-        if is_position:
-            position = rest.pop(0)
-        else:
-            O_T_EE = rest.pop(0)
-    if position is not None and orientation is None and rest:
-        orientation = rest.pop(0)
-    given = {"q_init": q_init, "q_7": q_7}
-    if len(rest) > 2:
-        raise ValueError(
-            "ik: expected (O_T_EE, q_init, q_7) or (position, orientation, q_init, q_7), "
-            f"got {len(rest)} extra positional arguments"
-        )
-    for name, value in zip(("q_init", "q_7"), rest, strict=False):
-        if given[name] is not None:
-            raise ValueError(f"{name}: given both positionally and by keyword")
-        given[name] = value
-    if O_T_EE is not None:
-        if position is not None or orientation is not None:
-            raise ValueError("O_T_EE: give either O_T_EE or position and orientation")
-        T = _input.transforms("O_T_EE", O_T_EE, check=False)
-    elif position is not None and orientation is not None:
-        T = _input.position_orientation(position, orientation)
+    positional or keyword (None: not given), into (T (4, 4) or (N, 4, 4), q_init (7,) or
+    (N, 7), q_7 () or (N,)), checked for shape (a quaternion also for norm). A call that
+    fits neither form is a ValueError, as a bad value is."""
+    named = {"O_T_EE": O_T_EE, "position": position, "orientation": orientation,
+             "q_init": q_init, "q_7": q_7}  # fmt: skip
+    kwargs = {k: v for k, v in named.items() if v is not None}
+    if O_T_EE is not None and (position is not None or orientation is not None):
+        raise ValueError("O_T_EE: give either O_T_EE or position and orientation")
+    try:
+        bound = bind("ik", IK_FORMS, args, kwargs)
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None
+    given = bound.arguments
+    if bound.index == 0:
+        T = _input.transforms("O_T_EE", given["O_T_EE"], check=False)
     else:
-        raise ValueError("ik: expected O_T_EE (4x4) or position (3,) and orientation (4,)")
+        T = _input.position_orientation(given["position"], given["orientation"])
     n = T.shape[0] if T.ndim == 3 else None
-    if given["q_init"] is None:
+    if given.get("q_init") is None:
         qi = np.array(START_POSE)
     else:
         qi = _input.joints("q_init", given["q_init"], check=False)
@@ -76,9 +78,8 @@ def parse_ik(
             raise ValueError(
                 f"q_init: expected shape (7,) or ({n}, 7) to match the poses, got {qi.shape}"
             )
-    q7 = _input.scalar_or_batch(
-        "q_7", DEFAULT_Q7 if given["q_7"] is None else given["q_7"], n, "rad", check=False
-    )
+    q_7 = given.get("q_7")
+    q7 = _input.scalar_or_batch("q_7", DEFAULT_Q7 if q_7 is None else q_7, n, "rad", check=False)
     return T, qi, q7
 
 

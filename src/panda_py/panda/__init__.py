@@ -2,7 +2,9 @@
 loop runs in a control process of its own.
 
 * :mod:`~panda_py.panda.core`: ``Panda`` (state, moves, controllers, logging);
-* :mod:`~panda_py.panda.planning`: panda-py's move arguments and the sampled plans;
+* :mod:`~panda_py.panda.motions`: ``JointMotion``, ``PoseMotion``, what ``Panda.move`` runs;
+* :mod:`~panda_py.panda.move_args`: panda-py's move arguments bound and checked;
+* :mod:`~panda_py.panda.planning`: the sampled plans;
 * :mod:`~panda_py.panda.context`: ``PandaContext``, a fixed-frequency user loop;
 * :mod:`~panda_py.panda.proxy`: ``Panda.get_robot()``'s libfranka interface.
 """
@@ -12,7 +14,7 @@ from __future__ import annotations
 from panda_py.panda.context import PandaContext
 from panda_py.panda.core import Panda, realtime_priority_available
 from panda_py.panda.handle import MotionHandle
-from panda_py.panda.planning import JointMotion, PoseMotion
+from panda_py.panda.motions import JointMotion, PoseMotion
 from panda_py.panda.proxy import RobotProxy
 
 __all__ = [

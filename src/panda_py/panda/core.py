@@ -18,10 +18,10 @@ import math
 import threading
 import time
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, Literal, Protocol, cast, overload
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from panda_py import checks, fci, kinematics
 from panda_py.controllers import TorqueController, laws
@@ -30,9 +30,11 @@ from panda_py.libfranka.model import Model
 from panda_py.libfranka.realtime import fifo_permitted, has_realtime_kernel
 from panda_py.libfranka.state import RobotState
 from panda_py.libfranka.types import RealtimeConfig
-from panda_py.panda import planning as _moves
+from panda_py.panda import planning as _plans
 from panda_py.panda.context import PandaContext
 from panda_py.panda.handle import MotionHandle
+from panda_py.panda.motions import JointMotion, PoseMotion
+from panda_py.panda.move_args import JOINT_MOVE_DEFAULTS
 from panda_py.panda.proxy import RobotProxy
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import byvalue
@@ -43,6 +45,15 @@ from panda_py.rt.shm import HEADER, LOG_FIELDS, LogRing, anonymous_file
 __all__ = ["Panda", "realtime_priority_available"]
 
 FloatArray = NDArray[np.float64]
+
+
+class Until(Protocol):
+    """What ``until=`` takes: a condition of :mod:`panda_py.conditions`, or a user's own
+    object with the same method (sent to the control process by value)."""
+
+    def holds(self, state: Any, progress: Any) -> bool: ...
+
+
 CONNECT_TIMEOUT = 5.0  # [s] for the robot to answer the connection
 CLOSE_MOTION_TIMEOUT = 5.0  # [s] close() waits this long for a cancelled move to rest
 LOG_MAX_BYTES = 8 << 30  # [bytes] the largest log buffer enable_logging allocates
@@ -359,8 +370,8 @@ class Panda:
 
     def _move(
         self, plan: JointPlan | PosePlan | None, what: str, asynchronous: bool,
-        until: Any = None, then: JointPlan | PosePlan | None = None,
-    ) -> Any:  # fmt: skip
+        until: Until | None = None, then: JointPlan | PosePlan | None = None,
+    ) -> bool | MotionHandle:  # fmt: skip
         """Run ``plan``: block and return the success flag, or return a handle."""
         if plan is None:
             self._logger.info("Already at goal.")
@@ -393,36 +404,104 @@ class Panda:
         except BaseException:  # (the first exception is the one to raise)
             pass
 
-    def move_to_joint_position(
-        self, *args: Any, asynchronous: bool = False, until: Any = None, then: Any = None,
-        **kwargs: Any,
-    ) -> Any:  # fmt: skip
-        """Move through joint positions (``positions`` (7,) or ``waypoints``, a sequence
-        of them) on a time-optimal trajectory tracked by joint impedance; True if the arm
-        ends within ``success_threshold`` [rad] of the goal. Keywords as panda-py:
-        ``speed_factor=0.2, stiffness, damping, dq_threshold=0.001,
-        success_threshold=0.01``.
+    @overload
+    def move(
+        self, motion: JointMotion | PoseMotion, *, asynchronous: Literal[False] = False,
+        until: Until | None = None, then: JointMotion | PoseMotion | None = None,
+    ) -> bool: ...  # fmt: skip
+    @overload
+    def move(
+        self, motion: JointMotion | PoseMotion, *, asynchronous: Literal[True],
+        until: Until | None = None, then: JointMotion | PoseMotion | None = None,
+    ) -> MotionHandle: ...  # fmt: skip
+    @overload
+    def move(
+        self, motion: JointMotion | PoseMotion, *, asynchronous: bool,
+        until: Until | None = None, then: JointMotion | PoseMotion | None = None,
+    ) -> bool | MotionHandle: ...  # fmt: skip
+    def move(
+        self, motion: JointMotion | PoseMotion, *, asynchronous: bool = False,
+        until: Until | None = None, then: JointMotion | PoseMotion | None = None,
+    ) -> bool | MotionHandle:  # fmt: skip
+        """Run ``motion``, a :class:`~panda_py.JointMotion` (a time-optimal trajectory
+        through joint positions tracked by joint impedance) or a
+        :class:`~panda_py.PoseMotion` (straight, time-optimal segments of the end
+        effector tracked by Cartesian impedance): True if it ends at rest within its
+        success thresholds of its goal (panda-py's ``move_to_*``, which call this).
 
-        Beyond panda-py: ``max_deviation`` [rad] (keyword) lets the path cut each
-        intermediate waypoint's corner by up to that much instead of stopping there (0,
-        panda-py's, stops); ``asynchronous=True`` returns a :class:`MotionHandle` at once; a
-        move started while another runs replaces it mid-motion (continuously, within the
-        robot's limits); ``until`` a condition (:mod:`panda_py.conditions`) evaluated every
-        tick in the control process that ends the move gently when it holds, or hands over
-        to ``then`` (a :class:`JointMotion` or :class:`PoseMotion`)."""
-        waypoints, opts = _moves.parse_joint_targets(args, kwargs)
-        self._check_in_limits(waypoints)
+        ``asynchronous=True`` returns a :class:`MotionHandle` at once; a move started
+        while another runs replaces it mid-motion (continuously, within the robot's
+        limits); ``until`` a condition (:mod:`panda_py.conditions`) evaluated every tick
+        in the control process that ends the move gently when it holds, or hands over to
+        ``then`` (another motion). An exception while a blocking move runs (Ctrl-C
+        included) brings the arm to rest before it propagates."""
         flag, until, then = self._guard(asynchronous, until, then)
+        if isinstance(motion, JointMotion):
+            return self._move_joints(motion, flag, until, then)
+        if isinstance(motion, PoseMotion):
+            return self._move_pose(motion, flag, until, then)
+        raise ValueError(f"motion: expected a JointMotion or a PoseMotion, got "
+                         f"{type(motion).__name__}")  # fmt: skip
+
+    def _move_joints(
+        self, motion: JointMotion, flag: bool, until: Until | None,
+        then: JointMotion | PoseMotion | None,
+    ) -> bool | MotionHandle:  # fmt: skip
+        waypoints, opts = motion.waypoints, motion.options
+        self._check_in_limits(waypoints)
         replacing = self._moving()
         self._prepare_move("moveToJointPosition")
         plan: JointPlan | None
         if replacing and len(waypoints) == 1:  # the control process leads in to the goal
-            plan = _moves.joint_goal(waypoints[0], opts, self._limits)
+            plan = _plans.joint_goal(waypoints[0], opts, self._limits)
         else:
             q_now = np.clip(self.q, self.get_joint_limits_lower(), self.get_joint_limits_upper())
-            plan = _moves.joint_move(q_now, waypoints, opts, self._limits)
+            plan = _plans.joint_move(q_now, waypoints, opts, self._limits)
         return self._move(plan, "move_to_joint_position", flag, until,
                           self._plan_then(then, plan))  # fmt: skip
+
+    def _move_pose(
+        self, motion: PoseMotion, flag: bool, until: Until | None,
+        then: JointMotion | PoseMotion | None,
+    ) -> bool | MotionHandle:  # fmt: skip
+        positions, quats, opts = motion.positions, motion.orientations, motion.options
+        if opts.joint_space is not None and (flag or until is not None):
+            raise ValueError(
+                "stiffness, damping: panda-py < 1.0's joint-space form of move_to_pose "
+                "blocks and has no until; give impedance instead for asynchronous=True or until"
+            )
+        state = self.get_state()
+        q_now = state.q
+        F_T_EE = state.F_T_EE.reshape(4, 4, order="F")
+        _plans.check_reachable(positions, quats, q_now, self._limits, F_T_EE)
+        replacing = self._moving()
+        self._prepare_move("moveToPose")
+        plan: PosePlan | None
+        if replacing and len(positions) == 1 and opts.joint_space is None:
+            plan = _plans.pose_goal(positions[0], quats[0], opts, q_now.copy(), self._limits)
+        else:
+            state = self.get_state()
+            p_now = state.O_T_EE[12:15].copy()
+            quat_now = laws.quat_from_matrix(state.O_T_EE)
+            plan = _plans.pose_move(p_now, quat_now, positions, quats, opts, state.q.copy(),
+                                    self._limits, F_T_EE=F_T_EE)  # fmt: skip
+        if opts.joint_space is None or plan is None:
+            return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))
+        # panda-py < 1.0's form: the straight path tracked in joint space
+        joint_plan = _plans.pose_move_in_joint_space(plan, opts, state.q, self._limits, F_T_EE)
+        if not self._move(joint_plan, "move_to_pose", False):
+            return False
+        T = self.get_pose()
+        pos_err = float(np.linalg.norm(T[:3, 3] - positions[-1]))
+        rot_err = rotation_angle(self.get_orientation(), quats[-1])
+        ok = pos_err <= opts.success_threshold and rot_err <= opts.orientation_threshold
+        if not ok:
+            self._logger.warning(
+                "Motion finished %.4f m and %.2f deg from the goal, above the success threshold.",
+                pos_err,
+                math.degrees(rot_err),
+            )
+        return ok
 
     def _check_in_limits(self, waypoints: FloatArray) -> None:
         lower, upper = self._limits.joints.q_min, self._limits.joints.q_max
@@ -435,7 +514,9 @@ class Panda:
                     f"{self._limits.name} joint limits [{lower[j]}, {upper[j]}] rad"
                 )
 
-    def _guard(self, asynchronous: Any, until: Any, then: Any) -> tuple[bool, Any, Any]:
+    def _guard(
+        self, asynchronous: object, until: object, then: object
+    ) -> tuple[bool, Until | None, JointMotion | PoseMotion | None]:
         """The checked ``asynchronous``, ``until`` and ``then`` of a move."""
         if not isinstance(asynchronous, (bool, np.bool_)):
             raise ValueError(f"asynchronous: expected True or False, got {asynchronous!r}")
@@ -450,117 +531,136 @@ class Panda:
             if until is None:
                 raise ValueError("then: a move continues with another only after its until "
                                  "condition held; give until as well")  # fmt: skip
-            if not isinstance(then, (_moves.JointMotion, _moves.PoseMotion)):
+            if not isinstance(then, (JointMotion, PoseMotion)):
                 raise ValueError(
                     f"then: expected a JointMotion or a PoseMotion, got {type(then).__name__}"
                 )
-            if isinstance(then, _moves.JointMotion):
+            if isinstance(then, JointMotion):
                 self._check_in_limits(then.waypoints)
-        return bool(asynchronous), until, then
+            elif then.options.joint_space is not None:
+                raise ValueError("then: expected a PoseMotion with impedance options, not "
+                                 "panda-py < 1.0's joint stiffness and damping")  # fmt: skip
+        return bool(asynchronous), cast("Until | None", until), then
 
-    def _plan_then(self, then: Any, first: JointPlan | PosePlan | None) -> Any:
+    def _plan_then(
+        self, then: JointMotion | PoseMotion | None, first: JointPlan | PosePlan | None
+    ) -> JointPlan | PosePlan | None:
         """The plan of ``then``, from where the first move ends (the lead-in bridges the
         gap from wherever its condition holds)."""
         if then is None:
             return None
         state = self.get_state()
-        if isinstance(then, _moves.JointMotion):
+        if isinstance(then, JointMotion):
             start = first.q[-1] if isinstance(first, JointPlan) else state.q
-            return _moves.joint_move(start, then.waypoints, then.options, self._limits,
+            return _plans.joint_move(start, then.waypoints, then.options, self._limits,
                                      at_rest=True)  # fmt: skip
         if isinstance(first, PosePlan):
             p, quat = first.position[-1], first.orientation[-1]
         else:
             p, quat = state.O_T_EE[12:15].copy(), laws.quat_from_matrix(state.O_T_EE)
-        return _moves.pose_move(p, quat, then.positions, then.orientations, then.options,
+        return _plans.pose_move(p, quat, then.positions, then.orientations, then.options,
                                 state.q.copy(), self._limits, at_rest=True,
                                 F_T_EE=state.F_T_EE.reshape(4, 4, order="F"))  # fmt: skip
 
+    # --- panda-py's moves: one line each over move() -------------------------------------
+
+    @overload
+    def move_to_joint_position(
+        self, *args: Any, asynchronous: Literal[False] = False, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool: ...  # fmt: skip
+    @overload
+    def move_to_joint_position(
+        self, *args: Any, asynchronous: Literal[True], until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> MotionHandle: ...  # fmt: skip
+    @overload
+    def move_to_joint_position(
+        self, *args: Any, asynchronous: bool, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool | MotionHandle: ...  # fmt: skip
+    def move_to_joint_position(
+        self, *args: Any, asynchronous: bool = False, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool | MotionHandle:  # fmt: skip
+        """Move through joint positions (``positions`` (7,) or ``waypoints``, a sequence
+        of them) on a time-optimal trajectory tracked by joint impedance; True if the arm
+        ends within ``success_threshold`` [rad] of the goal. Keywords as panda-py:
+        ``speed_factor=0.2, stiffness, damping, dq_threshold=0.001,
+        success_threshold=0.01``.
+
+        Beyond panda-py: ``max_deviation`` [rad] (keyword) lets the path cut each
+        intermediate waypoint's corner by up to that much instead of stopping there (0,
+        panda-py's, stops); ``asynchronous``, ``until`` and ``then`` as :meth:`move`
+        (``self.move(JointMotion(*args, **kwargs), ...)``)."""
+        motion = JointMotion(*args, **kwargs)
+        return self.move(motion, asynchronous=asynchronous, until=until, then=then)
+
+    @overload
+    def move_to_start(
+        self, speed_factor: float = 0.2, stiffness: ArrayLike = ..., damping: ArrayLike = ...,
+        dq_threshold: float = 0.001, success_threshold: float = 0.01, *,
+        asynchronous: Literal[False] = False, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None,
+    ) -> bool: ...  # fmt: skip
+    @overload
+    def move_to_start(
+        self, speed_factor: float = 0.2, stiffness: ArrayLike = ..., damping: ArrayLike = ...,
+        dq_threshold: float = 0.001, success_threshold: float = 0.01, *,
+        asynchronous: Literal[True], until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None,
+    ) -> MotionHandle: ...  # fmt: skip
     def move_to_start(
         self,
         speed_factor: float = 0.2,
-        stiffness: Any = _moves.JOINT_MOVE_DEFAULTS["stiffness"],
-        damping: Any = _moves.JOINT_MOVE_DEFAULTS["damping"],
+        stiffness: ArrayLike = JOINT_MOVE_DEFAULTS["stiffness"],
+        damping: ArrayLike = JOINT_MOVE_DEFAULTS["damping"],
         dq_threshold: float = 0.001,
         success_threshold: float = 0.01,
         *,
         asynchronous: bool = False,
-        until: Any = None,
-        then: Any = None,
-    ) -> Any:
+        until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None,
+    ) -> bool | MotionHandle:
         """Move to panda-py's start pose (``constants.JOINT_POSITION_START``);
-        ``asynchronous``, ``until``, ``then`` as :meth:`move_to_joint_position`."""
-        return self.move_to_joint_position(
-            np.array(START_POSE),
-            speed_factor=speed_factor,
-            stiffness=stiffness,
-            damping=damping,
-            dq_threshold=dq_threshold,
-            success_threshold=success_threshold,
-            asynchronous=asynchronous,
-            until=until,
-            then=then,
-        )
+        ``asynchronous``, ``until``, ``then`` as :meth:`move`."""
+        motion = JointMotion(np.array(START_POSE), speed_factor, stiffness, damping,
+                             dq_threshold, success_threshold)  # fmt: skip
+        return self.move(motion, asynchronous=asynchronous, until=until, then=then)
 
-    def move_to_pose(self, *args: Any, asynchronous: bool = False, until: Any = None,
-                     then: Any = None, **kwargs: Any) -> Any:  # fmt: skip
+    @overload
+    def move_to_pose(
+        self, *args: Any, asynchronous: Literal[False] = False, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool: ...  # fmt: skip
+    @overload
+    def move_to_pose(
+        self, *args: Any, asynchronous: Literal[True], until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> MotionHandle: ...  # fmt: skip
+    @overload
+    def move_to_pose(
+        self, *args: Any, asynchronous: bool, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool | MotionHandle: ...  # fmt: skip
+    def move_to_pose(
+        self, *args: Any, asynchronous: bool = False, until: Until | None = None,
+        then: JointMotion | PoseMotion | None = None, **kwargs: Any,
+    ) -> bool | MotionHandle:  # fmt: skip
         """Move the end effector through poses on straight, time-optimal segments
         tracked by Cartesian impedance: ``(positions, orientations)``, ``(position,
         orientation)`` (quaternions x, y, z, w), ``(poses)`` or ``(pose)`` (4x4). True if
         it ends within ``success_threshold`` [m] and ``orientation_threshold`` [rad].
         Keywords as panda-py: ``speed_factor=0.2, impedance, damping_ratio=1.0,
         nullspace_stiffness=15.0, dq_threshold=0.001, success_threshold=0.02,
-        orientation_threshold=0.1``; ``max_deviation`` [m], ``asynchronous``, ``until``,
-        ``then`` as :meth:`move_to_joint_position`. ``damping_ratio`` is the damping ratio on
-        the arm's own end-effector inertia (panda-py's ``2 damping_ratio sqrt(K)`` assumes a
-        unit mass; see :class:`~panda_py.controllers.tracking.PoseImpedance`)."""
-        positions, quats, opts = _moves.parse_pose_targets(args, kwargs)
-        flag, until, then = self._guard(asynchronous, until, then)
-        if opts.joint_space is not None and (flag or until is not None):
-            raise ValueError(
-                "stiffness, damping: panda-py < 1.0's joint-space form of move_to_pose "
-                "blocks and has no until; give impedance instead for asynchronous=True or until"
-            )
-        state = self.get_state()
-        q_now = state.q
-        F_T_EE = state.F_T_EE.reshape(4, 4, order="F")
-        _moves.check_reachable(positions, quats, q_now, self._limits, F_T_EE)
-        replacing = self._moving()
-        self._prepare_move("moveToPose")
-        plan: PosePlan | None
-        if replacing and len(positions) == 1 and opts.joint_space is None:
-            plan = _moves.pose_goal(positions[0], quats[0], opts, q_now.copy(), self._limits)
-        else:
-            state = self.get_state()
-            p_now = state.O_T_EE[12:15].copy()
-            quat_now = laws.quat_from_matrix(state.O_T_EE)
-            plan = _moves.pose_move(
-                p_now,
-                quat_now,
-                positions,
-                quats,
-                opts,
-                state.q.copy(),
-                self._limits,
-                F_T_EE=F_T_EE,
-            )
-        if opts.joint_space is None or plan is None:
-            return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))
-        # panda-py < 1.0's form: the straight path tracked in joint space
-        joint_plan = _moves.pose_move_in_joint_space(plan, opts, state.q, self._limits, F_T_EE)
-        if not self._move(joint_plan, "move_to_pose", False):
-            return False
-        T = self.get_pose()
-        pos_err = float(np.linalg.norm(T[:3, 3] - positions[-1]))
-        rot_err = rotation_angle(self.get_orientation(), quats[-1])
-        ok = pos_err <= opts.success_threshold and rot_err <= opts.orientation_threshold
-        if not ok:
-            self._logger.warning(
-                "Motion finished %.4f m and %.2f deg from the goal, above the success threshold.",
-                pos_err,
-                math.degrees(rot_err),
-            )
-        return ok
+        orientation_threshold=0.1``; ``max_deviation`` [m] as
+        :meth:`move_to_joint_position`'s; ``asynchronous``, ``until``, ``then`` as
+        :meth:`move` (``self.move(PoseMotion(*args, **kwargs), ...)``). ``damping_ratio``
+        is the damping ratio on the arm's own end-effector inertia (panda-py's ``2
+        damping_ratio sqrt(K)`` assumes a unit mass; see
+        :class:`~panda_py.controllers.tracking.PoseImpedance`)."""
+        motion = PoseMotion(*args, **kwargs)
+        return self.move(motion, asynchronous=asynchronous, until=until, then=then)
 
     # --- logging -----------------------------------------------------------------------
 

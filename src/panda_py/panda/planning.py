@@ -1,17 +1,15 @@
-"""``Panda``'s moves on the user's side: panda-py's overloaded arguments, their checks,
-and the time-optimal plan sampled at the robot's 1 ms period for the control process.
+"""``Panda``'s moves on the user's side: the time-optimal plan of a checked motion
+(:mod:`panda_py.panda.move_args`), sampled at the robot's 1 ms period for the control
+process.
 
-Everything here runs before anything is sent: a bad target is a ``ValueError`` naming the
-argument, and a target outside the joint limits or out of the arm's reach never starts a
-motion.
+Everything here runs before anything is sent: a target out of the arm's reach never
+starts a motion.
 """
 
 from __future__ import annotations
 
-import functools
 import math
-from dataclasses import dataclass
-from typing import Any, Literal, NamedTuple, overload
+from typing import Literal, NamedTuple, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -22,54 +20,17 @@ from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.fci import PERIOD
 from panda_py.kinematics import get_kinematics
 from panda_py.motion import CartesianTrajectory, JointTrajectory
-from panda_py.motion.cartesian import CartesianSamples, parse_poses, stack_rows
+from panda_py.motion.cartesian import CartesianSamples
 from panda_py.motion.online import OnlineLimits
 from panda_py.motion.rotation import matrix_rows, transforms
 from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter, smooth_quaternions
+from panda_py.panda.move_args import JointMoveOptions, PoseMoveOptions
 from panda_py.robots.params import RobotSpec
 
-__all__ = [
-    "JOINT_MOVE_DEFAULTS",
-    "POSE_MOVE_DEFAULTS",
-    "JointMotion",
-    "JointMoveOptions",
-    "PoseMotion",
-    "PoseMoveOptions",
-    "joint_goal",
-    "joint_move",
-    "parse_joint_targets",
-    "parse_pose_targets",
-    "pose_goal",
-    "pose_move",
-]
+__all__ = ["check_reachable", "joint_goal", "joint_move", "pose_goal", "pose_move"]
 
 FloatArray = NDArray[np.float64]
 
-# panda-python 1.1.1's defaults
-JOINT_MOVE_DEFAULTS: dict[str, Any] = {
-    "speed_factor": 0.2,
-    "stiffness": (600.0, 600.0, 600.0, 600.0, 250.0, 150.0, 50.0),
-    "damping": (50.0, 50.0, 50.0, 20.0, 20.0, 20.0, 10.0),
-    "dq_threshold": 0.001,
-    "success_threshold": 0.01,
-    "max_deviation": 0.0,  # ours (keyword only): panda-py stops at every waypoint
-}
-POSE_MOVE_DEFAULTS: dict[str, Any] = {
-    "speed_factor": 0.2,
-    "impedance": np.diag([800.0, 800.0, 800.0, 40.0, 40.0, 40.0]),
-    "damping_ratio": 1.0,
-    "nullspace_stiffness": 15.0,
-    "dq_threshold": 0.001,
-    "success_threshold": 0.02,
-    "orientation_threshold": 0.1,
-    "max_deviation": 0.0,  # ours (keyword only), as above
-}
-
-
-# panda-py before 1.0 tracked move_to_pose's Cartesian path in joint space, with joint
-# ``stiffness`` and ``damping``; the paper's code block 5 passes them. Given, they select
-# that mode (the path is the same straight line, solved by IK at every 1 ms sample).
-POSE_MOVE_JOINT_OPTIONS = ("stiffness", "damping")
 SMOOTHING = round(SMOOTHING_TIME / PERIOD)  # [samples] a move's moving average
 # [s] a joint plan's acceleration steps ramped over this (a moving average, as a Cartesian
 # plan's over SMOOTHING_TIME), and the online generator's acceleration no faster (its jerk
@@ -81,274 +42,11 @@ RAMP_TIME = 0.01
 JOINT_SMOOTHING = round(RAMP_TIME / PERIOD)  # [samples]
 
 
-@dataclass(frozen=True)
-class JointMoveOptions:
-    """``move_to_joint_position``'s checked keywords."""
-
-    speed_factor: float
-    stiffness: FloatArray  # (7,) [Nm/rad]
-    damping: FloatArray  # (7,) [Nm s/rad]
-    dq_threshold: float  # [rad/s]
-    success_threshold: float  # [rad]
-    max_deviation: float = 0.0  # [rad] how far the path may cut a waypoint's corner
-
-
-@dataclass(frozen=True)
-class PoseMoveOptions:
-    """``move_to_pose``'s checked keywords; ``joint_space`` (joint stiffness, damping)
-    when panda-py < 1.0's joint-space tracking was asked for."""
-
-    speed_factor: float
-    impedance: FloatArray  # (6, 6) [N/m, Nm/rad]
-    damping_ratio: float
-    nullspace_stiffness: float  # [Nm/rad]
-    dq_threshold: float  # [rad/s]
-    success_threshold: float  # [m]
-    orientation_threshold: float  # [rad]
-    joint_space: tuple[FloatArray, FloatArray] | None = None
-    max_deviation: float = 0.0  # [m] how far the path may cut a waypoint's corner
-
-
-def _options(defaults: dict[str, Any], given: dict[str, Any], what: str) -> dict[str, Any]:
-    unknown = sorted(set(given) - set(defaults))
-    if unknown:
-        raise TypeError(f"{what}() got unexpected keyword arguments {unknown}")
-    return {**defaults, **given}
-
-
-def _speed(value: Any) -> float:
-    v = checks.scalar("speed_factor", value)
-    if not 0.0 < v <= 1.0:
-        raise ValueError(f"speed_factor: expected a number in (0, 1], got {v}")
-    return v
-
-
-def _nonnegative(name: str, value: Any, unit: str) -> float:
-    v = checks.scalar(name, value, unit)
-    if v < 0.0:
-        raise ValueError(f"{name}: expected a number >= 0 {unit}, got {v}")
-    return v
-
-
-def _positive(name: str, value: Any, unit: str) -> float:
-    v = checks.scalar(name, value, unit)
-    if v <= 0.0:
-        raise ValueError(f"{name}: expected a number > 0 {unit}, got {v}")
-    return v
-
-
-def parse_joint_targets(
-    args: tuple[Any, ...], kwargs: dict[str, Any]
-) -> tuple[FloatArray, JointMoveOptions]:
-    """``(waypoints (N, 7), options)`` from ``move_to_joint_position``'s overloads:
-    ``(positions, ...)`` one 7-vector or ``(waypoints, ...)`` a sequence of them."""
-    kwargs = dict(kwargs)
-    names = ("speed_factor", "stiffness", "damping", "dq_threshold", "success_threshold")
-    if args:
-        target, rest = args[0], args[1:]
-        if "positions" in kwargs or "waypoints" in kwargs:
-            raise TypeError("move_to_joint_position() got the target twice")
-    else:
-        target = kwargs.pop("positions", kwargs.pop("waypoints", None))
-        rest = ()
-        if target is None:
-            raise TypeError("move_to_joint_position() missing the target: positions or waypoints")
-    if len(rest) > len(names):
-        raise TypeError(f"move_to_joint_position() takes at most {len(names) + 1} arguments")
-    for name, value in zip(names, rest, strict=False):
-        if name in kwargs:
-            raise TypeError(f"move_to_joint_position() got multiple values for {name!r}")
-        kwargs[name] = value
-    one = _one_waypoint(target)
-    if one is not None:
-        return one, (_default_joint_options() if not kwargs else _joint_options(kwargs))
-    try:
-        arr = np.array(target, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"waypoints: expected 7 joint positions [rad] or a sequence of "
-                         f"them, got {target!r}") from exc  # fmt: skip
-    if arr.shape in ((7,), (7, 1)):
-        arr = arr.reshape(1, 7)
-    waypoints = stack_rows("waypoints", arr, 7, "[rad]")
-    if not kwargs:  # panda-py's defaults, checked once
-        return waypoints, _default_joint_options()
-    return waypoints, _joint_options(kwargs)
-
-
-def _one_waypoint(target: Any) -> FloatArray | None:
-    """The common target, a finite float64 array (7,), as waypoints (1, 7) in two calls
-    (the general path's eight NumPy calls cost 0.15 ms on the cold caches of a caller that
-    slept in between, as a policy does between targets); else None."""
-    if type(target) is np.ndarray and target.dtype == np.float64 and target.shape == (7,):
-        values = target.tolist()
-        if checks.all_finite(values):
-            return np.array([values])
-    return None
-
-
-@functools.cache
-def _default_joint_options() -> JointMoveOptions:
-    """The defaults' options, shared by every move that gives none (read-only arrays)."""
-    options = _joint_options({})
-    options.stiffness.setflags(write=False)
-    options.damping.setflags(write=False)
-    return options
-
-
-def _joint_options(kwargs: dict[str, Any]) -> JointMoveOptions:
-    opts = _options(JOINT_MOVE_DEFAULTS, kwargs, "move_to_joint_position")
-    checked = JointMoveOptions(
-        speed_factor=_speed(opts["speed_factor"]),
-        stiffness=np.array(checks.nonnegative("stiffness", opts["stiffness"], 7, "[Nm/rad]")),
-        damping=np.array(checks.nonnegative("damping", opts["damping"], 7, "[Nm s/rad]")),
-        dq_threshold=_positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
-        success_threshold=_positive("success_threshold", opts["success_threshold"], "[rad]"),
-        max_deviation=_nonnegative("max_deviation", opts["max_deviation"], "[rad]"),
-    )
-    return checked
-
-
-def parse_pose_targets(
-    args: tuple[Any, ...], kwargs: dict[str, Any]
-) -> tuple[FloatArray, FloatArray, PoseMoveOptions]:
-    """``(positions (N, 3), unit quaternions (N, 4), options)`` from ``move_to_pose``'s
-    overloads: ``(positions, orientations)``, ``(position, orientation)``, ``(poses)`` or
-    ``(pose)`` (4x4 homogeneous transforms)."""
-    kwargs = dict(kwargs)
-    names = [
-        "speed_factor", "impedance", "damping_ratio", "nullspace_stiffness",
-        "dq_threshold", "success_threshold", "orientation_threshold",
-    ]  # fmt: skip
-    rest = list(args)
-    pose = kwargs.pop("pose", None)
-    position = kwargs.pop("positions", kwargs.pop("position", None))
-    orientation = kwargs.pop("orientations", kwargs.pop("orientation", None))
-    if pose is None and position is None and rest:
-        first = rest[0]
-        if type(first) is not np.ndarray or first.dtype != np.float64:  # (else: as it is)
-            first = np.asarray(first, dtype=object)
-        is_pose = first.ndim >= 2 and first.shape[-2:] == (4, 4)
-        if is_pose:
-            pose = rest.pop(0)
-        else:
-            position = rest.pop(0)
-            if orientation is None:
-                if not rest:
-                    raise TypeError("move_to_pose() missing the orientation(s)")
-                orientation = rest.pop(0)
-    if len(rest) > len(names):
-        raise TypeError(f"move_to_pose() takes at most {len(names)} option arguments")
-    for name, value in zip(names, rest, strict=False):
-        if name in kwargs:
-            raise TypeError(f"move_to_pose() got multiple values for {name!r}")
-        kwargs[name] = value
-    if pose is not None:
-        # a float array as it is (parse_poses copies it), else converted where it can be
-        numeric = type(pose) is np.ndarray and pose.dtype == np.float64
-        arr = pose if numeric else (np.array(pose, dtype=np.float64) if _numeric(pose) else pose)
-        if isinstance(arr, np.ndarray) and arr.shape == (4, 4):
-            arr = arr.reshape(1, 4, 4)
-        positions, quats = parse_poses(arr)
-    elif position is not None and orientation is not None:
-        p = np.array(position, dtype=np.float64) if _numeric(position) else position
-        o = np.array(orientation, dtype=np.float64) if _numeric(orientation) else orientation
-        if isinstance(p, np.ndarray) and p.shape in ((3,), (3, 1)):
-            p = p.reshape(1, 3)
-        if isinstance(o, np.ndarray) and o.shape in ((4,), (4, 1)):
-            o = o.reshape(1, 4)
-        positions = stack_rows("positions", p, 3, "[m]")
-        quats = stack_rows("orientations", o, 4, "(unit quaternions x, y, z, w)")
-        if len(positions) != len(quats):
-            raise ValueError(f"orientations: expected one per position ({len(positions)}), "
-                             f"got {len(quats)}")  # fmt: skip
-        for i, qv in enumerate(quats):
-            quats[i] = checks.quaternion(f"orientations[{i}]", qv)
-    else:
-        raise TypeError("move_to_pose() missing the target: pose(s) or position(s) and "
-                        "orientation(s)")  # fmt: skip
-    joint_opts = {k: kwargs.pop(k) for k in POSE_MOVE_JOINT_OPTIONS if k in kwargs}
-    if not kwargs and not joint_opts:  # panda-py's defaults, checked once
-        return positions, quats, _default_pose_options()
-    return positions, quats, _pose_options(kwargs, joint_opts)
-
-
-def _pose_options(kwargs: dict[str, Any], joint_opts: dict[str, Any]) -> PoseMoveOptions:
-    opts = _options(POSE_MOVE_DEFAULTS, kwargs, "move_to_pose")
-    joint_space = None
-    if joint_opts:
-        stiffness = joint_opts.get("stiffness", JOINT_MOVE_DEFAULTS["stiffness"])
-        damping = joint_opts.get("damping", JOINT_MOVE_DEFAULTS["damping"])
-        joint_space = (
-            np.array(checks.nonnegative("stiffness", stiffness, 7, "[Nm/rad]")),
-            np.array(checks.nonnegative("damping", damping, 7, "[Nm s/rad]")),
-        )
-    return PoseMoveOptions(
-        speed_factor=_speed(opts["speed_factor"]),
-        impedance=(
-            np.array(checks.matrix6("impedance", opts["impedance"])).reshape(6, 6)
-            if "impedance" in kwargs or not kwargs  # (the defaults' own check: below)
-            else _default_pose_options().impedance  # checked once (its PSD test costs)
-        ),
-        damping_ratio=checks.nonnegative_scalar("damping_ratio", opts["damping_ratio"]),
-        nullspace_stiffness=checks.nonnegative_scalar(
-            "nullspace_stiffness", opts["nullspace_stiffness"]
-        ),
-        dq_threshold=_positive("dq_threshold", opts["dq_threshold"], "[rad/s]"),
-        success_threshold=_positive("success_threshold", opts["success_threshold"], "[m]"),
-        orientation_threshold=_positive(
-            "orientation_threshold", opts["orientation_threshold"], "[rad]"
-        ),
-        joint_space=joint_space,
-        max_deviation=_nonnegative("max_deviation", opts["max_deviation"], "[m]"),
-    )
-
-
-@functools.cache
-def _default_pose_options() -> PoseMoveOptions:
-    """The defaults' options, shared by every move that gives none (read-only arrays)."""
-    options = _pose_options({}, {})
-    options.impedance.setflags(write=False)
-    return options
-
-
-def _numeric(value: Any) -> bool:
-    try:
-        np.array(value, dtype=np.float64)
-        return True
-    except (TypeError, ValueError):
-        return False
-
-
 def _times(duration: float) -> FloatArray:
     n = math.ceil(duration / PERIOD)
     t = np.arange(n + 1, dtype=np.float64) * PERIOD
     t[-1] = duration
     return t
-
-
-class JointMotion:
-    """A joint move described now and run later: ``then=`` of a guarded move (the
-    arguments of ``Panda.move_to_joint_position``, checked here)."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self.waypoints, self.options = parse_joint_targets(args, kwargs)
-
-    def __repr__(self) -> str:
-        return f"JointMotion({np.round(self.waypoints[-1], 4).tolist()})"
-
-
-class PoseMotion:
-    """A Cartesian move described now and run later (the arguments of
-    ``Panda.move_to_pose``, checked here; the joint-space form is not taken)."""
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self.positions, self.orientations, self.options = parse_pose_targets(args, kwargs)
-        if self.options.joint_space is not None:
-            raise ValueError("PoseMotion: expected impedance options, not panda-py < 1.0's "
-                             "joint stiffness and damping")  # fmt: skip
-
-    def __repr__(self) -> str:
-        return f"PoseMotion({np.round(self.positions[-1], 4).tolist()})"
 
 
 @overload
