@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -218,6 +219,13 @@ def test_an_hdf5_recording_converts(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as exit_:
         main(["convert", str(src), str(tmp_path / "h264"), "--fps", "15"])
     assert exit_.value.code == 2
+    # the shell's command runs the same main
+    shell = [sys.executable, "-m", "panda_py.learning.lerobot_convert", "convert", "--help"]
+    done = subprocess.run(shell, capture_output=True, text=True, timeout=60)
+    assert (
+        done.returncode == 0
+        and "python -m panda_py.learning.lerobot_convert convert" in done.stdout
+    )
 
 
 def test_bad_input_is_refused_and_nothing_is_half_written(

@@ -20,9 +20,9 @@ from panda_py.fci import (
 from panda_py.robots import FER, FR3, START_POSE
 from panda_py.robots.params import RobotSpec
 from panda_py.sim import Simulator, free_loopback_host
+from panda_py.sim.command import Command as RobotCommand
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.probe import RawClient
-from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.robot import RobotCore
 
 JP = MoveMotionGeneratorMode.JOINT_POSITION

@@ -36,59 +36,14 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from panda_py.controllers.state import StateView
+
 if TYPE_CHECKING:
     from panda_py.controllers.model import ControlModel
 
 __all__ = ["CompiledTicks", "ControlLaw", "SignalSlot", "StateView", "readonly"]
 
 FloatArray = NDArray[np.float64]
-
-
-class StateView(Protocol):
-    """What a law reads of a tick's state: libfranka's ``RobotState`` fields by their
-    names, flat float64 arrays (transforms (16,) column-major, inertia tensors (9,)),
-    read-only within the tick (:class:`~panda_py.libfranka.RobotState`, the loop's
-    :class:`~panda_py.libfranka.state.TickState`, the fast training world's state)."""
-
-    @property
-    def q(self) -> FloatArray: ...  # [rad]
-
-    @property
-    def dq(self) -> FloatArray: ...  # [rad/s]
-
-    @property
-    def O_T_EE(self) -> FloatArray: ...  # the end effector in the base frame
-
-    @property
-    def F_T_EE(self) -> FloatArray: ...  # the end effector on the flange
-
-    @property
-    def tau_J(self) -> FloatArray: ...  # [Nm] measured
-
-    @property
-    def tau_J_d(self) -> FloatArray: ...  # [Nm] last commanded
-
-    @property
-    def m_ee(self) -> float: ...  # [kg] the end effector's mass
-
-    @property
-    def F_x_Cee(self) -> FloatArray: ...
-
-    @property
-    def I_ee(self) -> FloatArray: ...
-
-    @property
-    def m_load(self) -> float: ...  # [kg] the payload's
-
-    @property
-    def F_x_Cload(self) -> FloatArray: ...
-
-    @property
-    def I_load(self) -> FloatArray: ...
-
-    def raw_fields(self, names: tuple[str, ...]) -> bytes:
-        """The raw bytes of the fields ``names``: a cheap key of what they hold."""
-        ...
 
 
 class SignalSlot(Protocol):

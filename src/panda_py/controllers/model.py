@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py import dynamics, kinematics
-from panda_py.controllers.law import StateView
+from panda_py.controllers.state import StateView
 from panda_py.libfranka.model import Model
 from panda_py.libfranka.state import RobotState, combine_load
 from panda_py.libfranka.types import Frame

@@ -25,8 +25,9 @@ ImportError saying so and no id is registered.
 from __future__ import annotations
 
 import importlib
-import importlib.util
 from typing import TYPE_CHECKING, Any
+
+from panda_py.learning.registry import ENVIRONMENTS, register
 
 if TYPE_CHECKING:
     from panda_py.learning.actions import ActionKind
@@ -102,24 +103,6 @@ __all__ = [
     "run_rollouts",
 ]
 
-#: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
-ENVIRONMENTS = {
-    "PandaReach-v0": ("panda_py.learning.tasks:PandaReachEnv", 50),
-    "PandaPickAndPlace-v0": ("panda_py.learning.tasks:PandaPickAndPlaceEnv", 100),
-}
-
-
-def _register() -> None:
-    """Register the environments' ids with Gymnasium, where it is installed (the entry
-    points are strings: nothing of the environments loads until one is made)."""
-    if importlib.util.find_spec("gymnasium") is None:
-        return
-    import gymnasium
-
-    for env_id, (entry, steps) in ENVIRONMENTS.items():
-        if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps)
-
 
 def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
@@ -134,4 +117,4 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
-_register()
+register()

@@ -296,9 +296,3 @@ class LeRobotWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-if __name__ == "__main__":  # python -m panda_py.learning.lerobot convert SRC.hdf5 DST --fps 15
-    from panda_py.learning.lerobot_convert import main
-
-    main()

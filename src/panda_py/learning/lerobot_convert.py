@@ -2,7 +2,7 @@
 one into :class:`~panda_py.learning.recording.Recording`'s episodes, as
 :func:`~panda_py.learning.recording.read_recording` reads an HDF5 file;
 :func:`hdf5_to_lerobot` converts an HDF5 recording into one (and
-``python -m panda_py.learning.lerobot convert SRC.hdf5 DST --fps 15`` does from a shell).
+``python -m panda_py.learning.lerobot_convert convert SRC.hdf5 DST --fps 15`` does from a shell).
 
 A dataset of :class:`~panda_py.learning.lerobot.LeRobotWriter`'s comes back under the names
 it was recorded with (``observation.state`` split into ``joint_position`` and
@@ -170,8 +170,8 @@ def hdf5_to_lerobot(
 
 
 def main(argv: Sequence[str] | None = None) -> None:
-    """``python -m panda_py.learning.lerobot convert SRC.hdf5 DST --fps 15``."""
-    parser = argparse.ArgumentParser(prog="python -m panda_py.learning.lerobot",
+    """``python -m panda_py.learning.lerobot_convert convert SRC.hdf5 DST --fps 15``."""
+    parser = argparse.ArgumentParser(prog="python -m panda_py.learning.lerobot_convert",
                                      description="LeRobot datasets of our recordings")  # fmt: skip
     commands = parser.add_subparsers(dest="command", required=True)
     convert = commands.add_parser("convert", help="an HDF5 recording to a LeRobot dataset")
@@ -187,3 +187,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     except (ValueError, OSError) as exc:
         parser.exit(2, f"error: {exc}\n")
     print(f"{n} episodes of {args.src} written to {args.dst}")
+
+
+if __name__ == "__main__":
+    main()

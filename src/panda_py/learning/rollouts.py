@@ -33,7 +33,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from panda_py.learning import ENVIRONMENTS
+from panda_py.learning.registry import ENVIRONMENTS, register
 
 __all__ = ["EpisodeResult", "RolloutWorkers", "run_rollouts"]
 
@@ -76,7 +76,7 @@ class _Worker:
     def __init__(self, worker: int, env_id: str, host: str | None, kwargs: dict) -> None:
         import gymnasium
 
-        import panda_py.learning  # noqa: F401 (registers the environments here too)
+        register()  # (the environments' ids, in the actor's process too)
 
         self.worker = worker
         self.node = socket.gethostname()

@@ -14,12 +14,17 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from panda_py.panda.core import Panda
+from typing import Any, Protocol
 
 __all__ = ["PandaContext"]
+
+
+class _Raises(Protocol):
+    """What the loop needs of its ``Panda`` (any object with this method): the control
+    process's error, raised."""
+
+    def raise_error(self) -> None: ...
+
 
 SPIN = 200e-6  # [s] sleep until this close to the deadline, then spin
 
@@ -28,7 +33,7 @@ class PandaContext:
     """A fixed-frequency loop tied to a :class:`~panda_py.Panda`."""
 
     def __init__(
-        self, panda: Panda, frequency: float, max_runtime: float = 0.0, max_iter: int = 0
+        self, panda: _Raises, frequency: float, max_runtime: float = 0.0, max_iter: int = 0
     ) -> None:
         if isinstance(frequency, bool) or not isinstance(frequency, (int, float)):
             raise ValueError(f"frequency: expected a number > 0 [Hz], got {frequency!r}")

@@ -30,7 +30,8 @@ from panda_py.sim.camera import Camera, check_camera_size
 from panda_py.sim.children import start_child, stop_child
 from panda_py.sim.config import SimConfig
 from panda_py.sim.desk import DeskConfig, DeskLink, DeskProcess
-from panda_py.sim.drawing import DrawingError, DrawingProcess, start_drawing, stop_drawing
+from panda_py.sim.drawing import DrawingError, DrawingProcess
+from panda_py.sim.drawings import start_drawing, stop_drawing
 from panda_py.sim.video import DEFAULT_FPS, check_record
 
 log = logging.getLogger("panda_py.sim")

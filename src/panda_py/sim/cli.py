@@ -20,7 +20,8 @@ from panda_py import checks, fci
 from panda_py.robots.end_effectors import END_EFFECTOR_CHOICES
 from panda_py.robots.params import ROBOTS
 from panda_py.sim.desk.launch import add_desk_arguments, start_desk
-from panda_py.sim.drawing import DrawingProcess, start_drawing, stop_drawing
+from panda_py.sim.drawing import DrawingProcess
+from panda_py.sim.drawings import start_drawing, stop_drawing
 from panda_py.sim.video import DEFAULT_FPS, check_record
 
 

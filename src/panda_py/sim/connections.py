@@ -12,7 +12,7 @@ from typing import Any
 
 from panda_py import fci
 from panda_py.fci import vacuum as vp
-from panda_py.sim.robot import Command as RobotCommand
+from panda_py.sim.command import Command as RobotCommand
 from panda_py.sim.wire import CommandWire, StateWire
 
 

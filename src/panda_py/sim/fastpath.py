@@ -10,23 +10,47 @@ robot runs its NumPy reference, which the kernels equal value for value.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from panda_py import fci, jit, kinematics
 from panda_py.fci import MotionGeneratorMode
-from panda_py.robots.params import GRAVITY
+from panda_py.robots.params import GRAVITY, RobotSpec
+from panda_py.sim.command import command_on
 from panda_py.sim.physics import DT, FRICTION_SPEED, OMEGA, Physics
+from panda_py.sim.safety import CartesianSignal, JointSignal
 
-if TYPE_CHECKING:
-    from panda_py.sim.state import StateAssembly
+
+class FilledState(Protocol):
+    """What the compiled path reads and writes of the robot's state assembly
+    (:class:`panda_py.sim.state.FilledState`, which holds a :class:`TickKernels`): a
+    protocol, so that this module need not import the one that uses it."""
+
+    spec: RobotSpec
+    physics: Physics
+    mg_mode: MotionGeneratorMode
+    joint: JointSignal
+    cart: CartesianSignal
+    state_buffer: np.ndarray
+    state_offsets: dict[str, tuple[int, int]]
+    tau_J_d: np.ndarray
+    q_hold: np.ndarray
+    elbow_c: np.ndarray
+    delbow_c: np.ndarray
+    ddelbow_c: np.ndarray
+    _kin: Any
+    _NE_identity: bool
+    _filled_mode: MotionGeneratorMode | None
+    _T_view: dict[str, np.ndarray]
+
+    def _fill_contacts(self, O_T_EE: np.ndarray) -> None: ...
 
 
 class TickKernels:
     """The compiled kernels bound to one robot's state buffer and model."""
 
-    def __init__(self, kin: Any, kernels: Any, core: StateAssembly) -> None:
+    def __init__(self, kin: Any, kernels: Any, core: FilledState) -> None:
         self._k = self.kernels = kernels
         self._fk_one = kin.single("fk_one")
         self._chain = core._kin.chain_constants  # the nominal EE's chain, as core._kin.fk uses
@@ -53,14 +77,13 @@ class TickKernels:
         """Compile (or load from the cache) the checks for the views they get in the loop
         (each dialect's command buffer, read-only and possibly unaligned) and the joint
         controller for the arrays it gets, now, not at a motion's first command."""
-        from panda_py.sim.wire import CommandWire  # (wire imports the robot, which imports us)
-
         k = self._k
         z = np.zeros(7)
         signal = [np.zeros(7) for _ in range(4)]
         seen = set()
         for version in fci.SUPPORTED_VERSIONS:
-            c = CommandWire(fci.dialect(version)).command
+            d = fci.dialect(version)
+            c = command_on(d, bytearray(d.command_size))
             for x in (c.tau_J_d, c.q_c, c.dq_c):
                 kind = (x.flags.aligned, x.flags.c_contiguous)
                 if kind not in seen:
@@ -78,7 +101,7 @@ class TickKernels:
         """The fill kernel's bodies of links 1..6 and its constants."""
         return self._links, self._const
 
-    def fill(self, core: StateAssembly) -> bool:
+    def fill(self, core: FilledState) -> bool:
         """The per-tick state fields; False (nothing written) where the reference must
         do it: a NE_T_EE other than the identity, joints that are not finite."""
         if not core._NE_identity:
@@ -137,7 +160,7 @@ class TickKernels:
         return bool(self._k.measured_in_limits(q, dq, lo, hi, dq_hi))
 
 
-def load(core: StateAssembly) -> TickKernels | None:
+def load(core: FilledState) -> TickKernels | None:
     """The compiled path for ``core``, or None where the kinematics run plain Python."""
     tick = jit.optional("panda_py.sim._tick_jit", requires=kinematics.compiled_kernels)
     if tick is None:

@@ -10,7 +10,6 @@ wire dialect.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,6 +30,7 @@ from panda_py.robots.end_effectors import end_effector_load
 from panda_py.robots.params import RobotSpec
 from panda_py.sim import fastpath
 from panda_py.sim.async_motion import AsyncJointGenerator, async_refusal
+from panda_py.sim.command import Command
 from panda_py.sim.drive import JointDrive
 from panda_py.sim.physics import DT, Physics
 from panda_py.sim.safety import (
@@ -57,22 +57,6 @@ _REST = np.zeros(7)
 MAX_CONSECUTIVE_LOST = 20
 # Window of control_command_success_rate [ticks].
 SUCCESS_WINDOW = 100
-
-
-@dataclass
-class Command:
-    """One decoded RobotCommand (version-independent view)."""
-
-    message_id: int
-    q_c: np.ndarray
-    dq_c: np.ndarray
-    O_T_EE_c: np.ndarray  # 16, column-major
-    O_dP_EE_c: np.ndarray
-    elbow_c: np.ndarray
-    valid_elbow: bool
-    motion_generation_finished: bool
-    tau_J_d: np.ndarray
-    torque_command_finished: bool
 
 
 class RobotCore(RobotSettings, StateAssembly):

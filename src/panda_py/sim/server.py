@@ -34,6 +34,7 @@ from panda_py.fci import (
 )
 from panda_py.robots.end_effectors import EndEffector
 from panda_py.robots.params import get_robot
+from panda_py.sim.command import Command as RobotCommand
 from panda_py.sim.config import LATE_THRESHOLD, SimConfig, Stats
 from panda_py.sim.connections import Client, GripperConnection, RobotConnection
 from panda_py.sim.control import ControlRpc
@@ -45,7 +46,6 @@ from panda_py.sim.gripper import GripperCore
 from panda_py.sim.gripper_session import GRIPPER_STATE_PERIOD, GripperSession
 from panda_py.sim.models import ModelDelivery
 from panda_py.sim.physics import DT, Physics
-from panda_py.sim.robot import Command as RobotCommand
 from panda_py.sim.robot import RobotCore
 from panda_py.sim.sockets import REQUEST_BUDGET, Sockets
 from panda_py.sim.vacuum import VacuumCore

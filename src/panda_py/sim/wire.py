@@ -17,7 +17,8 @@ import struct
 import numpy as np
 
 from panda_py import fci
-from panda_py.sim.robot import Command, RobotCore
+from panda_py.sim.command import Command, command_on
+from panda_py.sim.robot import RobotCore
 
 _U64 = fci.MESSAGE_ID
 
@@ -105,12 +106,6 @@ class CommandWire:
         self._buffer = bytearray(self.size)
         self._view = memoryview(self._buffer)
 
-        def view(name: str) -> np.ndarray:
-            field, offset = dt.fields[name][:2]  # type: ignore[index]
-            out = np.ndarray(field.shape, field.base, buffer=self._buffer, offset=offset)
-            out.flags.writeable = False
-            return out
-
         names = dt.names or ()
         for name in ("tau_J_d", "dq_c"):
             if dt.fields[name][0] != np.dtype(("<f8", (7,))):  # type: ignore[index]
@@ -125,18 +120,7 @@ class CommandWire:
             dt.fields[n][1] if n in names else -1  # type: ignore[index]
             for n in ("valid_elbow", "motion_generation_finished", "torque_command_finished")
         )
-        self.command = Command(
-            message_id=0,
-            q_c=view("q_c"),
-            dq_c=view("dq_c"),
-            O_T_EE_c=view("O_T_EE_c"),
-            O_dP_EE_c=view("O_dP_EE_c"),
-            elbow_c=view("elbow_c"),
-            valid_elbow=False,
-            motion_generation_finished=False,
-            tau_J_d=view("tau_J_d"),
-            torque_command_finished=False,
-        )
+        self.command = command_on(d, self._buffer)
 
     def kernel_layout(self) -> tuple[bytearray, bytearray, tuple[int, int, int, int]]:
         """What a compiled receive reads and writes (``sim._lockstep_jit``): the scratch

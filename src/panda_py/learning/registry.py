@@ -1,0 +1,28 @@
+"""The learning environments' Gymnasium ids (:data:`ENVIRONMENTS`) and their
+registration (:func:`register`), where gymnasium is installed: importing
+:mod:`panda_py.learning` registers them, and a rollout worker calls :func:`register` in
+its own process."""
+
+from __future__ import annotations
+
+import importlib.util
+
+__all__ = ["ENVIRONMENTS", "register"]
+
+#: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
+ENVIRONMENTS = {
+    "PandaReach-v0": ("panda_py.learning.tasks:PandaReachEnv", 50),
+    "PandaPickAndPlace-v0": ("panda_py.learning.tasks:PandaPickAndPlaceEnv", 100),
+}
+
+
+def register() -> None:
+    """Register the environments' ids with Gymnasium, where it is installed (the entry
+    points are strings: nothing of the environments loads until one is made)."""
+    if importlib.util.find_spec("gymnasium") is None:
+        return
+    import gymnasium
+
+    for env_id, (entry, steps) in ENVIRONMENTS.items():
+        if env_id not in gymnasium.registry:
+            gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps)
