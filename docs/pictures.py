@@ -19,11 +19,9 @@ import sys
 from pathlib import Path
 
 import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.image  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
+import matplotlib.image
+from matplotlib.figure import Figure  # Agg's canvas: no display needed
+from matplotlib.patches import FancyArrowPatch, FancyBboxPatch
 
 STATIC = Path(__file__).resolve().parent / "_static"
 
