@@ -96,6 +96,15 @@ def test_the_readme_is_a_front_page() -> None:
     # figures with their dates and machines live in benchmarks/RESULTS.md
     assert not re.findall(r"20\d\d-\d\d-\d\d", text)
     assert not re.findall(r"this VM|this machine|\bsession\b", text, flags=re.I)
-    # every link into the repository leads to a file that exists
-    for target in re.findall(r"\]\(([^)#:]+)(?:#[^)]*)?\)", text):
-        assert (PROPOSAL.parent / target).exists(), f"the README links to {target}"
+    # every link into the repository leads to a file that exists, and to its heading
+    for target, anchor in re.findall(r"\]\(([^)#:]+)(?:#([^)]*))?\)", text):
+        path = PROPOSAL.parent / target
+        assert path.exists(), f"the README links to {target}"
+        if anchor:
+            headings = re.findall(r"^#+ (.+)$", path.read_text(), flags=re.M)
+            assert anchor in map(slug, headings), f"the README links to {target}#{anchor}"
+
+
+def slug(heading: str) -> str:
+    """A heading's anchor, as GitHub (and the docs site) make it."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
