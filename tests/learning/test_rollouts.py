@@ -184,7 +184,7 @@ def test_a_worker_drives_the_robot_at_its_host(cluster: None, robot_host: str) -
     assert_gone(pids)  # and with it its control process (which exits with its parent)
 
 
-def test_the_readme_block_runs_and_says_what_it_did(
+def test_the_docs_block_runs_and_says_what_it_did(
     cluster: None, capsys: pytest.CaptureFixture[str]
 ) -> None:
     page = Path(__file__).resolve().parents[2] / "docs" / "learning.md"
