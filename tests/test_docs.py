@@ -4,7 +4,8 @@ directives in ``docs/api/*.rst``) has a directive that shows it.
 The public API is each public module's ``__all__`` (:data:`PUBLIC_MODULES`), plus the
 names of :data:`EXTRA_NAMES`; of each public class, its public methods and properties.
 No Sphinx here: the directives are read as text and their targets imported, so this runs
-in a second; ``.ci/run`` builds the site itself, with warnings as errors.
+in a second; ``.ci/run`` builds the site itself, with warnings as errors. The guides' code
+blocks run in ``tests/test_doc_blocks.py``, the README's in ``tests/examples/test_readme.py``.
 """
 
 from __future__ import annotations
@@ -298,12 +299,3 @@ def test_ci_builds_the_site_with_warnings_as_errors_before_the_tests() -> None:
     command = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
     assert '".[dev,examples,docs,learning]"' in command
     assert "-m sphinx -W" in command and command.index("-m sphinx") < command.index("-m pytest")
-
-
-def test_the_guides_code_parses_and_the_examples_they_name_exist() -> None:
-    for page in sorted((ROOT / "docs").rglob("*.md")):
-        text = page.read_text()
-        for block in re.findall(r"```python\n(.*?)```", text, flags=re.S):
-            compile(block, str(page), "exec")  # a SyntaxError names the page
-        for name in re.findall(r"examples/(\w+\.py)", text):
-            assert (ROOT / "examples" / name).is_file(), f"{page.name} names examples/{name}"

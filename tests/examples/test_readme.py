@@ -1,6 +1,7 @@
-"""The README's quick start: every ```python block
-runs, in order, in one namespace, against a simulated robot with its Desk, and does what
-the text says."""
+"""The README: its quick start's ```python blocks run, in order, in one namespace, against
+a simulated robot with its Desk, and do what the text says; so does its simulator's block,
+and no other python block is in it; its two commands are the demo and CI's; it stays a
+front page (short, no dates, its links lead somewhere)."""
 
 from __future__ import annotations
 
@@ -81,3 +82,29 @@ def test_the_blocks_run_and_do_what_they_say(tmp_path: Path, monkeypatch) -> Non
             if "panda" in ns:
                 ns["panda"].close()
         assert len(blocks) == 3
+
+
+def test_every_python_block_of_the_readme_runs_here() -> None:
+    # the blocks the tests above run: the quick start's and the simulator section's
+    every = re.findall(r"```python\n(.*?)```", PROPOSAL.read_text(), flags=re.S)
+    assert every == python_blocks() + python_blocks("### The simulator")
+
+
+def test_the_readme_is_a_front_page() -> None:
+    text = PROPOSAL.read_text()
+    assert len(text.splitlines()) <= 250  # what it is, two commands, first steps, links
+    # figures with their dates and machines live in benchmarks/RESULTS.md
+    assert not re.findall(r"20\d\d-\d\d-\d\d", text)
+    assert not re.findall(r"this VM|this machine|\bsession\b", text, flags=re.I)
+    # every link into the repository leads to a file that exists, and to its heading
+    for target, anchor in re.findall(r"\]\(([^)#:]+)(?:#([^)]*))?\)", text):
+        path = PROPOSAL.parent / target
+        assert path.exists(), f"the README links to {target}"
+        if anchor:
+            headings = re.findall(r"^#+ (.+)$", path.read_text(), flags=re.M)
+            assert anchor in map(slug, headings), f"the README links to {target}#{anchor}"
+
+
+def slug(heading: str) -> str:
+    """A heading's anchor, as GitHub (and the docs site) make it."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")

@@ -2,8 +2,8 @@
 whatever the number of workers (and the same as in this process); bad input is refused
 before Ray is touched; the workers' processes are gone after closing, after an error
 too; with ``hosts`` a worker drives the robot (here ``panda-sim``) on the node that has
-its resource; without a cluster a local Ray is started and shut down; the README's block
-runs. One local Ray instance (2 CPUs) is shared by the module."""
+its resource; without a cluster a local Ray is started and shut down; the block of
+docs/learning.md runs. One local Ray instance (2 CPUs) is shared by the module."""
 
 from __future__ import annotations
 
@@ -184,11 +184,11 @@ def test_a_worker_drives_the_robot_at_its_host(cluster: None, robot_host: str) -
     assert_gone(pids)  # and with it its control process (which exits with its parent)
 
 
-def test_the_readme_block_runs_and_says_what_it_did(
+def test_the_docs_block_runs_and_says_what_it_did(
     cluster: None, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    readme = Path(__file__).resolve().parents[2] / "README.md"
-    section = readme.read_text().split("**Rollouts beyond one machine**")[1]
+    page = Path(__file__).resolve().parents[2] / "docs" / "learning.md"
+    section = page.read_text().split("## Rollouts beyond one machine")[1]
     (block,) = re.findall(r"```python\n(.*?)```", section.split("\n## ")[0], flags=re.S)
     exec(block, {})
     assert capsys.readouterr().out == "8 of 8 reached their goal\n"  # measured: all
