@@ -1,5 +1,5 @@
 """The package's architecture, as its imports have it: every arrow between the top-level
-units points down the layers the README draws, nothing imports a private module or name
+units points down the layers docs/architecture.md draws, nothing imports a private module or name
 of another unit, and the simulator and the client never import each other.
 
 Imports under ``if TYPE_CHECKING:`` count too: an arrow hidden from the run time is still
