@@ -27,9 +27,11 @@ import numpy as np
 
 from panda_py import fci, kinematics
 from panda_py.controllers import (
+    AppliedForce,
     AppliedTorque,
     CartesianImpedance,
     CartesianTarget,
+    Force,
     IntegratedVelocity,
     JointPosition,
     JointTarget,
@@ -77,6 +79,15 @@ def _laws(state: Any, model: Any, spec: Any) -> dict[str, Any]:
         law = cls()
         law.start(state, model)
         out[cls.__name__] = law
+    # the force laws pushing (Force: a threshold the states' spread stays within)
+    applied = AppliedForce(damping=np.full(7, 2.0), filter_coeff=0.1)
+    applied.start(state, model)
+    applied.set_control([0.0, 0.0, 5.0, 0.0, 0.0, 0.0])
+    out["AppliedForce"] = applied
+    force = Force(threshold=1.0)
+    force.start(state, model)
+    force.set_control([0.0, 0.0, -5.0])
+    out["Force"] = force
     # the streamed targets toward a target set before their first tick (no timeout: no
     # news afterwards), their generators moving for the first seconds, then at rest
     joint_target = JointTarget(timeout=None)

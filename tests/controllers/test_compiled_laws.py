@@ -346,9 +346,9 @@ def test_the_compiled_joint_cap_equals_the_numpy_one(monkeypatch) -> None:  # ty
     assert 0 < capped < 300  # both branches seen
 
 
-def _robot_state(q, dq, F_T_EE, m_load, F_x_Cload, pose_q=None):  # type: ignore[no-untyped-def]
+def _robot_state(q, dq, F_T_EE, m_load, F_x_Cload, pose_q=None, tau_J=None):  # type: ignore[no-untyped-def]
     """A TickState (read-only fields, as the loop hands them) of a FER with a load (its
-    pose that of ``pose_q``, by default ``q``)."""
+    pose that of ``pose_q``, by default ``q``; its measured torques ``tau_J``, or 0)."""
     from panda_py import fci
     from panda_py.libfranka.state import TickState
 
@@ -366,6 +366,8 @@ def _robot_state(q, dq, F_T_EE, m_load, F_x_Cload, pose_q=None):  # type: ignore
     rec["m_load"] = m_load
     rec["F_x_Cload"] = F_x_Cload
     rec["I_load"] = np.diag([0.002, 0.002, 0.001]).reshape(9)
+    if tau_J is not None:
+        rec["tau_J"] = tau_J
     return TickState(dialect, rec.tobytes())
 
 
@@ -414,6 +416,115 @@ def test_the_fused_step_equals_the_separate_calls_and_the_numpy_law(path: str, m
     for got, want in zip(fused, run(), strict=True):
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
     assert np.abs(fused[-1]).max() > 1.0  # the target and the load made it work
+
+
+def _force_law(kind: str):  # type: ignore[no-untyped-def]
+    if kind == "AppliedForce":
+        return controllers.AppliedForce(damping=np.full(7, 3.0), filter_coeff=0.3)
+    return controllers.Force(k_p=0.7, k_i=4.0, threshold=0.5, filter_coeff=0.3)
+
+
+def _drive_force_law(kind: str, states: list) -> tuple[list, dict]:  # type: ignore[type-arg]
+    """``kind`` stepped through ``states`` on a fresh ControlModel as the loop steps it,
+    its inputs changed on the way (as the user's setters write them); per tick its
+    torques, or the error that ended it, and its filtered inputs (and Force's integral)
+    at the end."""
+    from panda_py.controllers.model import ControlModel
+    from panda_py.libfranka import ControlException
+
+    model = ControlModel("fer")
+    ctrl = _force_law(kind)
+    ctrl.start(states[0], model)
+    out: list = []  # type: ignore[type-arg]
+    for k, s in enumerate(states):
+        if k == 3:
+            if kind == "AppliedForce":
+                ctrl.set_control([3.0, -2.0, 8.0, 0.4, -0.2, 0.5])
+            else:
+                ctrl.set_control([2.0, -3.0, -8.0])
+        if k == 12:
+            ctrl.set_damping(np.full(7, 1.5))
+            if kind == "Force":  # new gains, and a threshold the arm soon passes
+                ctrl.set_proportional_gain(1.4)
+                ctrl.set_integral_gain(0.8)
+                ctrl.set_threshold(0.0)
+        ctrl.tick(0.0 if k == 0 else 1e-3)
+        try:
+            out.append(np.array(ctrl.step(s, model)))
+        except ControlException as exc:
+            out.append(str(exc))
+            break
+    names = ("_law",) if kind == "Force" else ("_in", "_D")
+    return out, {name: getattr(ctrl, name).copy() for name in names}
+
+
+@pytest.mark.parametrize("kind", ["AppliedForce", "Force"])
+def test_the_force_laws_fused_steps_equal_their_numpy_laws(kind: str, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """AppliedForce's and Force's one-call steps (_fused.applied_force_step,
+    _fused.force_step: the filter, the Jacobian to another end effector, for Force the
+    gravity torques of the loaded arm, its PI law on the measured torques and its
+    distance check) on a real ControlModel, while the inputs change and a load is picked
+    up, give the NumPy law's torques tick by tick (to 1e-9) and the same filtered inputs
+    and integral; Force passes its threshold at the same tick with the same error."""
+    assert laws.fused() is not None
+    rng = np.random.default_rng(13)
+    F_T_EE = np.eye(4)
+    F_T_EE[:3, 3] = (0.01, -0.02, 0.14)
+    F_T_EE[:2, :2] = [[0.0, -1.0], [1.0, 0.0]]
+    q0 = np.array([0.1, -0.6, 0.2, -2.2, 0.1, 1.7, 0.6])
+    drift = rng.normal(scale=2e-3, size=7)  # the arm drifts off: some mm a tick
+    states = []
+    for k in range(60):
+        load = (0.0, (0.0, 0.0, 0.0)) if k < 8 else (0.7, (0.0, 0.01, 0.05))
+        q = q0 + k * drift + rng.normal(scale=1e-3, size=7)
+        states.append(_robot_state(q, rng.normal(scale=0.2, size=7), F_T_EE, *load,
+                                   tau_J=rng.normal(scale=4.0, size=7)))  # fmt: skip
+    kernels, calls = laws.fused(), []
+    name = "applied_force_step" if kind == "AppliedForce" else "force_step"
+    step = getattr(kernels, name)
+
+    def counted(*args):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return step(*args)
+
+    monkeypatch.setattr(kernels, name, counted)
+    fused, fused_buffers = _drive_force_law(kind, states)
+    assert len(calls) == len(fused)  # every tick was the fused step's
+    monkeypatch.setitem(LOADED, laws.FUSED, None)
+    plain, plain_buffers = _drive_force_law(kind, states)
+    assert len(fused) == len(plain)
+    for got, want in zip(fused, plain, strict=True):
+        if isinstance(want, str):
+            assert got == want
+        else:
+            np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-9)
+    for key, want in plain_buffers.items():
+        np.testing.assert_allclose(fused_buffers[key], want, rtol=0.0, atol=1e-9)
+    torques = [t for t in fused if not isinstance(t, str)]
+    assert np.abs(torques[-1]).max() > 1.0  # the force and the sensors made it work
+    if kind == "Force":  # it aborted past its threshold, well after its start
+        assert isinstance(fused[-1], str) and "distance threshold exceeded" in fused[-1]
+        assert 14 < len(fused) < len(states)
+    else:
+        assert len(fused) == len(states)
+
+
+@pytest.mark.parametrize("kind", ["AppliedForce", "Force"])
+def test_the_force_laws_fused_steps_give_nan_torques_for_a_non_finite_state(kind: str) -> None:
+    from panda_py.controllers.model import ControlModel
+
+    q = np.array(START_POSE)
+    good = _robot_state(q, np.zeros(7), np.eye(4), 0.0, (0.0, 0.0, 0.0))
+    q_bad = q.copy()
+    q_bad[3] = np.nan
+    bad = _robot_state(q_bad, np.zeros(7), np.eye(4), 0.0, (0.0, 0.0, 0.0), pose_q=q)
+    model = ControlModel("fer")
+    ctrl = _force_law(kind)
+    ctrl.start(good, model)
+    ctrl.tick(0.0)
+    assert np.isfinite(ctrl.step(good, model)).all()
+    ctrl.tick(1e-3)
+    assert np.isnan(ctrl.step(bad, model)).all()  # which the loop's finalize refuses
 
 
 def test_the_fused_step_gives_nan_torques_for_a_non_finite_state() -> None:
@@ -561,9 +672,10 @@ def test_the_fused_kernels_never_compile_in_the_loop() -> None:
     fused = laws.fused()
     assert fused is not None
     kernels = (fused.cartesian_impedance_step, fused.pose_tracking_step,
-               fused.joint_tracking_step, fused.pose_target_step)  # fmt: skip
+               fused.joint_tracking_step, fused.pose_target_step, fused.applied_force_step,
+               fused.force_exceeded, fused.force_step)  # fmt: skip
     fused.warmup()  # read-only state fields and writable buffers
-    assert [len(k.signatures) for k in kernels] == [1, 1, 1, 1]
+    assert [len(k.signatures) for k in kernels] == [1] * 7
     from panda_py import dynamics
 
     arm = dynamics.LoadedArm("fer").arrays
@@ -572,7 +684,7 @@ def test_the_fused_kernels_never_compile_in_the_loop() -> None:
     with pytest.raises(TypeError, match="No matching definition"):
         fused.joint_tracking_step(strided, z7, *arm, z7, z7, z7, z7, z7, z7, z7, 0.01, 10.0,
                                   np.empty(7))  # fmt: skip
-    assert [len(k.signatures) for k in kernels] == [1, 1, 1, 1]
+    assert [len(k.signatures) for k in kernels] == [1] * 7
 
 
 _NO_ALLOCATION = """
@@ -605,11 +717,22 @@ traj, I3 = ro(np.zeros((6, _fused._ONLINE.ROW))), ro(np.eye(3))
 tick = ro([1.0, 0.0, 0.0, 0.0, 0.0])
 p, v, a, pos, ori = np.zeros(6), np.zeros(6), np.zeros(6), np.zeros(3), np.array(quat)
 tw, acc, out = np.zeros(6), np.zeros(6), np.zeros(20)
+applied, force = _builtin.AppliedForce(), _builtin.Force()
+af_at, f_at = (np.array([c._sig_layout[n][0] for n in names], dtype=np.int64)
+               for c, names in ((applied, _builtin._APPLIED_SIGNALS),
+                                (force, _builtin._FORCE_SIGNALS)))
+af_at.flags.writeable = f_at.flags.writeable = False
+wrench, D, f_law = np.zeros(6), np.zeros(7), np.zeros(_builtin._FORCE_SIZE)
+f_law[12] = 10.0  # a threshold the arm is within [m]
 
 @numba.njit
 def run(n, values, at, filtered, Kd_t, T, q, dq, chain, o, ca, sa, m, h, I, J, tau, z7, z6, p_d,
-        quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, target, out):
+        quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, target, out, af_values, af_at,
+        wrench, D, f_values, f_at, f_law):
     for _ in range(n):
+        _fused.applied_force_step(af_values, af_at, wrench, D, q, dq, chain, J, tau)
+        _fused.force_step(f_values, f_at, f_law, 1e-3, 1e-3, T, q, dq, dq, chain, o, ca, sa, m,
+                          h, I, J, tau)
         _fused.cartesian_impedance_step(values, at, filtered, Kd_t, T, q, dq, chain, o, ca, sa,
                                         m, h, I, J, tau)
         _fused.joint_tracking_step(q, dq, o, ca, sa, m, h, I, z7, z7, z7, z7, q, dq, dq, 0.01,
@@ -622,7 +745,8 @@ def run(n, values, at, filtered, Kd_t, T, q, dq, chain, o, ca, sa, m, h, I, J, t
                                 dq, chain, o, ca, sa, m, h, I, z7, z7, law, target, out, tau)
 
 args = (values, at, filtered, ro(np.eye(6)), T, q, dq, chain, *arm, J, tau, z7, z6,
-        ro(T[12:15]), quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, ro(np.zeros(7)), out)
+        ro(T[12:15]), quat, law, tick, traj, p, v, a, I3, pos, ori, tw, acc, ro(np.zeros(7)), out,
+        ro(applied._values), af_at, wrench, D, ro(force._values), f_at, f_law)
 counts = []
 for n in (1, 51):  # (numba's runtime counts the arguments' unboxing too: once a call)
     before = rtsys.get_allocation_stats().alloc
@@ -634,10 +758,10 @@ print((counts[1] - counts[0]) / 50)
 
 def test_the_fused_steps_allocate_nothing_per_tick() -> None:
     """The fused steps' temporaries live on the stack (jit.stack): running every one of
-    them from a compiled loop (the Cartesian impedance, the pose and joint tracking with
-    and without the mass matrix's update, a streamed target with its generator's sample)
-    allocates nothing in numba's runtime (counted by its statistics, on in a fresh
-    process: before the stack arrays, 220 allocations a round)."""
+    them from a compiled loop (the Cartesian impedance, the force laws, the pose and joint
+    tracking with and without the mass matrix's update, a streamed target with its
+    generator's sample) allocates nothing in numba's runtime (counted by its statistics,
+    on in a fresh process: before the stack arrays, 220 allocations a round)."""
     import subprocess
     import sys
 

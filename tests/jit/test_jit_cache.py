@@ -80,10 +80,14 @@ def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> No
     through one module's intrinsics (jit.libc): both keys cover it, so an edit to a call's
     declaration compiles both afresh instead of loading machine code made for the old."""
     import panda_py.rt._tick as loop
+    import panda_py.rt._tick_wrench as wrench
     import panda_py.sim._lockstep_jit as lockstep
     from panda_py.jit import libc
     from panda_py.sim import compiled
 
     assert loop.KEY.startswith(jitcache.source_key([Path(loop.__file__), Path(libc.__file__)]))
+    # (the force laws' loop kernels, on the loop's skeleton: keyed over it too)
+    assert wrench.KEY.startswith(jitcache.source_key([Path(wrench.__file__)]))
+    assert loop.KEY[:20] in wrench.KEY
     sources = jitcache.source_key([Path(lockstep.__file__), Path(libc.__file__)]) + compiled.KEY
     assert lockstep.KEY == hashlib.sha256(sources.encode()).hexdigest()[:20]

@@ -87,9 +87,10 @@ def test_the_built_in_kernels_all_load_through_it() -> None:
     from panda_py.rt import fastloop
 
     for loaded in (kinematics.compiled_kernels(), dynamics.compiled_kernels(), laws.compiled(),
-                   laws.fused(), online.compiled_kernels(), fastloop.kernels()):  # fmt: skip
+                   laws.fused(), online.compiled_kernels(), fastloop.kernels(),
+                   fastloop.kernel("force_ticks")):  # fmt: skip
         assert loaded is not None
     for name in ("panda_py.kinematics._numba", "panda_py.dynamics._compiled",
                  "panda_py.controllers._kernels", "panda_py.controllers._fused",
-                 "panda_py.motion._online_jit", "panda_py.rt._tick"):  # fmt: skip
+                 "panda_py.motion._online_jit", *fastloop.KERNEL_MODULES):  # fmt: skip
         assert jit.LOADED[name] is sys.modules[name]

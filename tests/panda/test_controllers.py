@@ -10,9 +10,13 @@ import numpy as np
 import pytest
 
 import panda_py
-from panda_py import constants, controllers
+from panda_py import constants, controllers, jit
+from panda_py.rt.shm import HEADER
 
 pytestmark = pytest.mark.timeout(120)
+# whether the control process runs the built-in laws' ticks compiled (numba, no
+# PANDA_PY_NO_JIT: the control process has the environment this process has)
+COMPILED = jit.enabled()
 
 
 @pytest.fixture
@@ -84,14 +88,30 @@ def test_applied_torque_and_teaching_mode(panda: panda_py.Panda) -> None:
     assert not panda.is_moving()
 
 
+def _compiled_ticks(panda: panda_py.Panda) -> int:
+    """The ticks the control process ran compiled so far."""
+    return int(panda._proc.block.header[HEADER.COMPILED])
+
+
+def _ran_compiled(panda: panda_py.Panda, before: int, ctrl: controllers.TorqueController) -> None:
+    """Where the ticks are compiled, all but a few of ``ctrl``'s ran so."""
+    ran = _compiled_ticks(panda) - before
+    if COMPILED:
+        assert ran >= 1000.0 * ctrl.get_time() - 5
+    else:
+        assert ran == 0
+
+
 def test_applied_force_pushes_the_end_effector(panda: panda_py.Panda) -> None:
     ctrl = controllers.AppliedForce(damping=np.full(7, 5.0))
+    before = _compiled_ticks(panda)
     panda.start_controller(ctrl)
     z0 = panda.get_position()[2]
     ctrl.set_control([0, 0, 5.0, 0, 0, 0])  # 5 N up
     _run_for(panda, ctrl, 0.4)
     assert panda.get_position()[2] - z0 > 0.005
     panda.stop_controller()
+    _ran_compiled(panda, before, ctrl)
 
 
 def test_cartesian_impedance_holds_and_moves(panda: panda_py.Panda) -> None:
@@ -109,14 +129,19 @@ def test_cartesian_impedance_holds_and_moves(panda: panda_py.Panda) -> None:
 def test_force_controller_aborts_past_its_threshold(panda: panda_py.Panda) -> None:
     ctrl = controllers.Force(threshold=0.005, filter_coeff=1.0)
     assert ctrl.name == "Force Controller"
+    before = _compiled_ticks(panda)
     panda.start_controller(ctrl)
     ctrl.set_control([0, 0, -10.0])  # nothing to push against: the arm moves, then aborts
     deadline = time.monotonic() + 30
     while panda.is_moving() and time.monotonic() < deadline:
         time.sleep(0.01)
     assert not panda.is_moving()
-    with pytest.raises(panda_py.libfranka.ControlException, match="threshold"):
+    with pytest.raises(panda_py.libfranka.ControlException, match="threshold") as caught:
         panda.raise_error()
+    moved = float(str(caught.value).split("(")[1].split(" m >")[0])
+    assert 0.005 < moved < 0.006  # the first tick past it (the arm moves < 1 mm a tick)
+    assert ctrl.get_time() > 0.02  # it pushed for a while first
+    _ran_compiled(panda, before, ctrl)
 
 
 class Spring(controllers.TorqueController):

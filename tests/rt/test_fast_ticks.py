@@ -17,9 +17,11 @@ import pytest
 
 from panda_py import fci, kinematics
 from panda_py.controllers import (
+    AppliedForce,
     AppliedTorque,
     CartesianImpedance,
     CartesianTarget,
+    Force,
     IntegratedVelocity,
     JointPosition,
     JointTarget,
@@ -46,15 +48,26 @@ MODEL = ControlModel(SPEC)
 KIN = kinematics.get_kinematics(SPEC)
 
 
+# another end effector: 12 cm further along the flange's z, turned 90 degrees about it
+OTHER_EE = np.array([[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.12],
+                     [0.0, 0.0, 0.0, 1.0]])  # fmt: skip
+
+
 def _state(dialect: Any, mid: int, q: np.ndarray, dq: np.ndarray, tau_J_d: np.ndarray,
-           *, mode: int = MOVE, load: float = 0.0) -> bytes:  # fmt: skip
+           *, mode: int = MOVE, load: float = 0.0, tau_J: np.ndarray | None = None,
+           F_T_EE: np.ndarray | None = None) -> bytes:  # fmt: skip
     r = np.zeros((), dialect.state_dtype)
     r["message_id"] = mid
     r["motion_generator_mode"], r["controller_mode"], r["robot_mode"] = MG, CTRL, mode
     r["q"], r["dq"], r["tau_J_d"], r["q_d"] = q, dq, tau_J_d, q
-    r["O_T_EE"] = KIN.fk(q).reshape(16, order="F")
+    kin = KIN if F_T_EE is None else kinematics.get_kinematics(SPEC, F_T_EE)
+    r["O_T_EE"] = kin.fk(q).reshape(16, order="F")
     r["F_T_EE"] = r["EE_T_K"] = np.eye(4).reshape(16)
+    if F_T_EE is not None:
+        r["F_T_EE"] = F_T_EE.reshape(16, order="F")
     r["m_load"] = load
+    if tau_J is not None:
+        r["tau_J"] = tau_J
     return r.tobytes()
 
 
@@ -92,6 +105,10 @@ def make(kind: str, state: Any) -> Any:
         law = JointPosition(filter_coeff=0.2)
     elif kind == "IntegratedVelocity":
         law = IntegratedVelocity()
+    elif kind == "AppliedForce":
+        law = AppliedForce(damping=np.full(7, 2.0), filter_coeff=0.3)
+    elif kind == "Force":  # (far from its threshold: these tests' arm wanders some cm)
+        law = Force(k_p=0.8, k_i=3.0, threshold=1.0, filter_coeff=0.2)
     else:
         law = AppliedTorque(damping=np.full(7, 2.0), filter_coeff=0.5)
     if state is not None:
@@ -112,10 +129,24 @@ def _move_input(kind: str, law: Any, k: int) -> None:
         law.set_control(np.full(7, 0.1 if k < 90 else -0.2))
     elif kind == "AppliedTorque":
         law.set_control(np.linspace(-1.0, 1.0, 7) * (k // 40))
+    elif kind == "AppliedForce":
+        law.set_control(np.array([2.0, -1.0, 4.0, 0.2, -0.1, 0.3]) * (k // 40))
+        if k == 120:
+            law.set_damping(np.full(7, 6.0))
+    elif kind == "Force":
+        law.set_control(np.array([1.5, -2.0, -6.0]) * (k // 40))
+        if k == 120:  # new gains and damping, the threshold still far
+            law.set_proportional_gain(1.5)
+            law.set_integral_gain(0.5)
+            law.set_damping(np.full(7, 2.0))
+            law.set_threshold(0.8)
 
 
 KINDS = ("CartesianImpedance", "JointPosition", "IntegratedVelocity", "AppliedTorque",
-         "JointMove", "PoseMove")  # fmt: skip
+         "AppliedForce", "Force", "JointMove", "PoseMove")  # fmt: skip
+# the laws that push with a force at the end effector (rt._tick_wrench): also a new end
+# effector on the way, and measured torques
+WRENCH = ("AppliedForce", "Force")
 
 
 class Rig:
@@ -168,13 +199,16 @@ class Rig:
     def next_state(self, **kw: Any) -> bytes:
         self.mid += 1
         self.q = self.q + self.rng.normal(0.0, 2e-3, 7)
+        kw.setdefault("tau_J", self.rng.normal(0.0, 3.0, 7))
         return _state(self.dialect, self.mid, self.q, self.rng.normal(0.0, 0.05, 7),
                       self.rng.normal(0.0, 2.0, 7), **kw)  # fmt: skip
 
     def reference(self, data: bytes, dt: float) -> np.ndarray:
+        """The reference's command for ``data`` (its law's torques in ``ref_tau``)."""
         state = TickState(self.dialect, data)
         self.ref.tick(dt)
-        return np.asarray(self.fin_ref(self.ref.step(state, MODEL), state))
+        self.ref_tau = np.array(self.ref.step(state, MODEL), dtype=float)
+        return np.asarray(self.fin_ref(self.ref_tau, state))
 
     def run(self, *, chan: int = -1, budget: int = 1, wait_ms: int = 1000,
             log: LogRing | None = None) -> fastloop.Outcome:  # fmt: skip
@@ -210,7 +244,8 @@ def test_compiled_ticks_send_the_python_ticks_commands(kind: str, version: int) 
             if k in (40, 90, 120) and rig.handle is not None:  # the user's new inputs
                 _move_input(kind, rig.handle, k)
                 _move_input(kind, rig.ref, k)
-            data = rig.next_state(load=0.5 if k >= 70 else 0.0)  # a load picked up at 70
+            ee = OTHER_EE if kind in WRENCH and k >= 100 else None  # another end effector
+            data = rig.next_state(load=0.5 if k >= 70 else 0.0, F_T_EE=ee)  # a load at 70
             rig.robot.send(data)
             outcome = rig.run()
             expected = rig.reference(data, 1e-3)
@@ -226,18 +261,27 @@ def test_compiled_ticks_send_the_python_ticks_commands(kind: str, version: int) 
                 sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
                 rig.last = data
                 assert rig.block.read_state() == data  # published as the Python tick does
+                # the law's torques before the finishing (which may saturate them)
+                np.testing.assert_allclose(rig.fast.tau, rig.ref_tau, rtol=0.0, atol=1e-9)
             np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
             if rig.handle is not None:  # what the user reads back
                 np.testing.assert_allclose(rig.handle.get_time(), rig.ref.t, atol=1e-12)
-        # handed back: the load (70) where the law uses the model, a new impedance (120),
-        # a move's trajectory's end (200 ms: from tick 200 on, past this run)
+        # handed back: the load (70) where the law uses the model, another end effector
+        # (100) where it uses the kinematics, a new impedance (120), a move's trajectory's
+        # end (200 ms: from tick 200 on, past this run)
         expected_back = {
             "CartesianImpedance": [70, 120], "JointMove": [70], "PoseMove": [70],
+            "AppliedForce": [100], "Force": [70, 100],
         }.get(kind, [])  # fmt: skip
         assert handed_back == expected_back
         assert rig.law.t == pytest.approx(rig.ref.t)
         if kind == "IntegratedVelocity":
             np.testing.assert_array_equal(rig.handle.get_qd(), rig.ref.get_qd())
+        if kind in WRENCH:  # the filters (and Force's integral) carried across hand-backs
+            names = ("_law",) if kind == "Force" else ("_in", "_D")
+            for name in names:
+                np.testing.assert_allclose(getattr(rig.law, name), getattr(rig.ref, name),
+                                           rtol=0.0, atol=1e-9)  # fmt: skip
     finally:
         rig.close()
 
@@ -418,6 +462,72 @@ def test_compiled_streamed_ticks_send_no_non_finite_torques(kind: str, version: 
                           rig.dialect.state_dtype).copy()  # fmt: skip
         r["q"][0, 3] = np.nan
         rig.robot.send(r.tobytes())
+        with pytest.raises(ControlException, match="non-finite torques"):
+            rig.run()
+        rig.robot.settimeout(0.05)
+        with pytest.raises(TimeoutError):
+            rig.robot.recv(4096)
+    finally:
+        rig.close()
+
+
+@pytest.mark.parametrize("version", [5, 10])
+def test_force_past_its_threshold_is_handed_back_and_raises_as_the_python_tick(
+    version: int,
+) -> None:
+    """A Force controller whose threshold the user lowers (filtered toward it) while the arm
+    wanders: the compiled ticks answer every state until the one at which the Python tick
+    raises, which they hand back unanswered, the law untouched; its Python step then
+    raises the same error."""
+    rig = Rig(version, "Force")
+    try:
+        rig.handle.set_threshold(0.012)
+        rig.ref.set_threshold(0.012)
+        answered = 0
+        for _ in range(2000):
+            data = rig.next_state()
+            rig.robot.send(data)
+            before = rig.law._law.copy()
+            outcome = rig.run()
+            try:
+                rig.reference(data, 1e-3)
+            except ControlException as exc:
+                expected = str(exc)
+                break
+            assert outcome.then == "wait" and outcome.ticks == 1
+            rig.robot.recv(4096)
+            rig.last = data
+            answered += 1
+        else:
+            pytest.fail("the arm never moved past the threshold")
+        assert answered > 20  # (the threshold was filtered down to where the arm is)
+        assert outcome.then == "pending" and outcome.pending == data and outcome.ticks == 0
+        np.testing.assert_array_equal(rig.law._law, before)  # nothing changed
+        with pytest.raises(ControlException, match="distance threshold exceeded") as caught:
+            rig.python_tick(data, 1e-3)
+        assert str(caught.value) == expected
+        rig.robot.settimeout(0.05)
+        with pytest.raises(TimeoutError):  # nothing sent for it
+            rig.robot.recv(4096)
+    finally:
+        rig.close()
+
+
+@pytest.mark.parametrize(("kind", "field"),
+                         [("AppliedForce", "q"), ("Force", "q"), ("Force", "tau_J")])  # fmt: skip
+def test_the_force_laws_send_no_non_finite_torques(kind: str, field: str) -> None:
+    """A NaN in the joint positions (either law) or the measured torques (Force's): the
+    compiled tick raises as the Python tick does (its torques are NaN) and sends nothing."""
+    rig = Rig(10, kind)
+    try:
+        rig.mid += 1
+        r = np.frombuffer(_state(rig.dialect, rig.mid, rig.q, np.zeros(7), np.zeros(7)),
+                          rig.dialect.state_dtype).copy()  # fmt: skip
+        r[field][0, 3] = np.nan
+        data = r.tobytes()
+        with pytest.raises(ControlException, match="non-finite torques"):
+            rig.reference(data, 1e-3)  # the Python tick
+        rig.robot.send(data)
         with pytest.raises(ControlException, match="non-finite torques"):
             rig.run()
         rig.robot.settimeout(0.05)

@@ -112,3 +112,52 @@ def test_no_law_compiles_anything_after_the_warm_up(
         if server.robot is not None:
             server.robot.close()
         block.close()
+
+
+@pytest.mark.parametrize("version", [5, 10])
+def test_no_compiled_tick_compiles_anything_after_the_warm_up(
+    sim_for_version, version: int, monkeypatch
+) -> None:
+    """Every built-in controller's compiled ticks (rt.fastloop, the loop kernels its
+    ``compiled`` names: the force laws' too), sent by the user and run as the loop runs
+    them, find their kernels compiled by the warm-up ``connect`` ran."""
+    from panda_py.libfranka import TorqueIO
+    from panda_py.rt import child, fastloop
+
+    if fastloop.kernels() is None:
+        pytest.skip("no compiled ticks here (numba missing or PANDA_PY_NO_JIT=1)")
+    monkeypatch.setattr(child, "set_current_thread_to_highest_priority", lambda: None)
+    sim = sim_for_version(version)
+    block, fd = SharedBlock.create()
+    os.close(fd)
+    server = ControlServer(None, block, os.getpid())  # type: ignore[arg-type]
+    try:
+        server.connect(rq.Connect(sim.host, int(RealtimeConfig.kIgnore), 5.0))
+        before = _signatures()
+        robot, model, finalize = server.robot, server.model, server.finalize
+        assert robot is not None and model is not None and finalize is not None
+        fast = fastloop.FastTicks(TorqueIO.unconnected(robot.server_version()), block,
+                                  finalize, None)  # fmt: skip
+        names = []
+        for cls in (c.CartesianImpedance, c.JointPosition, c.IntegratedVelocity,
+                    c.AppliedTorque, c.AppliedForce, c.Force):  # fmt: skip
+            law = _sent(cls())
+            state = robot.decode_state(robot.receive_raw_state(), TickState)
+            law.start(state, model)
+            law.open_slot(block)
+            law.tick(0.0)
+            law.step(state, model)
+            compiled = law.compiled(state, model)
+            assert compiled is not None, cls.__name__
+            names.append(compiled.kernel)
+            fast.run(law, compiled, state.raw, chan=-1, requests_taken=0, log=None, budget=1,
+                     wait_ms=0)  # fmt: skip
+        finalize.reset()
+        assert "applied_force_ticks" in names and "force_ticks" in names
+        after = _signatures()
+        new = {k: sorted(v - before.get(k, set())) for k, v in after.items()}
+        assert not {k: v for k, v in new.items() if v}, "compiled after the warm-up"
+    finally:
+        if server.robot is not None:
+            server.robot.close()
+        block.close()

@@ -49,6 +49,12 @@ _F64 = np.dtype(np.float64)
 _FILTERED_SIZE = 87
 _FUSED_SIGNALS = ("position", "orientation", "q_nullspace", "impedance", "filter_coeff",
                   "nullspace_stiffness")  # fmt: skip
+# the inputs whose offsets AppliedForce's and Force's fused steps take, in this order
+# (_fused.applied_force_step, _fused.force_step; Force's k_i follows its k_p), and the size
+# of Force's buffer (its filtered inputs, where it started, its integral: _fused's _FORCE_*)
+_APPLIED_SIGNALS = ("force", "damping", "filter_coeff")
+_FORCE_SIGNALS = ("force", "k_p", "damping", "threshold", "filter_coeff")
+_FORCE_SIZE = 30
 
 
 # a compiled law's inputs that nothing guards (CompiledTicks of a law that computes nothing
@@ -275,7 +281,30 @@ class AppliedForce(_Applied):
         """Wrench at the end effector in the base frame [N, Nm]."""
         self._set_input(force)
 
+    def start(self, state: StateView, model: ControlModel) -> None:
+        super().start(state, model)
+        layout = self._sig_layout
+        self._at = np.array([layout[name][0] for name in _APPLIED_SIGNALS], dtype=np.int64)
+        self._J = np.empty((1, 6, 7))
+
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
+        """Its ticks in ``rt._tick_wrench.applied_force_ticks``: the fused step on its own
+        buffers (the Jacobian's chain made for the state's end effector)."""
+        if laws.fused() is None or type(model) is not ControlModel:
+            return None
+        arrays = (self._values, _NO_GUARD, _NO_KEY, readonly(self._values), readonly(self._at),
+                  self._in, self._D, model.kernel_chain(state), self._J)  # fmt: skip
+        return CompiledTicks("applied_force_ticks", arrays, ("F_T_EE",),
+                             np.array([self.t, self.dt]))  # fmt: skip
+
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
+        fused = laws.fused()
+        if fused is not None and type(model) is ControlModel:  # all of it in one call
+            tau = np.empty(7)
+            fused.applied_force_step(self._values, self._at, self._in, self._D, state.q,
+                                     state.dq, model.kernel_chain(state), self._J,
+                                     tau)  # fmt: skip
+            return tau
         return model.ee_jacobian(state).T @ self._filtered() - self._D * state.dq
 
 
@@ -347,26 +376,59 @@ class Force(TorqueController):
 
     def start(self, state: StateView, model: ControlModel) -> None:
         self.initial_signals(force=np.zeros(3))
-        self._f = np.zeros(3)
-        self._gains = self._gains_t.copy()
-        self._D = self._D_t.copy()
-        self._threshold = self._scalar("threshold")
-        self._p0 = state.O_T_EE[12:15].copy()
-        self._tau_ext0 = state.tau_J - model.gravity_of(state)  # bias of the torque sensors
-        self._integral = np.zeros(7)
+        # the filtered inputs, where it started and its integral in one buffer (views by
+        # name), as its fused step takes them
+        law = self._law = np.zeros(_FORCE_SIZE)
+        self._f, self._gains, self._D, self._threshold = law[0:3], law[3:5], law[5:12], law[12:13]
+        self._p0, self._tau_ext0, self._integral = law[13:16], law[16:23], law[23:30]
+        self._gains[:] = self._gains_t
+        self._D[:] = self._D_t
+        self._threshold[0] = self._scalar("threshold")
+        self._p0[:] = state.O_T_EE[12:15]
+        self._tau_ext0[:] = state.tau_J - model.gravity_of(state)  # bias of the torque sensors
+        layout = self._sig_layout
+        self._at = np.array([layout[name][0] for name in _FORCE_SIGNALS], dtype=np.int64)
+        self._J = np.empty((1, 6, 7))
+        self._tau_J = np.zeros(7)  # (the compiled ticks decode the measured torques into it)
+
+    def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
+        """Its ticks in ``rt._tick_wrench.force_ticks``: the fused step on its own buffers;
+        the tick whose state passes the threshold is Python's (its step raises)."""
+        if laws.fused() is None or type(model) is not ControlModel:
+            return None
+        chain, arm = model.kernel_arrays(state)
+        arrays = (
+            self._values, _NO_GUARD, _NO_KEY, readonly(self._values), readonly(self._at),
+            self._law, self._tau_J, readonly(self._tau_J), chain, *arm, self._J,
+        )  # fmt: skip
+        return CompiledTicks("force_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
+                             np.array([self.t, self.dt]))  # fmt: skip
+
+    def _exceeded(self, moved: float) -> ControlException:
+        return ControlException(
+            f"{self.name}: distance threshold exceeded ({moved:.4f} m > "
+            f"{float(self._threshold[0]):.4f} m)"
+        )
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
+        fused = laws.fused()
+        if fused is not None and type(model) is ControlModel:  # all of it in one call
+            chain, arm = model.kernel_arrays(state)
+            tau = np.empty(7)
+            moved = fused.force_step(self._values, self._at, self._law, self.t, self.dt,
+                                     state.O_T_EE, state.q, state.dq, state.tau_J, chain, *arm,
+                                     self._J, tau)  # fmt: skip
+            if moved >= 0.0:
+                raise self._exceeded(moved)
+            return tau
         a = self._scalar("filter_coeff")
         laws.ema(self._f, self._f_t, a)
         laws.ema(self._gains, self._gains_t, a)
         laws.ema(self._D, self._D_t, a)
         self._threshold += a * (self._scalar("threshold") - self._threshold)
         moved = float(np.linalg.norm(state.O_T_EE[12:15] - self._p0))
-        if self.t > 0.0 and moved > self._threshold:
-            raise ControlException(
-                f"{self.name}: distance threshold exceeded ({moved:.4f} m > "
-                f"{self._threshold:.4f} m)"
-            )
+        if self.t > 0.0 and moved > self._threshold[0]:
+            raise self._exceeded(moved)
         J = model.ee_jacobian(state)
         tau_ext = state.tau_J - model.gravity_of(state) - self._tau_ext0
         tau_d = J[:3].T @ self._f

@@ -1,6 +1,8 @@
 """Laws compiled with the model terms they need, each tick in one call on the law's own
 buffers: ``CartesianImpedance``'s step (the input filter, the end effector's Jacobian, the
-law, the Coriolis torques), and the moves' and the streamed targets' tracking, Cartesian
+law, the Coriolis torques), ``AppliedForce``'s and ``Force``'s (the filter, the Jacobian,
+for ``Force`` its distance check, the gravity torques and its PI law), and the moves' and
+the streamed targets' tracking, Cartesian
 (``tracking.PoseImpedance``: the Jacobian, the mass matrix, the damping from the arm's
 inertia, the tracking torque with its feed-forward, the Coriolis torques) and in joint
 space (``tracking.joint_impedance_torque``: the impedance, the friction feed-forward, and
@@ -32,6 +34,7 @@ from panda_py.controllers import _kernels, tracking
 from panda_py.jit import cache, stack
 from panda_py.jit.stack import stack_array
 from panda_py.motion import online
+from panda_py.robots.params import GRAVITY
 
 _KIN = kinematics.compiled_kernels()
 _DYN = dynamics.compiled_kernels()
@@ -40,8 +43,8 @@ if _KIN is None or _DYN is None or _ONLINE is None:  # plain Python: the separat
     raise ImportError("the kinematics, the dynamics or the online generator run without numba")
 
 __all__ = [
-    "cartesian_impedance_step", "joint_tracking_step", "pose_target_step", "pose_tracking_step",
-    "warmup",
+    "applied_force_step", "cartesian_impedance_step", "force_exceeded",
+    "force_step", "joint_tracking_step", "pose_target_step", "pose_tracking_step", "warmup",
 ]  # fmt: skip
 
 KEY = cache.source_key([
@@ -62,6 +65,16 @@ _L = tracking.LAW_LAYOUT
 _SCALARS, _K, _D, _QN = _L["scalars"][0], _L["K"][0], _L["D"][0], _L["q_n"][0]
 _ERR, _PINV, _J, _JP = _L["err"][0], _L["J_pinv"][0], _L["J"][0], _L["J_prev"][0]
 _M, _VIS = _L["M"][0], _L["viscous"][0]
+_ema = _kernels._ema
+# the base's acceleration whose torques hold the arm against gravity [m/s^2]
+# (dynamics.LoadedArm.gravity's)
+_A0, _A1, _A2 = (-GRAVITY[0], -GRAVITY[1], -GRAVITY[2])
+# Force's buffer (30 values: _builtin.Force's views): the filtered force (3) [N], k_p and
+# k_i, the damping D (7) [Nm s/rad] and the threshold [m]; where it started: the end
+# effector's position (3) [m] and the torque sensors' bias (7) [Nm]; the integral of the
+# torque error (7) [Nm s]
+_FORCE_F, _FORCE_GAINS, _FORCE_D, _FORCE_THRESHOLD = 0, 3, 5, 12
+_FORCE_P0, _FORCE_BIAS, _FORCE_INTEGRAL = 13, 16, 23
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -126,6 +139,84 @@ def cartesian_impedance_step(  # type: ignore[no-untyped-def,unused-ignore]
         return
     _torque(O_T_EE, J[0], q, dq, p, quat, K, Kd, q_n, filtered[86], tau)
     _add_coriolis(origin, ca, sa, mass, h, inertia, q, dq, tau)
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def applied_force_step(values, at, applied, D, q, dq, chain, J, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """One tick of ``AppliedForce``: the filter moves ``applied`` (the wrench (6) [N, Nm])
+    and ``D`` (7) [Nm s/rad] toward the inputs ``values`` (at the offsets ``at`` of force,
+    damping and filter_coeff); ``tau = J^T applied - D dq`` into ``tau`` (7,), the
+    Jacobian to the end effector of ``chain`` into ``J`` (1, 6, 7). NaN torques where
+    ``q`` is not finite."""
+    alpha = values[at[2]]
+    _ema(applied, values[at[0] : at[0] + 6], alpha)
+    _ema(D, values[at[1] : at[1] + 7], alpha)
+    if not _jacobian_or_nan(q, chain, J, tau):
+        return
+    for i in range(7):
+        s = 0.0
+        for k in range(6):
+            s += J[0, k, i] * applied[k]
+        tau[i] = s - D[i] * dq[i]
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def force_exceeded(values, at, law, O_T_EE):  # type: ignore[no-untyped-def,unused-ignore]
+    """``Force``'s abort condition of this tick, nothing changed: the distance [m] the end
+    effector ``O_T_EE`` moved from where the law started (``law``: ``Force``'s
+    buffer) where it exceeds the threshold after this tick's filter (the inputs
+    ``values`` at the offsets ``at`` of force, k_p, damping, threshold and
+    filter_coeff), else -1. (Not past it where the distance is NaN, as NumPy's ``>``.)"""
+    thr = law[_FORCE_THRESHOLD]
+    thr += values[at[4]] * (values[at[3]] - thr)
+    d0 = O_T_EE[12] - law[_FORCE_P0]
+    d1 = O_T_EE[13] - law[_FORCE_P0 + 1]
+    d2 = O_T_EE[14] - law[_FORCE_P0 + 2]
+    moved = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    return moved if moved > thr else -1.0
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def force_step(  # type: ignore[no-untyped-def,unused-ignore]
+    values, at, law, t, dt, O_T_EE, q, dq, tau_J, chain, origin, ca, sa, mass, h, inertia, J,
+    tau,
+):  # fmt: skip
+    """One tick of ``Force`` at its time ``t`` [s], ``dt`` [s] after the last, on its
+    buffer ``law`` (``FORCE_*``): the filter moves the force, the gains, the damping and
+    the threshold toward the inputs (as :func:`force_exceeded`); past the threshold (at
+    ``t > 0``) it returns the distance moved [m] (the law aborts: ``tau`` untouched),
+    else -1 with ``tau`` (7,): ``tau_d + k_p (tau_d - tau_ext) + k_i integral - D dq``,
+    ``tau_d = J_v^T f``, ``tau_ext = tau_J - g(q) - bias``, the integral of ``tau_d -
+    tau_ext`` advanced by ``dt``; the Jacobian of ``chain`` into ``J`` (1, 6, 7), the
+    gravity torques of the arm ``origin ... inertia``. NaN torques where ``q`` is not
+    finite."""
+    moved = force_exceeded(values, at, law, O_T_EE)
+    alpha = values[at[4]]
+    _ema(law[_FORCE_F : _FORCE_F + 3], values[at[0] : at[0] + 3], alpha)
+    _ema(law[_FORCE_GAINS : _FORCE_GAINS + 2], values[at[1] : at[1] + 2], alpha)  # k_p, k_i
+    _ema(law[_FORCE_D : _FORCE_D + 7], values[at[2] : at[2] + 7], alpha)
+    law[_FORCE_THRESHOLD] += alpha * (values[at[3]] - law[_FORCE_THRESHOLD])
+    if t > 0.0 and moved >= 0.0:
+        return moved
+    if not _jacobian_or_nan(q, chain, J, tau):
+        return -1.0
+    g = stack_array(7)
+    zero = stack_array(7)
+    a = stack_array(3)
+    for i in range(7):
+        zero[i] = 0.0
+    a[0], a[1], a[2] = _A0, _A1, _A2
+    _rnea(origin, ca, sa, mass, h, inertia, q, zero, zero, a, g)
+    k_p, k_i = law[_FORCE_GAINS], law[_FORCE_GAINS + 1]
+    for i in range(7):
+        tau_ext = tau_J[i] - g[i] - law[_FORCE_BIAS + i]
+        tau_d = 0.0
+        for k in range(3):
+            tau_d += J[0, k, i] * law[_FORCE_F + k]
+        law[_FORCE_INTEGRAL + i] += dt * (tau_d - tau_ext)
+        tau[i] = (tau_d + k_p * (tau_d - tau_ext) + k_i * law[_FORCE_INTEGRAL + i]
+                  - law[_FORCE_D + i] * dq[i])  # fmt: skip
+    return -1.0
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -223,10 +314,16 @@ def _out(ndim: int) -> types.Array:
 
 
 _ARM = (_in(2), _in(1), _in(1), _in(1), _in(2), _in(3))  # LoadedArm.arrays
+_AT = types.Array(types.int64, 1, "C", readonly=True)  # the inputs' offsets
 _SIGNATURES = {
     cartesian_impedance_step: (
-        _in(1), types.Array(types.int64, 1, "C", readonly=True), _out(1), _in(2), _in(1),
-        _in(1), _in(1), _in(1), *_ARM, _out(3), _out(1),
+        _in(1), _AT, _out(1), _in(2), _in(1), _in(1), _in(1), _in(1), *_ARM, _out(3), _out(1),
+    ),
+    applied_force_step: (_in(1), _AT, _out(1), _out(1), _in(1), _in(1), _in(1), _out(3), _out(1)),
+    force_exceeded: (_in(1), _AT, _out(1), _in(1)),
+    force_step: (
+        _in(1), _AT, _out(1), _F8, _F8, _in(1), _in(1), _in(1), _in(1), _in(1), *_ARM, _out(3),
+        _out(1),
     ),
     pose_tracking_step: (
         _in(1), _in(1), _in(1), _in(1), *_ARM, _in(1), _in(1), _in(1), _in(1), _in(1), _in(1),
@@ -265,6 +362,16 @@ def warmup() -> None:
     chain = kinematics.get_kinematics("fer").chain_constants
     cartesian_impedance_step(ctrl._values, at, filtered, np.eye(6), O_T_EE, q, dq, chain,
                              *arm.arrays, np.empty((1, 6, 7)), np.empty(7))  # fmt: skip
+    applied = _builtin.AppliedForce()
+    at = np.array([applied._sig_layout[n][0] for n in _builtin._APPLIED_SIGNALS])
+    applied_force_step(applied._values, at, np.zeros(6), np.zeros(7), q, dq, chain,
+                       np.empty((1, 6, 7)), np.empty(7))  # fmt: skip
+    force = _builtin.Force()
+    at = np.array([force._sig_layout[n][0] for n in _builtin._FORCE_SIGNALS])
+    law_buffer = np.zeros(_builtin._FORCE_SIZE)
+    force_exceeded(force._values, at, law_buffer, O_T_EE)
+    force_step(force._values, at, law_buffer, 1e-3, 1e-3, O_T_EE, q, dq, q, chain, *arm.arrays,
+               np.empty((1, 6, 7)), np.empty(7))  # fmt: skip
     z6 = np.zeros(6)
     law = tracking.PoseImpedance(np.eye(6), 1.0, np.zeros(7), 1.0)
     buf = law.compiled_inputs(1e-3)

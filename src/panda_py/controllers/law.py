@@ -168,7 +168,8 @@ def readonly(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class CompiledTicks:
     """A law's part of a compiled loop's ticks (:meth:`ControlLaw.compiled`): the name of
-    its loop kernel in :mod:`panda_py.rt._tick`, the law's arrays in the kernel's order,
+    its loop kernel (in :mod:`panda_py.rt._tick` or another of
+    ``rt.fastloop.KERNEL_MODULES``), the law's arrays in the kernel's order,
     and the state's fields those arrays were made for (the end effector, the load: a
     state in which they changed goes to :meth:`ControlLaw.step`)."""
 

@@ -74,6 +74,11 @@ class ControlModel(Model):
         total load (``LoadedArm.arrays``), each prepared once per end effector and load."""
         return self._kinematics(state.F_T_EE).chain_constants, self._arm(state).arrays
 
+    def kernel_chain(self, state: StateView) -> FloatArray:
+        """The packed chain to the state's end effector alone (:meth:`kernel_arrays`' first
+        part), for a compiled law that needs no dynamics."""
+        return self._kinematics(state.F_T_EE).chain_constants
+
     def _arm(self, state: StateView) -> dynamics.LoadedArm:
         """The arm with the state's total load, prepared once per load: keyed on the raw
         end-effector and payload fields, combined (``combine_load``) only when they

@@ -69,8 +69,9 @@ IO_SIZE = 24
 # io[STATUS]
 REQUEST, BUDGET_DONE, TIMEOUT, PENDING, NONFINITE, SEND_FAILED, RECEIVE_FAILED = range(1, 8)
 # lay: byte offsets (and element sizes) in the state datagram and the command
+# (tau_J: decoded by the kernels of the laws that read it, rt._tick_wrench)
 (L_MG, L_CTRL, L_MODE, L_Q, L_Q_SIZE, L_DQ, L_DQ_SIZE, L_POSE, L_POSE_SIZE, L_TAU_D,
- L_TAU_D_SIZE, L_CMD_TAU, L_KEY_SPANS) = range(13)  # fmt: skip
+ L_TAU_D_SIZE, L_TAU_J, L_TAU_J_SIZE, L_CMD_TAU, L_KEY_SPANS) = range(15)  # fmt: skip
 LAY_SIZE = L_KEY_SPANS + 2 * 8  # up to eight spans (offset, length) of the model's key
 # the shared block's header words (panda_py.rt.shm.HEADER)
 H_STATE_SEQ, H_STATE_LEN, H_TICKS, H_OUT_SEQ, H_LOG_COUNT, H_REQUESTS = 0, 1, 2, 6, 7, 8

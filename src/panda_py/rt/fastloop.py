@@ -26,7 +26,12 @@ from panda_py.libfranka.state import RobotState
 from panda_py.robots.params import RobotSpec
 from panda_py.rt.shm import STATE_MAX, LogRing, SharedBlock
 
-__all__ = ["FastTicks", "Outcome", "kernels", "warm_up"]
+__all__ = ["KERNEL_MODULES", "FastTicks", "Outcome", "kernel", "kernels", "warm_up"]
+
+
+#: the modules of the loop kernels a law's ``CompiledTicks.kernel`` names: the skeleton's
+#: and most laws' (the first), and the force laws' (on the first's skeleton)
+KERNEL_MODULES = ("panda_py.rt._tick", "panda_py.rt._tick_wrench")
 
 
 def kernels() -> Any:
@@ -34,7 +39,16 @@ def kernels() -> Any:
     numba (or ``PANDA_PY_NO_JIT=1``): imported, and compiled or loaded, on first use."""
     from panda_py.controllers import laws
 
-    return jit.optional("panda_py.rt._tick", requires=laws.fused)
+    return jit.optional(KERNEL_MODULES[0], requires=laws.fused)
+
+
+def kernel(name: str) -> Any:
+    """The loop kernel ``name`` of :data:`KERNEL_MODULES` (where :func:`kernels` runs)."""
+    for module in KERNEL_MODULES:
+        found = getattr(jit.optional(module, requires=kernels), name, None)
+        if found is not None:
+            return found
+    raise ValueError(f"{name}: expected the name of a loop kernel of {KERNEL_MODULES}")
 
 
 @dataclass
@@ -81,7 +95,7 @@ class FastTicks:
                 raise ValueError(f"{name}: a compiled loop reads one byte, got {field.dtype}")
             lay[at] = field.offset
         for at, name in ((tick.L_Q, "q"), (tick.L_DQ, "dq"), (tick.L_POSE, "O_T_EE"),
-                         (tick.L_TAU_D, "tau_J_d")):  # fmt: skip
+                         (tick.L_TAU_D, "tau_J_d"), (tick.L_TAU_J, "tau_J")):  # fmt: skip
             lay[at], lay[at + 1] = _float_field(layout, name)
         lay[tick.L_CMD_TAU] = layout.c_tau.offset
         self.lay = lay
@@ -114,6 +128,7 @@ class FastTicks:
             np.zeros((0, 3), np.int64),
         )
         self._ring_of: LogRing | None = None
+        self._kernels: dict[str, Any] = {}
 
     def _set_key(self, fields: tuple[str, ...], data: bytes) -> None:
         """The spans of ``fields`` in the state, and their bytes in ``data`` (the state the
@@ -142,7 +157,9 @@ class FastTicks:
         while logging. Raises as the Python tick would: ControlException for non-finite
         torques, NetworkException for a failed send."""
         tick, io = self.tick, self.io
-        kernel = getattr(tick, compiled.kernel)
+        loop_kernel = self._kernels.get(compiled.kernel)
+        if loop_kernel is None:
+            loop_kernel = self._kernels[compiled.kernel] = kernel(compiled.kernel)
         out, in_seq = law.compiled_io()
         n = len(data)
         self.buf[:n] = np.frombuffer(data, np.uint8)
@@ -162,7 +179,7 @@ class FastTicks:
         self._set_key(compiled.key_fields, data)
         header, states, outputs, signals = self.shared
         tmp, q, dq, pose, tau_J_d = self.decoded
-        kernel(
+        loop_kernel(
             io, self.lay, self.pfd, self.buf, self.scratch, self.answered, self.key,
             self.torque_io.command, header, states, *self._ring, outputs, signals, self.new,
             *self.finish, compiled.time, out, tmp, q, dq, pose, tau_J_d, *self.views, self.tau,
