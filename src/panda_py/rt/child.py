@@ -467,6 +467,7 @@ class ControlServer:
                         wait_ms=STATE_WAIT_MS,
                     )  # fmt: skip
                     ticks += outcome.ticks
+                    header[HEADER.COMPILED] += outcome.ticks
                     if outcome.then != "wait":
                         pending = outcome.pending
                         break
