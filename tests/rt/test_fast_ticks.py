@@ -501,3 +501,25 @@ def test_a_guarded_move_on_a_function_of_the_state_runs_its_ticks_in_python(kind
         assert rig.law.compiled(TickState(rig.dialect, rig.last), MODEL) is not None
     finally:
         rig.close()
+
+
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_a_guarded_moves_compiled_ticks_take_the_types_the_warm_up_compiled(kind: str) -> None:
+    """The warm-up runs unguarded moves (rt.fastloop.warm_up): a guarded one's arrays
+    (its program and stack among them) have the same numba types, so its first compiled
+    tick compiles nothing."""
+    import numba
+
+    rig = Rig(5, kind)
+    try:
+        state = TickState(rig.dialect, rig.last)
+        plain = rig.law.compiled(state, MODEL)
+        rig.law.until = (Force.z < -5.0) | ~(Elapsed < 3.0)
+        guarded = rig.law.compiled(state, MODEL)
+        assert plain is not None and guarded is not None
+        assert guarded.arrays[-2].shape[0] == 4  # (its program: 2 comparisons, ~, |)
+        assert [numba.typeof(a) for a in guarded.arrays] == [
+            numba.typeof(a) for a in plain.arrays
+        ]
+    finally:
+        rig.close()
