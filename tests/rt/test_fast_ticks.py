@@ -518,8 +518,7 @@ def test_a_guarded_moves_compiled_ticks_take_the_types_the_warm_up_compiled(kind
         guarded = rig.law.compiled(state, MODEL)
         assert plain is not None and guarded is not None
         assert guarded.arrays[-2].shape[0] == 4  # (its program: 2 comparisons, ~, |)
-        assert [numba.typeof(a) for a in guarded.arrays] == [
-            numba.typeof(a) for a in plain.arrays
-        ]
+        types = [numba.typeof(a) for a in plain.arrays]
+        assert [numba.typeof(a) for a in guarded.arrays] == types
     finally:
         rig.close()

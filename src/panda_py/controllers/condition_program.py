@@ -114,7 +114,10 @@ def _emit(node: Any, fields: Any, exact_distance: bool, rows: list[list[float]])
     return True
 
 
-def evaluate(program, stack, data, tmp, elapsed, distance):  # type: ignore[no-untyped-def]
+def evaluate(
+    program: FloatArray, stack: FloatArray, data: NDArray[np.uint8], tmp: FloatArray,
+    elapsed: float, distance: float,
+) -> float:  # fmt: skip
     """``program`` on the state datagram ``data`` (uint8) with the move's ``elapsed``
     and ``distance``: FALSE, UNKNOWN or TRUE. ``stack`` (float64, one a row) and ``tmp``
     (float64, at least one) are its scratch."""
