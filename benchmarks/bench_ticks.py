@@ -11,7 +11,9 @@ when it returns at once (no state, no wait: the Python call's own cost), and the
 cost without it (the difference of the medians), median, p99 and worst [us]. Against the
 law's Python ``step`` alone on the same states (``law.tick`` + ``law.step`` + the
 finishing, what the loop ran per tick before), which includes no receive, send or
-publishing. The machine is a noisy 2-core VM: run it more than once.
+publishing. The moves run twice: as they are, and guarded (``until=``, a condition that
+never holds here: before the conditions were compiled, a guarded move's every tick was
+that Python step). The machine is a noisy 2-core VM: run it more than once.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from panda_py import fci, kinematics
+from panda_py import conditions, fci, kinematics
+from panda_py.conditions import Elapsed, Torque
 from panda_py.controllers import (
     AppliedForce,
     AppliedTorque,
@@ -48,6 +51,8 @@ from panda_py.rt import fastloop
 from panda_py.rt.shm import SharedBlock
 
 VERSION = 10
+# a guarded move's condition (the guarded moves' rows): two comparisons and a norm
+GUARD = (conditions.Force.z < -5.0) | (Torque.norm > 50.0) | (Elapsed > 1e3)
 MG, CTRL, MOVE = 5, 2, int(RobotMode.kMove.value)
 
 
@@ -110,6 +115,10 @@ def _laws(state: Any, model: Any, spec: Any) -> dict[str, Any]:
                 v = np.repeat(v[:1], 200000, axis=0)
             fields[f.name] = v
         out[name] = tracker_for(type(plan)(**fields))
+        # the same, guarded: a condition that never holds here, evaluated every tick
+        guarded = tracker_for(type(plan)(**fields))
+        guarded.until = GUARD
+        out[f"{name} until"] = guarded
     return out
 
 
@@ -120,7 +129,7 @@ def run(n: int, repeat: int) -> None:
     dialect = fci.dialect(VERSION)
     first = TickState(dialect, states[0])
     print(f"compiled ticks in process, protocol v{VERSION}, {n} ticks each, {repeat} repeats [us]")
-    print(f"{'law':<24}{'run() median':>13}{'p99':>8}{'worst':>9}{'tick alone':>12}"
+    print(f"{'law':<30}{'run() median':>13}{'p99':>8}{'worst':>9}{'tick alone':>12}"
           f"{'Python step median':>20}")  # fmt: skip
     for rep in range(repeat):
         robot = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -169,7 +178,7 @@ def run(n: int, repeat: int) -> None:
                     py.append(time.perf_counter() - t0)
                 med, p99, worst = _stats(ticks)
                 alone = med - _stats(empty)[0]
-                print(f"{name:<24}{med:13.1f}{p99:8.1f}{worst:9.1f}{alone:12.1f}"
+                print(f"{name:<30}{med:13.1f}{p99:8.1f}{worst:9.1f}{alone:12.1f}"
                       f"{_stats(py)[0]:20.1f}   (repeat {rep + 1})")  # fmt: skip
                 del fast
         finally:

@@ -82,10 +82,13 @@ def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> No
     import panda_py.rt._tick as loop
     import panda_py.rt._tick_wrench as wrench
     import panda_py.sim._lockstep_jit as lockstep
+    from panda_py.controllers import condition_program
     from panda_py.jit import libc
     from panda_py.sim import compiled
 
-    assert loop.KEY.startswith(jitcache.source_key([Path(loop.__file__), Path(libc.__file__)]))
+    # (the loop's also over the guarded moves' condition program, whose evaluation it compiles)
+    own = [Path(loop.__file__), Path(libc.__file__), Path(condition_program.__file__)]
+    assert loop.KEY.startswith(jitcache.source_key(own))
     # (the force laws' loop kernels, on the loop's skeleton: keyed over it too)
     assert wrench.KEY.startswith(jitcache.source_key([Path(wrench.__file__)]))
     assert loop.KEY[:20] in wrench.KEY

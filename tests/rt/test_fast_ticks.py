@@ -26,8 +26,10 @@ from panda_py.controllers import (
     JointPosition,
     JointTarget,
     TorqueController,
+    conditions,
     laws,
 )
+from panda_py.controllers.conditions import Distance, Elapsed, Errors, Field, when
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.model import ControlModel
 from panda_py.controllers.moves import tracker_for
@@ -55,8 +57,13 @@ OTHER_EE = np.array([[0.0, -1.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0
 
 def _state(dialect: Any, mid: int, q: np.ndarray, dq: np.ndarray, tau_J_d: np.ndarray,
            *, mode: int = MOVE, load: float = 0.0, tau_J: np.ndarray | None = None,
-           F_T_EE: np.ndarray | None = None) -> bytes:  # fmt: skip
+           F_T_EE: np.ndarray | None = None, force: Any = None,
+           error: int | None = None) -> bytes:  # fmt: skip
     r = np.zeros((), dialect.state_dtype)
+    if force is not None:  # the external wrench (a guarded move's conditions read it)
+        r["O_F_ext_hat_K"] = force
+    if error is not None:
+        r["errors"][error] = True
     r["message_id"] = mid
     r["motion_generator_mode"], r["controller_mode"], r["robot_mode"] = MG, CTRL, mode
     r["q"], r["dq"], r["tau_J_d"], r["q_d"] = q, dq, tau_J_d, q
@@ -513,6 +520,63 @@ def test_force_past_its_threshold_is_handed_back_and_raises_as_the_python_tick(
         rig.close()
 
 
+def _pressing(k: int) -> np.ndarray:
+    """The external wrench at tick ``k``: the force's z down 0.1 N a tick from 0 (past
+    -5 N at tick 51), x and y about it, a moment."""
+    return np.array([0.3 * np.sin(k / 7.0), 0.2, -0.1 * k, 0.01 * k, 0.0, -0.5])
+
+
+GUARDS = {
+    "force": (conditions.Force.z < -5.0) | (Elapsed > 10.0),
+    "time": (Elapsed > 0.04) & ~(conditions.Force.z > 0.0),
+    "norm": conditions.Force.norm > 3.3,
+    "field": (Field("dq").norm > 1e3) | (Field("m_load") > 0.25),  # the load from tick 70
+    "errors": Errors & (Distance > 0.0),  # an error flag from tick 60
+}
+
+
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("guard", GUARDS)
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_compiled_guarded_moves_hand_back_the_tick_their_condition_holds(
+    kind: str, guard: str, version: int
+) -> None:
+    """A guarded move runs compiled until its condition holds: that tick is handed back
+    unanswered, and the Python tick decides there as the reference does on every tick
+    (the same tick, the same condition and time, the same torques before and on it)."""
+    rig = Rig(version, kind)
+    rig.law.until = rig.ref.until = GUARDS[guard]
+    try:
+        handed_back = []
+        for k in range(1, 150):
+            data = rig.next_state(force=_pressing(k), load=0.5 if k >= 70 else 0.0,
+                                  error=3 if k >= 60 else None)  # fmt: skip
+            rig.robot.send(data)
+            outcome = rig.run()
+            expected = rig.reference(data, 1e-3)
+            if outcome.then == "pending":
+                handed_back.append(k)
+                assert outcome.pending == data and outcome.ticks == 0
+                sent = rig.python_tick(data, 1e-3)
+            else:
+                assert outcome.then == "wait" and outcome.ticks == 1
+                rec = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+                sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+                rig.last = data
+            np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+            assert rig.law.condition == rig.ref.condition
+            if rig.ref.condition:
+                break
+        fired = rig.ref.condition_time
+        assert rig.ref.condition and rig.law.condition_time == fired
+        assert handed_back[-1] == round(fired * 1e3)  # the tick it held on was Python's
+        assert set(handed_back[:-1]) <= {70}  # besides it, the load's (the model's) only
+        assert len(handed_back) < 3 and handed_back[-1] > 30  # the others ran compiled
+        assert rig.law.stopping and rig.law.compiled(TickState(rig.dialect, data), MODEL) is None
+    finally:
+        rig.close()
+
+
 @pytest.mark.parametrize(("kind", "field"),
                          [("AppliedForce", "q"), ("Force", "q"), ("Force", "tau_J")])  # fmt: skip
 def test_the_force_laws_send_no_non_finite_torques(kind: str, field: str) -> None:
@@ -533,5 +597,39 @@ def test_the_force_laws_send_no_non_finite_torques(kind: str, field: str) -> Non
         rig.robot.settimeout(0.05)
         with pytest.raises(TimeoutError):
             rig.robot.recv(4096)
+    finally:
+        rig.close()
+
+
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_a_guarded_move_on_a_function_of_the_state_runs_its_ticks_in_python(kind: str) -> None:
+    rig = Rig(5, kind)
+    try:
+        rig.law.until = when(lambda state: state.O_F_ext_hat_K[2] < -5.0)
+        assert rig.law.compiled(TickState(rig.dialect, rig.last), MODEL) is None
+        rig.law.until = conditions.Force.z < -5.0
+        rig.law._program_made = False  # (made at the first ask: asked again for the test)
+        assert rig.law.compiled(TickState(rig.dialect, rig.last), MODEL) is not None
+    finally:
+        rig.close()
+
+
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_a_guarded_moves_compiled_ticks_take_the_types_the_warm_up_compiled(kind: str) -> None:
+    """The warm-up runs unguarded moves (rt.fastloop.warm_up): a guarded one's arrays
+    (its program and stack among them) have the same numba types, so its first compiled
+    tick compiles nothing."""
+    import numba
+
+    rig = Rig(5, kind)
+    try:
+        state = TickState(rig.dialect, rig.last)
+        plain = rig.law.compiled(state, MODEL)
+        rig.law.until = (conditions.Force.z < -5.0) | ~(Elapsed < 3.0)
+        guarded = rig.law.compiled(state, MODEL)
+        assert plain is not None and guarded is not None
+        assert guarded.arrays[-2].shape[0] == 4  # (its program: 2 comparisons, ~, |)
+        types = [numba.typeof(a) for a in plain.arrays]
+        assert [numba.typeof(a) for a in guarded.arrays] == types
     finally:
         rig.close()

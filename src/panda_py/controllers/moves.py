@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from panda_py.controllers import laws
+from panda_py.controllers.condition_program import COLUMNS, compile_condition
 from panda_py.controllers.law import CompiledTicks, ControlLaw, StateView, readonly
 from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
@@ -42,6 +43,8 @@ __all__ = ["JointMove", "PoseMove", "Tracker", "joint_capped", "joint_capped_pea
 # a move has no inputs from the user's process (its compiled ticks read none)
 _NO_INPUTS = np.zeros(0)
 _NO_GUARD = np.zeros((0, 2), dtype=np.int64)
+# a move without an ``until`` condition: an empty program (condition_program)
+_NO_PROGRAM = (np.zeros((0, COLUMNS)), np.zeros(1))
 
 FloatArray = NDArray[np.float64]
 
@@ -227,8 +230,15 @@ class Tracker(ControlLaw):
         self.previous: Tracker | None = None  # the law it blends from (see _blend_from)
         self.blend_start = 0.0  # [s] where in BLEND_TIME its blend began (see _blend_from)
         self.ref: tuple[FloatArray, ...] = ()  # this tick's reference (the subclass's space)
+        # the condition as the compiled ticks evaluate it: (program, stack), or None where
+        # it cannot be compiled, once made (see _program)
+        self._until_program: tuple[FloatArray, FloatArray] | None = None
+        self._program_made = False
 
     replaceable = True
+    # whether the compiled ticks compute the move's distance to its goal to the bit as
+    # step does (condition_program.compile_condition's exact_distance)
+    exact_distance = False
     # [rad/s], [1/s] the friction's cancelling: its speed and error rate (see _times)
     friction: tuple[float, float] = (FRICTION_SPEED, FRICTION_ERROR_RATE)
 
@@ -373,11 +383,29 @@ class Tracker(ControlLaw):
     def at_goal(self, state: StateView) -> bool:
         raise NotImplementedError
 
+    def _program(self, state: StateView) -> tuple[FloatArray, FloatArray] | None:
+        """The ``until`` condition as the compiled ticks evaluate it (a program and its
+        stack: :mod:`.condition_program`), compiled at the first ask for the state's
+        protocol version; empty without a condition, None where it cannot be compiled
+        (a function of the state: every tick is Python's)."""
+        if self.until is None:
+            return _NO_PROGRAM
+        if not self._program_made:
+            self._program_made = True
+            version = getattr(state, "version", None)
+            rows = None
+            if isinstance(version, int):
+                rows = compile_condition(self.until, version, exact_distance=self.exact_distance)
+            if rows is not None:
+                self._until_program = (rows, np.zeros(max(1, len(rows))))
+        return self._until_program
+
     def _follows_plan(self, model: Any) -> bool:
         """Whether its ticks are the plan's alone from here until the trajectory's end: no
-        lead-in, stop, blend or condition (those run in Python), numba running the laws."""
+        lead-in, stop, blend or fired condition (those run in Python), numba running the
+        laws. (Its condition, if any, the compiled ticks evaluate: see _program.)"""
         return (
-            not (self.leading or self.stopping or self.until is not None)
+            not (self.leading or self.stopping)
             and self.previous is None
             and self.successor is None
             and self.t_end < math.inf
@@ -417,6 +445,7 @@ class JointMove(Tracker):
     weight (SETTLE_INTEGRAL; panda-py stops there)."""
 
     friction = (MOVE_FRICTION_SPEED, MOVE_ERROR_RATE)
+    exact_distance = True  # (the largest joint's: no rounding to differ in)
 
     def __init__(self, plan: JointPlan) -> None:
         super().__init__(len(plan.q), plan.dq_threshold)
@@ -519,7 +548,8 @@ class JointMove(Tracker):
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """While it follows its plan: ``rt._tick.joint_move_ticks``."""
-        if not self._follows_plan(model):
+        program = self._program(state)
+        if program is None or not self._follows_plan(model):
             return None
         chain, arm = model.kernel_arrays(state)
         if self._dq_law is None:
@@ -528,6 +558,7 @@ class JointMove(Tracker):
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
             readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
+            *program,
         )  # fmt: skip
         return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -694,14 +725,17 @@ class PoseMove(Tracker):
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """While it follows its plan: ``rt._tick.pose_move_ticks``, on its tracking law's
         buffer (after that law's first tick)."""
-        if not self._follows_plan(model) or self.refine or self.law.J_prev is None:
+        program = self._program(state)
+        if program is None or not self._follows_plan(model):
+            return None
+        if self.refine or self.law.J_prev is None:
             return None
         chain, arm = model.kernel_arrays(state)
         self._samples = np.array([self.k0, self.last, self.law.damping_due, DAMPING_TICKS])
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
             readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
-            model.coulomb, self._times(), self._samples,
+            model.coulomb, self._times(), self._samples, *program,
         )  # fmt: skip
         return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip

@@ -77,7 +77,7 @@ class HEADER:
     OUT_SEQ = 6  # latch sequence of the controller outputs (writer: control process)
     LOG_COUNT = 7  # states appended to the log ring so far
     REQUESTS = 8  # requests sent on the channel so far (user's process, after each send)
-    COMPILED = 9  # of the ticks so far, those the compiled loop ran (rt.fastloop)
+    COMPILED = 9  # of TICKS, those the compiled loop ran (rt.fastloop): which path ran
     COUNT = 16
 
 
