@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from panda_py.controllers.plans import Progress
+from panda_py.controllers.state import StateView
 from panda_py.fci import state_float_fields
 
 __all__ = [
@@ -81,11 +82,11 @@ class Condition:
     """Something that holds, or not, on a tick's state and the move's :class:`Progress`.
     Combine with ``&``, ``|``, ``~``; ``describe()`` (or ``repr``) prints it."""
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         """Whether the condition holds on ``state`` (a RobotState) and ``progress``."""
         raise NotImplementedError
 
-    def which(self, state: Any, progress: Any) -> Condition | None:
+    def which(self, state: StateView, progress: Progress) -> Condition | None:
         """The part of this condition that holds (of an ``|``, the first alternative that
         does; otherwise the whole), or None if it does not hold."""
         return self if self.holds(state, progress) else None
@@ -143,7 +144,7 @@ class All(Condition):
 
     parts: tuple[Condition, ...]
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         for part in self.parts:
             if not part.holds(state, progress):
                 return False
@@ -160,13 +161,13 @@ class Any_(Condition):  # noqa: N801 (``Any`` is typing's)
 
     parts: tuple[Condition, ...]
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         for part in self.parts:
             if part.holds(state, progress):
                 return True
         return False
 
-    def which(self, state: Any, progress: Any) -> Condition | None:
+    def which(self, state: StateView, progress: Progress) -> Condition | None:
         for part in self.parts:
             held = part.which(state, progress)
             if held is not None:
@@ -183,7 +184,7 @@ class Not(Condition):
 
     part: Condition
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         return not self.part.holds(state, progress)
 
     def __invert__(self) -> Condition:
@@ -251,7 +252,7 @@ class Quantity(_Comparable):
                 f"start, stop: expected 0 <= start < stop <= {size}, got {self.start}, {self.stop}"
             )
 
-    def value(self, state: Any, progress: Any) -> float:
+    def value(self, state: StateView, progress: Progress) -> float:
         """The quantity on ``state`` and ``progress`` (in the field's units)."""
         if self.index is not None:
             return float(getattr(state, self.source)[self.index])
@@ -294,7 +295,7 @@ class Compare(Condition):
     op: str
     threshold: float
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         return _OPS[self.op](self.quantity.value(state, progress), self.threshold)
 
     def __repr__(self) -> str:
@@ -399,7 +400,7 @@ class _Vector3(Field):
 class _ErrorsHold(Condition):
     """Holds when the robot reports any error (``current_errors``)."""
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         raw = getattr(state, "raw_fields", None)
         if raw is not None:
             # a RobotState: its error flags' bytes (0 or 1 each), without decoding the
@@ -424,7 +425,7 @@ class _ErrorsHold(Condition):
 class _When(Condition):
     function: Callable[[Any], Any]
 
-    def holds(self, state: Any, progress: Any) -> bool:
+    def holds(self, state: StateView, progress: Progress) -> bool:
         return bool(self.function(state))
 
     def __repr__(self) -> str:

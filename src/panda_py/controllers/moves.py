@@ -355,7 +355,7 @@ class Tracker(ControlLaw):
             self.duration = self.t + (self.last - self.k0) * PERIOD
             self.t_end = self.duration
 
-    def check_until(self, state: Any, progress: Any) -> None:
+    def check_until(self, state: StateView, progress: Progress) -> None:
         """Stop gently (or hand over to ``then``) once the condition holds."""
         if self.until is None or self.stopping or self.successor is not None:
             return
@@ -400,7 +400,7 @@ class Tracker(ControlLaw):
                 self._until_program = (rows, np.zeros(max(1, len(rows))))
         return self._until_program
 
-    def _follows_plan(self, model: Any) -> bool:
+    def _follows_plan(self, model: ControlModel) -> bool:
         """Whether its ticks are the plan's alone from here until the trajectory's end: no
         lead-in, stop, blend or fired condition (those run in Python), numba running the
         laws. (Its condition, if any, the compiled ticks evaluate: see _program.)"""

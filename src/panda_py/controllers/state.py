@@ -56,6 +56,9 @@ class StateView(Protocol):
     @property
     def I_load(self) -> FloatArray: ...
 
+    @property
+    def current_errors(self) -> object: ...  # libfranka's Errors: truthy when any is set
+
     def raw_fields(self, names: tuple[str, ...]) -> bytes:
         """The raw bytes of the fields ``names``: a cheap key of what they hold."""
         ...

@@ -87,7 +87,7 @@ class _Streamed(TorqueController):
             count = float(self._sent)
         self._send(0, [*values, count])
 
-    def _limits(self, model: Any) -> tuple[OnlineLimits, OnlineLimits]:
+    def _limits(self, model: ControlModel) -> tuple[OnlineLimits, OnlineLimits]:
         """Following and stopping limits (control process)."""
         raise NotImplementedError
 
