@@ -27,7 +27,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from panda_py.learning.registry import ENVIRONMENTS, register
+from panda_py.learning import registry
 
 if TYPE_CHECKING:
     from panda_py.learning.actions import ActionKind
@@ -104,6 +104,10 @@ __all__ = [
 ]
 
 
+#: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
+ENVIRONMENTS = registry.ENVIRONMENTS
+
+
 def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
     if module is None:
@@ -117,4 +121,4 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
-register()
+registry.register()
