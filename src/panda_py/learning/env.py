@@ -63,12 +63,12 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
     observation's task part and the cube's place.
 
     ``backend``: ``"fast"`` (a :class:`~panda_py.learning.world.FastWorld` of ``robot``,
-    made and closed by the environment) or a :class:`Backend` (e.g. a
-    :class:`~panda_py.learning.arm.RobotArm`, which stays its owner's to close: several
-    environments may run on one robot, one after the other). ``action``: an
-    :class:`ActionKind` or its value. ``policy_rate`` [Hz], 1 to 100. ``speed_factor``:
-    the share of the robot's velocity, acceleration and jerk limits the targets are
-    followed with."""
+    with the cube where the task uses it, made and closed by the environment) or a
+    :class:`Backend` (e.g. a :class:`~panda_py.learning.arm.RobotArm`, which stays its
+    owner's to close: several environments may run on one robot, one after the other).
+    ``action``: an :class:`ActionKind` or its value. ``policy_rate`` [Hz], 1 to 100.
+    ``speed_factor``: the share of the robot's velocity, acceleration and jerk limits the
+    targets are followed with."""
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
     #: whether the task uses the hand (and the hand's value ends each action)
@@ -110,7 +110,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
                 )
             from panda_py.learning.world import FastWorld
 
-            backend = FastWorld(robot)
+            backend = FastWorld(robot, cube=self.uses_cube)
         elif not isinstance(backend, Backend):
             raise ValueError(
                 f"backend: expected 'fast' or a Backend (e.g. RobotArm(hostname)), got "

@@ -55,6 +55,7 @@ class CompiledTick:
         self.gains = np.array((*gripper.SERVO_GAINS, gripper.FORCE_RATE * DT, DT))
         robot_geom = np.asarray(ph.robot_geoms, dtype=np.uint8)
         self._contacts = (*compiled.contact_views(ph.model, ph.data), robot_geom)
+        self._cull = compiled.contact_cull(ph.model, ph.data)
         self._fk = np.zeros((2, 4, 4))
         self._scratch = np.zeros((4, 7))
         self._off = np.array([core.state_offsets[n][0] for n in compiled.FILL_FIELDS],
@@ -131,6 +132,15 @@ class CompiledTick:
             np.frombuffer(core.success, dtype=np.uint8), self._fk, core.chain_constants(),
             links, const, self._scratch, measured,
         )  # fmt: skip
+
+    @property
+    def contact_cull(self) -> tuple[np.ndarray, ...]:
+        """The arrays with which a caller's compiled loop skips the collision detection of
+        a tick in which no contact can arise (:func:`panda_py.sim.compiled.contact_cull`:
+        ``clear_of_contacts(cull)`` before the tick, ``restore_contacts(cull)`` after
+        it where it was clear); never clear where the scene has more than the robot and
+        fixed geoms (the cube)."""
+        return self._cull
 
     @property
     def physics(self) -> Any:
