@@ -7,6 +7,7 @@ the part of the state's fill it left). Used by :class:`~panda_py.sim.inprocess.I
 from __future__ import annotations
 
 import math
+import operator
 from typing import Any
 
 import numpy as np
@@ -91,7 +92,7 @@ class CompiledTick:
         # the arguments anew; otherwise the last ones (the same arrays, updated in place)
         key = (core.q_hold, core.tau_J_d, core.joint, core.cart, core.success,
                core.elbow_c, core.chain_constants())  # fmt: skip
-        if self._key is None or any(a is not b for a, b in zip(key, self._key, strict=True)):
+        if self._key is None or not all(map(operator.is_, key, self._key)):
             self._args = self._arguments(core.measured_limits())
             self._key = key
         return self._args
