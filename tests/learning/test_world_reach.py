@@ -66,6 +66,20 @@ def test_the_arm_reaches_as_in_the_world_with_the_cube() -> None:
     assert without.robot.physics.model.nbody == with_cube.robot.physics.model.nbody - 1
 
 
+def test_the_search_for_islands_left_out_changes_nothing() -> None:
+    """The world without the cube solves its constraints without MuJoCo's search for
+    islands (one island: the robot): the same episodes, bit for bit, as with it."""
+    island = int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
+    without = FastWorld(cube=False)
+    searched = FastWorld(cube=False)
+    assert without.robot.physics.model.opt.disableflags & island
+    searched.robot.physics.model.opt.disableflags &= ~island
+    q_a, states_a, ends_a = _reach(without, 150)
+    q_b, states_b, ends_b = _reach(searched, 150)
+    assert np.array_equal(q_a, q_b) and np.array_equal(states_a, states_b)
+    assert ends_a == ends_b
+
+
 def test_the_compiled_ticks_skip_the_collision_detection_and_equal_the_reference() -> None:
     _compiled_or_skip()
     fast, slow = FastWorld(cube=False), FastWorld(cube=False, compiled=False)
@@ -79,7 +93,8 @@ def test_the_compiled_ticks_skip_the_collision_detection_and_equal_the_reference
     # above it at the lowest)
     assert culled == fast._fast.compiled_ticks > 7000
     # and the detection is on again after every tick
-    assert fast.robot.physics.model.opt.disableflags == 0
+    contact = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    assert not fast.robot.physics.model.opt.disableflags & contact
 
 
 def test_a_contact_with_the_table_is_found_as_before() -> None:
