@@ -45,6 +45,8 @@ _pose_target_step = _FUSED.pose_target_step
 _joint_tracking_step = _FUSED.joint_tracking_step
 _sample = _ONLINE.sample
 _torque_tick = sim.torque_tick
+_clear_of_contacts = sim.clear_of_contacts
+_restore_contacts = sim.restore_contacts
 _ROBOT = int(sim.Tick.ROBOT)
 
 
@@ -109,15 +111,20 @@ def _advance(s):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot):  # type: ignore[no-untyped-def,unused-ignore]
+def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot, cull):  # type: ignore[no-untyped-def,unused-ignore]
     """The law's torques ``tau`` finished into ``cmd`` (``laws.JointWalls.finalize``), the
-    time published, the robot's tick: a :class:`Stop` and whether the tick completed."""
+    time published, the robot's tick (its collision detection skipped where no contact
+    can arise: ``cull``, :func:`panda_py.sim.compiled.contact_cull`; the same step): a
+    :class:`Stop` and whether the tick completed."""
     table, scale, flags, tau_max = walls
     if not _finalize(tau, q, dq, tau_J_d, table, scale, flags, s[S_DTAU_MAX], tau_max,
                      s[S_GAIN], cmd):  # fmt: skip
         return _NON_FINITE, False
     out[0] = s[S_T]
+    culled = _clear_of_contacts(cull)
     status = _torque_tick(cmd, *robot)
+    if culled:
+        _restore_contacts(cull)
     if status == _ROBOT:
         return _AT_ROBOT, False
     return status, True
@@ -125,7 +132,7 @@ def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot):  # type: ignore[no-
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot
+    n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot, cull
 ):  # fmt: skip
     """Up to ``n`` ticks of ``CartesianTarget`` (its fused step,
     ``_fused.pose_target_step``) on the robot: (ticks completed, :class:`Stop`).
@@ -134,7 +141,8 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     tracking's buffer; ``arm``: the chain, the arm's parameters, armature, Coulomb
     friction; ``reads``: the state buffer, offsets, float32 flags; ``walls``: the
     finishing's table, its state and the torque limits; ``buf``: q, dq, O_T_EE,
-    tau_J_d, tau, cmd; ``robot``: the robot's compiled tick's arguments."""
+    tau_J_d, tau, cmd; ``robot``: the robot's compiled tick's arguments; ``cull``: its
+    contacts' cull (``CompiledTick.contact_cull``)."""
     traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist, accel = gen
     chain, origin, ca, sa, mass, h, inertia, armature, coulomb = arm
     sb, at, single = reads
@@ -166,7 +174,7 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
         _pose_target_step(tick, traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist,
                           accel, O_T_EE, q, dq, chain, origin, ca, sa, mass, h, inertia,
                           armature, coulomb, law, target, out, tau)  # fmt: skip
-        stop, completed = _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot)
+        stop, completed = _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot, cull)
         if stop != _DONE:
             return k + 1 if completed else k, stop
     return n, _DONE
@@ -174,7 +182,7 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    n, s, gen, gains, arm, target, out, reads, walls, buf, robot
+    n, s, gen, gains, arm, target, out, reads, walls, buf, robot, cull
 ):  # fmt: skip
     """Up to ``n`` ticks of ``JointTarget`` (its generator's compiled step, the joint
     impedance with its feed-forward, ``_fused.joint_tracking_step``, its outputs) on the
@@ -207,7 +215,7 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             lag = max(lag, abs(target[i] - position[i]))
         out[o + 21] = lag
         out[o + 22] = s[S_STALE]
-        stop, completed = _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot)
+        stop, completed = _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot, cull)
         if stop != _DONE:
             return k + 1 if completed else k, stop
     return n, _DONE

@@ -56,12 +56,17 @@ class FastWorld(Backend):
     bit for bit. It speaks the newest protocol version its robot's systems do (the
     state layout and limits a ``Panda`` on ``panda-sim`` would get). ``compiled``: run
     the streamed controllers' ticks compiled where numba runs (False: always in
-    Python, the reference)."""
+    Python, the reference). ``cube``: False leaves the cube out (a task that never
+    uses it, as reaching: the arm moves as it would beside the cube wherever it does
+    not touch it, and a tick costs less: no contacts of the cube on the table to find
+    and solve, and, compiled, no collision detection while the arm is clear of the
+    table)."""
 
     deterministic = True
 
-    def __init__(self, robot: str = "fer", *, compiled: bool = True) -> None:
-        self.robot = InProcessRobot(robot, compiled=compiled)
+    def __init__(self, robot: str = "fer", *, compiled: bool = True, cube: bool = True) -> None:
+        self.robot = InProcessRobot(robot, compiled=compiled, cube=cube)
+        self.has_cube = self.robot.has_cube
         self.spec = self.robot.spec
         self.spec_name = self.spec.name
         self.version = self.robot.version
@@ -187,8 +192,9 @@ class FastWorld(Backend):
 
     def snapshot(self) -> Snapshot:
         r = self.robot
+        cube = r.body_position("cube") if self.has_cube else None
         return Snapshot(q=r.q, dq=r.dq, O_T_EE=r.O_T_EE, gripper_width=r.gripper_width,
-                        cube=r.body_position("cube"), time_ms=self.ticks)  # fmt: skip
+                        cube=cube, time_ms=self.ticks)  # fmt: skip
 
     def failure(self) -> str | None:
         return self._fail
@@ -213,7 +219,10 @@ class FastWorld(Backend):
         self._fail = None
 
     def place_cube(self, position: Any) -> None:
-        """Put the cube, upright and at rest, with its centre at ``position`` [m]."""
+        """Put the cube, upright and at rest, with its centre at ``position`` [m]
+        (ValueError in a world without it)."""
+        if not self.has_cube:
+            raise ValueError("place_cube: this world has no cube (FastWorld(cube=True))")
         self.robot.place_body("cube", position)
 
     def recover(self) -> None:
@@ -254,6 +263,7 @@ class _CompiledLoop:
         if robot is None:
             raise ImportError("the in-process robot runs without numba")
         self.robot = robot
+        self._cull = robot.contact_cull
         core = world.robot.core
         fields = world.dialect.state_dtype.fields
         assert fields is not None
@@ -321,14 +331,15 @@ class _CompiledLoop:
             ticks, stop = self._call(k.pose_target_ticks, n, s, ctrl._tick,
                                      ctrl._gen.sampling(), ctrl._law.buffer,
                                      (self._chain, *self._arm), ctrl._target, ctrl._out,
-                                     self._reads, self._walls, self._buf, args)  # fmt: skip
+                                     self._reads, self._walls, self._buf, args,
+                                     self._cull)  # fmt: skip
         else:
             g = ctrl._gen
             gen = (g._packed, g.position, g.velocity, g.acceleration)
             ticks, stop = self._call(k.joint_target_ticks, n, s, gen,
                                      (ctrl.stiffness, ctrl.damping), self._arm,
                                      ctrl.signal("q"), ctrl._out, self._reads, self._walls,
-                                     self._buf, args)  # fmt: skip
+                                     self._buf, args, self._cull)  # fmt: skip
         self._save(ctrl)
         self.compiled_ticks += ticks
         world.robot.ticks += ticks

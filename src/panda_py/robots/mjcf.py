@@ -247,12 +247,15 @@ def _pump_welds(bodies: list[str]) -> str:
     return f"<equality>{welds}</equality>" if welds else ""
 
 
-def _scene_xml() -> str:
+def _scene_xml(cube: bool = True) -> str:
     c = CUBE_SIZE / 2
     inertia = CUBE_MASS * CUBE_SIZE**2 / 6  # [kg m^2] solid cube
-    return f"""
+    table = f"""
     <geom name="table" type="box" size="0.8 0.8 0.02" pos="0.4 0 {_f(TABLE_TOP_Z - 0.02)}"
-          {_WORLD} rgba="0.6 0.45 0.3 1" {_TABLE}/>
+          {_WORLD} rgba="0.6 0.45 0.3 1" {_TABLE}/>"""
+    if not cube:
+        return table
+    return f"""{table}
     <body name="cube" pos="{_vec(CUBE_POSITION)}">
       <freejoint name="cube_joint"/>
       <inertial pos="0 0 0" mass="{_f(CUBE_MASS)}" diaginertia="{_vec([inertia] * 3)}"/>
@@ -293,8 +296,10 @@ def model_xml(
     scene: bool = True,
     extra: str | Path | None = None,
     end_effector: EndEffector | str = EndEffector.HAND,
+    cube: bool = True,
 ) -> str:
-    """The MJCF text of the robot (and, with ``scene``, a table and a graspable cube).
+    """The MJCF text of the robot (and, with ``scene``, a table and, with ``cube``, a
+    graspable cube on it).
 
     ``extra`` names an MJCF file whose ``<worldbody>`` children (and ``<asset>`` entries)
     are added to the scene. ``end_effector`` is what the flange carries (``hand=False``:
@@ -302,9 +307,9 @@ def model_xml(
     """
     spec = get_robot(robot)
     ee = get_end_effector(end_effector)
-    world = _scene_xml() if scene else ""
+    world = _scene_xml(cube) if scene else ""
     assets = ""
-    free = ["cube"] if scene else []
+    free = ["cube"] if scene and cube else []
     if extra is not None:
         extra_bodies, assets, extra_free = _extra_worldbody(extra)
         world += extra_bodies
@@ -335,10 +340,12 @@ def build_model(
     scene: bool = False,
     extra: str | Path | None = None,
     end_effector: EndEffector | str = EndEffector.HAND,
+    cube: bool = True,
 ) -> mujoco.MjModel:
     """Compile :func:`model_xml` into a ``mujoco.MjModel`` (imports MuJoCo on first use)."""
     import mujoco
 
     return mujoco.MjModel.from_xml_string(
-        model_xml(robot, hand=hand, scene=scene, extra=extra, end_effector=end_effector)
-    )
+        model_xml(robot, hand=hand, scene=scene, extra=extra, end_effector=end_effector,
+                  cube=cube)
+    )  # fmt: skip

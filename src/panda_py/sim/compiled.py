@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import enum
+import math
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +38,10 @@ _KIN = kinematics.compiled_kernels()
 if _KIN is None:  # plain Python: the robot ticks in NumPy
     raise ImportError("the kinematics run without numba")
 
-__all__ = ["MAX_CONTACTS", "Tick", "contact_views", "libmujoco_path", "torque_tick"]
+__all__ = [
+    "MAX_CONTACTS", "Tick", "clear_of_contacts", "contact_cull", "contact_views", "libmujoco_path",
+    "torque_tick",
+]  # fmt: skip
 
 
 def libmujoco_path() -> Path:
@@ -67,6 +71,19 @@ def _words(address: int, n: int, ctype: Any) -> np.ndarray:
     return np.ctypeslib.as_array((ctype * n).from_address(address))
 
 
+# A world with contacts whatever the robot's scene (mjData's layout, where the contacts'
+# count and array are found, is the same for every model): a box resting on a plane (4
+# contacts), and a double pendulum whose joints have dry friction and are coupled, so the
+# counts side by side (ncon 4, ne 1, nf 2, nl 0, nefc 27) are found nowhere else
+_PROBE = """<mujoco><worldbody><geom type="plane" size="1 1 0.1"/>
+<body pos="0 0 0.05"><freejoint/><geom type="box" size="0.1 0.1 0.1" condim="4"/></body>
+<body pos="2 0 1"><joint name="a" frictionloss="1"/>
+<geom type="sphere" size="0.1" contype="0" conaffinity="0"/>
+<body pos="0 0 -0.3"><joint name="b" frictionloss="1"/>
+<geom type="sphere" size="0.1" contype="0" conaffinity="0"/></body></body>
+</worldbody><equality><joint joint1="a" joint2="b"/></equality></mujoco>"""
+
+
 def contact_views(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, ...]:
     """Live views of what MuJoCo's Python API gives only as copies, for a compiled tick
     to see the contacts ``mj_step`` found: ``data``'s contact count (int32 (1,)), its
@@ -75,13 +92,14 @@ def contact_views(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarra
     holds (the arena's start: MuJoCo allocates the contacts first), with that address
     (int64 (1,)). Found in mjData by what the API reports (the counts ncon, ne, nf, nl,
     nefc side by side; the pointers ``arena`` and ``qpos``, as mjdata.h lays them out),
-    on a scratch copy with contacts; ImportError where they are not where they should
-    be (another MuJoCo): the reference then looks."""
-    scratch = mujoco.MjData(model)
-    mujoco.mj_copyData(scratch, model, data)
-    mujoco.mj_forward(model, scratch)
+    on the data of a world with contacts (:data:`_PROBE`: ``model``'s scene may have
+    none); ImportError where they are not where they should be (another MuJoCo): the
+    reference then looks."""
+    probe = mujoco.MjModel.from_xml_string(_PROBE)
+    scratch = mujoco.MjData(probe)
+    mujoco.mj_forward(probe, scratch)
     if scratch.ncon == 0:
-        raise ImportError("no contact to find MuJoCo's contact array by (the scene's cube)")
+        raise ImportError("no contact to find MuJoCo's contact array by")
     counts = np.array([scratch.ncon, scratch.ne, scratch.nf, scratch.nl, scratch.nefc],
                       dtype=np.int32)  # fmt: skip
     at = -1
@@ -135,6 +153,107 @@ _fill_state = _tick_jit.fill_state
 _joint_limit_bits = _tick_jit.joint_limit_bits
 _torque_in_limits = _tick_jit.torque_in_limits
 _measured_in_limits = _tick_jit.measured_in_limits
+
+
+# -- contacts that cannot happen this tick --------------------------------------------
+# How far a geom of the model can move in one tick at most [m], with room to spare: the
+# arm's fastest point moves under 25 mm in 1 ms at its joints' speed limits (a robot
+# faster than them stops in a reflex: the measured-state check), its fingers far less.
+CULL_MARGIN = 0.05
+_DSBL_CONTACT = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+
+
+def _option_flags(model: mujoco.MjModel) -> np.ndarray:
+    """A live view (int32 (1,)) of ``model.opt.disableflags``: found after the option's
+    gravity (a view the API gives) as the one word that follows two values set through
+    the API; ImportError where it is not there (another MuJoCo)."""
+    start = int(model.opt.gravity.__array_interface__["data"][0])
+    words = _words(start, 128, ctypes.c_int32)
+    saved = model.opt.disableflags
+    try:
+        model.opt.disableflags = 0x15A5A
+        first = set(np.flatnonzero(words == 0x15A5A).tolist())
+        model.opt.disableflags = 0x0A5A5
+        second = set(np.flatnonzero(words == 0x0A5A5).tolist())
+    finally:
+        model.opt.disableflags = saved
+    both = sorted(first & second)
+    if len(both) != 1:
+        raise ImportError("MuJoCo's option flags not found in mjModel")
+    return _words(start + 4 * both[0], 1, ctypes.c_int32)
+
+
+def contact_cull(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray, ...]:
+    """What :func:`clear_of_contacts` reads to tell a tick in which no contact can arise,
+    so that ``mj_step`` may skip its collision detection (``mjDSBL_CONTACT``; it would
+    find none: the same step, for less): ``model.opt.disableflags`` (a live view), the
+    data's geom positions and rotations, the geoms' bounding boxes (``geom_aabb``) and
+    margins, the geoms that move (collidable, not fixed to the world) and (2,) the floor,
+    the highest point [m] of the fixed geoms the moving ones may touch, with the count
+    of ticks found clear (diagnostics). A moving
+    geom may touch one only below the floor plus :data:`CULL_MARGIN`. Where the moving
+    geoms may touch each other (a free object beside the robot), where explicit pairs
+    or mocap bodies are, the floor is infinite: never clear."""
+    m = model
+    try:
+        flags, found = _option_flags(m), True
+    except ImportError:  # (never clear: the floor infinite)
+        flags, found = np.zeros(1, dtype=np.int32), False
+    body = m.geom_bodyid
+    fixed = m.body_weldid[body] == 0
+    collides = (m.geom_contype | m.geom_conaffinity) != 0
+    moving = np.flatnonzero(collides & ~fixed).astype(np.int64)
+    static = np.flatnonzero(collides & fixed)
+    weld = m.body_weldid[body]
+
+    def touch(a: int, b: int) -> bool:
+        return bool(m.geom_contype[a] & m.geom_conaffinity[b]
+                    or m.geom_contype[b] & m.geom_conaffinity[a])  # fmt: skip
+
+    floor = -math.inf
+    apart = all(not touch(a, b) for a in moving for b in moving if weld[body[a]] != weld[body[b]])
+    if m.npair or m.nmocap or not apart or not found:
+        floor = math.inf
+    else:
+        placed = mujoco.MjData(m)  # the fixed geoms' places (they never change)
+        mujoco.mj_kinematics(m, placed)
+        for g in static:
+            if any(touch(int(g), int(a)) for a in moving):
+                R = placed.geom_xmat[g].reshape(3, 3)
+                centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+                top = placed.geom_xpos[g, 2] + R[2] @ centre + np.abs(R[2]) @ half
+                floor = max(floor, float(top + m.geom_margin[g]))
+    return (flags, data.geom_xpos, data.geom_xmat, m.geom_aabb, m.geom_margin,
+            moving, np.array([floor, 0.0]))  # fmt: skip
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def clear_of_contacts(cull):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether no contact can arise in the next ``mj_step`` (every moving geom's lowest
+    point, where the last step left it, :data:`CULL_MARGIN` above the floor: see
+    :func:`contact_cull`); where so, its collision detection is switched off until
+    :func:`restore_contacts`."""
+    flags, xpos, xmat, aabb, margin, moving, floor = cull
+    if flags[0] & _DSBL_CONTACT:  # (off already: nothing to switch)
+        return False
+    level = floor[0] + CULL_MARGIN
+    for k in range(moving.shape[0]):
+        g = moving[k]
+        low = xpos[g, 2] - margin[g]
+        for j in range(3):
+            r = xmat[g, 6 + j]
+            low += r * aabb[g, j] - abs(r) * aabb[g, 3 + j]
+        if not low > level:
+            return False
+    flags[0] |= _DSBL_CONTACT
+    floor[1] += 1.0
+    return True
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def restore_contacts(cull):  # type: ignore[no-untyped-def,unused-ignore]
+    """Collision detection on again after :func:`clear_of_contacts` switched it off."""
+    cull[0][0] &= ~_DSBL_CONTACT
 
 
 # the state fields the fill writes (in the order of its offsets) and its flags

@@ -7,6 +7,7 @@ the part of the state's fill it left). Used by :class:`~panda_py.sim.inprocess.I
 from __future__ import annotations
 
 import math
+import operator
 from typing import Any
 
 import numpy as np
@@ -55,6 +56,7 @@ class CompiledTick:
         self.gains = np.array((*gripper.SERVO_GAINS, gripper.FORCE_RATE * DT, DT))
         robot_geom = np.asarray(ph.robot_geoms, dtype=np.uint8)
         self._contacts = (*compiled.contact_views(ph.model, ph.data), robot_geom)
+        self._cull = compiled.contact_cull(ph.model, ph.data)
         self._fk = np.zeros((2, 4, 4))
         self._scratch = np.zeros((4, 7))
         self._off = np.array([core.state_offsets[n][0] for n in compiled.FILL_FIELDS],
@@ -90,7 +92,7 @@ class CompiledTick:
         # the arguments anew; otherwise the last ones (the same arrays, updated in place)
         key = (core.q_hold, core.tau_J_d, core.joint, core.cart, core.success,
                core.elbow_c, core.chain_constants())  # fmt: skip
-        if self._key is None or any(a is not b for a, b in zip(key, self._key, strict=True)):
+        if self._key is None or not all(map(operator.is_, key, self._key)):
             self._args = self._arguments(core.measured_limits())
             self._key = key
         return self._args
@@ -131,6 +133,15 @@ class CompiledTick:
             np.frombuffer(core.success, dtype=np.uint8), self._fk, core.chain_constants(),
             links, const, self._scratch, measured,
         )  # fmt: skip
+
+    @property
+    def contact_cull(self) -> tuple[np.ndarray, ...]:
+        """The arrays with which a caller's compiled loop skips the collision detection of
+        a tick in which no contact can arise (:func:`panda_py.sim.compiled.contact_cull`:
+        ``clear_of_contacts(cull)`` before the tick, ``restore_contacts(cull)`` after
+        it where it was clear); never clear where the scene has more than the robot and
+        fixed geoms (the cube)."""
+        return self._cull
 
     @property
     def physics(self) -> Any:

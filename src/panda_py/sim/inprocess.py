@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import mujoco
 import numpy as np
 
 from panda_py import fci
@@ -46,13 +47,24 @@ class InProcessRobot:
     and torques give the same states, bit for bit. It speaks the newest protocol version
     its robot's systems do (:attr:`version`, :attr:`dialect`). ``compiled``: the
     common tick of a torque motion compiled where numba runs (False: the Python
-    reference always; the two give the same states)."""
+    reference always; the two give the same states). ``cube``: False leaves the cube
+    out of the scene (a task that never uses it: the arm moves as with it wherever it
+    does not touch it, and each tick's physics costs less)."""
 
-    def __init__(self, robot: str = "fer", *, q: Any = START_POSE, compiled: bool = True) -> None:
+    def __init__(
+        self, robot: str = "fer", *, q: Any = START_POSE, compiled: bool = True, cube: bool = True
+    ) -> None:
         spec = self.spec = get_robot(robot)
         self.version = max(spec.protocol_versions)
         self.dialect = fci.dialect(self.version)
-        self.physics = Physics(spec, scene=True)
+        self.has_cube = bool(cube)
+        self.physics = Physics(spec, scene=True, cube=self.has_cube)
+        if not self.has_cube:
+            # The robot alone (the table is fixed) is one island of constraints: MuJoCo's
+            # search for islands each step finds it again, a tenth of the step. Without
+            # the search the solve is the same (tests/learning/test_world_reach.py: the
+            # same trajectory, bit for bit); beside the cube it is not (to 1e-10).
+            self.physics.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_ISLAND)
         self.core = RobotCore(spec, self.physics, np.asarray(q, dtype=float))
         self.hand = GripperCore(self.physics)
         self._wire = StateWire(self.dialect, self.core)
@@ -110,7 +122,10 @@ class InProcessRobot:
         """Where the scene's body ``name`` (e.g. ``"cube"``) is [m] (a copy)."""
         at = self._bodies.get(name)
         if at is None:  # (MuJoCo's accessor by name: most of this call's cost, once)
-            at = self._bodies[name] = self.physics.model.body(name).id
+            try:
+                at = self._bodies[name] = self.physics.model.body(name).id
+            except KeyError:
+                raise ValueError(f"name: expected a body of the scene, got {name!r}") from None
         return self.physics.data.xpos[at].copy()
 
     def reflex_flags(self) -> list[str]:

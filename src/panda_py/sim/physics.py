@@ -41,7 +41,7 @@ _WRENCH_MIN_PIVOT = 1e-12
 
 class Physics:
     """One MuJoCo world: the arm, its end effector (the hand or the Cobot Pump) and the
-    scene, stepped at 1 kHz."""
+    scene (the table, and with ``cube`` the cube on it), stepped at 1 kHz."""
 
     def __init__(
         self,
@@ -50,12 +50,14 @@ class Physics:
         scene: bool = True,
         extra: str | Path | None = None,
         end_effector: EndEffector | str = EndEffector.HAND,
+        cube: bool = True,
     ) -> None:
         self.spec = spec
         self.end_effector = get_end_effector(end_effector)
         self.model = mujoco.MjModel.from_xml_string(
-            model_xml(spec, hand=True, scene=scene, extra=extra, end_effector=self.end_effector)
-        )
+            model_xml(spec, hand=True, scene=scene, extra=extra, end_effector=self.end_effector,
+                      cube=cube)
+        )  # fmt: skip
         self.model.opt.timestep = DT
         self.data = mujoco.MjData(self.model)
         self.kin = mujoco.MjData(self.model)  # scratch data for kinematics of targets
