@@ -206,7 +206,7 @@ def contact_cull(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray
     static = np.flatnonzero(collides & fixed)
     weld = m.body_weldid[body]
 
-    def touch(a: int, b: int) -> bool:
+    def touch(a: Any, b: Any) -> bool:  # (numpy integers: geom indices)
         return bool(m.geom_contype[a] & m.geom_conaffinity[b]
                     or m.geom_contype[b] & m.geom_conaffinity[a])  # fmt: skip
 
