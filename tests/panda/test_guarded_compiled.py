@@ -103,6 +103,10 @@ def compiled_runs() -> dict[str, tuple[Any, dict[str, Any], int]]:
     return {"pose": guarded("pose", DESCENT), "joint": guarded("joint", JOINT_GUARD)}
 
 
+# exclusive: alone 3 of 3 pass; in a loaded suite run the Python-ticked joint move's log
+# parted from the compiled one's 8 ticks before its condition held (1e-6 rad; cause not
+# found: the lockstep pace of a slower client is suspected)
+@pytest.mark.exclusive
 @pytest.mark.parametrize("reference", ["PANDA_PY_FAST_TICKS=0", "PANDA_PY_NO_JIT=1"])
 @pytest.mark.parametrize(("kind", "until", "expected"), [
     ("pose", DESCENT, "Force.z < -5.0"), ("joint", JOINT_GUARD, "Elapsed > 0.3"),
