@@ -57,7 +57,7 @@ class Camera(DrawingProcess):
 
     def __init__(self, config: SimConfig, size: tuple[int, int]) -> None:
         self.width, self.height = check_camera_size(size)
-        nq = build_model(config).nq
+        nq = build_model(config, meshes=False).nq  # the meshes add no joint
         feed = FrameFeed.create(nq, _TAP_FPS, latest=True, slots=4)
         super().__init__(feed, _camera_main, (config, self.width, self.height))
         self._render_lock = threading.Lock()  # one request and its answer at a time

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from panda_py.sim.config import SimConfig
+from panda_py.sim.meshes import mesh_dir, with_meshes
 
 log = logging.getLogger("panda_py.sim")
 
@@ -38,9 +39,11 @@ _FULL_WAIT = 10.0
 _TICK_RATE = 1000  # ticks per simulated second (fci.PERIOD = 1 ms)
 
 
-def build_model(config: SimConfig) -> Any:
+def build_model(config: SimConfig, *, meshes: bool = True) -> Any:
     """The MuJoCo model a simulator of ``config`` runs (the same generator, the same
-    arguments as :class:`~panda_py.sim.physics.Physics`), for drawing it elsewhere."""
+    arguments as :class:`~panda_py.sim.physics.Physics`), for drawing it elsewhere: with
+    ``meshes``, the arm's visual meshes where rtb-data ships them (:mod:`.meshes`; the
+    same bodies, joints and collision geoms, so the same ``qpos``), else its capsules."""
     import mujoco
 
     from panda_py.robots.mjcf import model_xml
@@ -53,6 +56,9 @@ def build_model(config: SimConfig) -> Any:
         extra=config.extra,
         end_effector=config.end_effector,
     )
+    directory = mesh_dir() if meshes else None
+    if directory is not None:
+        xml = with_meshes(xml, config.robot, directory)
     return mujoco.MjModel.from_xml_string(xml)
 
 
@@ -67,10 +73,13 @@ def set_camera(cam: Any) -> None:
     cam.elevation = -20.0  # [deg]
 
 
-def offscreen(config: SimConfig, width: int, height: int, what: str) -> tuple[Any, Any, Any]:
+def offscreen(
+    config: SimConfig, width: int, height: int, what: str, *, meshes: bool = True
+) -> tuple[Any, Any, Any]:
     """In a drawing process: ``(model, renderer, camera)`` to draw ``config``'s world
     offscreen at ``width`` x ``height`` (EGL unless ``MUJOCO_GL`` says otherwise; shadows and
-    reflections off, which triple a frame's cost with software OpenGL), or raise
+    reflections off, which triple a frame's cost with software OpenGL; ``meshes``: as
+    :func:`build_model`), or raise
     RuntimeError naming ``what`` failed and the fix."""
     import os
 
@@ -78,7 +87,7 @@ def offscreen(config: SimConfig, width: int, height: int, what: str) -> tuple[An
     try:
         import mujoco
 
-        model = build_model(config)
+        model = build_model(config, meshes=meshes)
         renderer = mujoco.Renderer(model, height, width)
     except Exception as exc:  # no GL here
         why = " ".join(f"MUJOCO_GL={os.environ['MUJOCO_GL']}: {exc}".split())

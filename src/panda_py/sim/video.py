@@ -52,7 +52,7 @@ class Recorder(DrawingProcess):
 
     def __init__(self, config: SimConfig, path: str | os.PathLike[str], fps: float) -> None:
         self.path = check_record(path, fps)
-        nq = build_model(config).nq
+        nq = build_model(config, meshes=False).nq  # the meshes add no joint
         super().__init__(
             FrameFeed.create(nq, fps, latest=False), _recorder_main, (config, str(self.path))
         )

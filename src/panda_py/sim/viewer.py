@@ -47,7 +47,7 @@ class Viewer(DrawingProcess):
 
     def __init__(self, config: SimConfig) -> None:
         check_display()
-        nq = build_model(config).nq
+        nq = build_model(config, meshes=False).nq  # the meshes add no joint
         super().__init__(FrameFeed.create(nq, FPS, latest=True, slots=4), _viewer_main, (config,))
 
 
