@@ -103,6 +103,7 @@ def test_05_logging_figure(tmp_path: Path) -> None:
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.exclusive  # its user loop counts wall-clock ticks (2068 of 2500, loaded runs)
 def test_06_cartesian_impedance(tmp_path: Path) -> None:
     # --runtime is wall time, and the robot is held to it (--max-speed 1: the robot's pace,
     # every command still waited for; running ahead of the loop only cost CPU): 0.1 sin(t)
