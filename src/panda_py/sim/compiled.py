@@ -207,7 +207,7 @@ def contact_cull(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray
     weld = m.body_weldid[body].tolist()  # each geom's rigid body
     movers = moving.tolist()
 
-    def touch(a: Any, b: Any) -> bool:  # (numpy integers: geom indices)
+    def touch(a: int, b: int) -> bool:  # (geom indices)
         return bool(m.geom_contype[a] & m.geom_conaffinity[b]
                     or m.geom_contype[b] & m.geom_conaffinity[a])  # fmt: skip
 
