@@ -7,6 +7,7 @@ not), and a contact with the table is found as before (the same reflex at the sa
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import gymnasium
 import mujoco
@@ -136,6 +137,23 @@ def test_the_detection_is_never_skipped_beside_the_cube() -> None:
     _reach(world, 30)
     assert cull[-1][1] == 0
     assert world.robot.physics.data.ncon > 0  # (the cube's contacts with the table)
+
+
+def test_a_free_body_beside_the_robot_is_never_culled(tmp_path: Any) -> None:
+    """A scene with a free body of its own (it may touch the robot and the table): the
+    floor is infinite, no tick is clear; the robot and the table alone: the table top."""
+    from panda_py.robots.params import get_robot
+    from panda_py.sim import compiled
+    from panda_py.sim.physics import Physics
+
+    extra = tmp_path / "ball.xml"
+    extra.write_text('<mujoco><worldbody><body name="ball" pos="0.5 0.3 0.05"><freejoint/>'
+                     '<inertial pos="0 0 0" mass="0.1" diaginertia="1e-4 1e-4 1e-4"/>'
+                     '<geom type="sphere" size="0.05"/></body></worldbody></mujoco>')  # fmt: skip
+    for path, floor in ((extra, math.inf), (None, 0.0)):
+        ph = Physics(get_robot("fer"), cube=False, extra=path)
+        cull = compiled.contact_cull(ph.model, ph.data)
+        assert cull[-1][0] == floor
 
 
 def test_the_environments_make_their_worlds_with_the_cube_where_they_use_it() -> None:

@@ -204,21 +204,22 @@ def contact_cull(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[np.ndarray
     collides = (m.geom_contype | m.geom_conaffinity) != 0
     moving = np.flatnonzero(collides & ~fixed).astype(np.int64)
     static = np.flatnonzero(collides & fixed)
-    weld = m.body_weldid[body]
+    weld = m.body_weldid[body].tolist()  # each geom's rigid body
+    movers = moving.tolist()
 
-    def touch(a: Any, b: Any) -> bool:  # (numpy integers: geom indices)
+    def touch(a: int, b: int) -> bool:  # (geom indices)
         return bool(m.geom_contype[a] & m.geom_conaffinity[b]
                     or m.geom_contype[b] & m.geom_conaffinity[a])  # fmt: skip
 
     floor = -math.inf
-    apart = all(not touch(a, b) for a in moving for b in moving if weld[body[a]] != weld[body[b]])
+    apart = all(not touch(a, b) for a in movers for b in movers if weld[a] != weld[b])
     if m.npair or m.nmocap or not apart or not found:
         floor = math.inf
     else:
         placed = mujoco.MjData(m)  # the fixed geoms' places (they never change)
         mujoco.mj_kinematics(m, placed)
         for g in static:
-            if any(touch(int(g), int(a)) for a in moving):
+            if any(touch(int(g), a) for a in movers):
                 R = placed.geom_xmat[g].reshape(3, 3)
                 centre, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
                 top = placed.geom_xpos[g, 2] + R[2] @ centre + np.abs(R[2]) @ half
