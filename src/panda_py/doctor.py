@@ -17,6 +17,7 @@ import enum
 import glob
 import ipaddress
 import json
+import os
 import socket
 import ssl
 import sys
@@ -82,9 +83,20 @@ def kernel() -> Check:
 
 
 def realtime_permission() -> Check:
-    """Tried on a short-lived thread, so this process keeps its own policy."""
+    """Tried on a short-lived thread, so this process keeps its own policy. The thread
+    first drops to ``SCHED_OTHER``: a doctor started from a realtime thread inherits its
+    policy, and a thread already at FIFO 99 may "switch" to it without any permission, so
+    the answer would be the parent's, not this user's."""
     result: list[object] = []
-    t = threading.Thread(target=lambda: result.append(set_current_thread_to_highest_priority()))
+
+    def attempt() -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except (OSError, AttributeError):
+            pass  # not on Linux: the attempt below says so
+        result.append(set_current_thread_to_highest_priority())
+
+    t = threading.Thread(target=attempt)
     t.start()
     t.join()
     if result and result[0] is not None:
