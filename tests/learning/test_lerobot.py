@@ -7,6 +7,7 @@ write."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -89,6 +90,19 @@ def check_frames(decoded: np.ndarray, written: np.ndarray) -> None:
         for j in (k - 1, k + 1):
             if 0 <= j < len(written):
                 assert own < np.abs(decoded[k].astype(int) - written[j]).mean(), (k, j)
+
+
+@pytest.mark.parametrize("codec", ["libsvtav1", "h264"])
+def test_recording_leaves_the_threads_scheduling_as_it_was(tmp_path: Path, codec: str) -> None:
+    # SVT-AV1 puts the thread that encodes its first frame under SCHED_FIFO 99 where it may
+    # (root here): the script that records would then run above the robot's loop
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    try:
+        record(tmp_path / "dataset", [("stack the cube", steps(np.random.default_rng(1), 3))],
+               codec=codec)  # fmt: skip
+        assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) == before
+    finally:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
 
 
 @pytest.mark.parametrize("codec", ["libsvtav1", "h264"])

@@ -7,6 +7,8 @@ video settings: ``configs/video.py``, ``datasets/video_utils.py``)."""
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
@@ -48,6 +50,24 @@ def modules() -> tuple[Any, Any, Any]:
         raise ImportError(f"LeRobot datasets need pyarrow and av: {INSTALL_HINT}") from exc
     os.environ.setdefault("SVT_LOG", "1")  # SVT-AV1: its errors, not its banner
     return pa, pq, av
+
+
+@contextmanager
+def own_scheduling() -> Iterator[None]:
+    """Keep the calling thread's scheduling policy: SVT-AV1 starts its encoder by putting
+    the thread that encodes the first frame under SCHED_FIFO 99 where it may (as root, or
+    with the rtprio limit) and leaves it there, so a recording script's Python would run at
+    realtime priority above the robot's own loop."""
+    try:
+        policy, priority = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):  # not on Linux
+        yield
+        return
+    try:
+        yield
+    finally:
+        if (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority) != (policy, priority):
+            os.sched_setscheduler(0, policy, os.sched_param(priority))
 
 
 def is_image(v: np.ndarray) -> bool:
@@ -130,7 +150,8 @@ class Video(Files):
         for k, image in enumerate(frames):
             frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(image), format="rgb24")
             frame.pts, frame.time_base = start + k, tick
-            self.handle.mux(self.stream.encode(frame))
+            with own_scheduling():
+                self.handle.mux(self.stream.encode(frame))
         self.count += len(frames)
         where = {
             "chunk_index": self.chunk,
@@ -143,7 +164,8 @@ class Video(Files):
     def close(self) -> None:
         if self.handle is not None:
             try:
-                self.handle.mux(self.stream.encode(None))  # the frames the encoder holds
+                with own_scheduling():
+                    self.handle.mux(self.stream.encode(None))  # the frames the encoder holds
             finally:
                 super().close()
 
