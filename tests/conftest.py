@@ -29,6 +29,25 @@ def pytest_xdist_auto_num_workers(config: pytest.Config) -> int:
     return (cores or 1) + 1
 
 
+def _scheduling() -> tuple[int, int]:
+    return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+
+@pytest.fixture(autouse=True)
+def _scheduling_kept() -> Iterator[None]:
+    """A test that leaves its thread under another scheduling policy errors (and the policy
+    is put back): a worker left at SCHED_FIFO 99 runs every later test, and the processes
+    they start, at realtime priority (SVT-AV1's encoder did, and the doctor's realtime
+    check then answered for the worker)."""
+    before = _scheduling()
+    yield
+    after = _scheduling()
+    if after != before:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
+        pytest.fail(f"the test left its thread's scheduling (policy, priority) at {after}, "
+                    f"expected {before}")  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def sim_for_version() -> Iterator[Callable[..., Simulator]]:
     """``sim_for_version(version, **options)``: a lockstep simulator of the robot whose
