@@ -8,6 +8,7 @@ than Python does lies at its threshold or is not finite; otherwise it answers as
 
 from __future__ import annotations
 
+import importlib
 from typing import Any
 
 import numpy as np
@@ -45,7 +46,8 @@ SIZES = fci.state_float_fields()
 MATRICES = ("accelerometer_top", "accelerometer_bottom")  # (6, 3): Python's alone
 VECTORS = [name for name, n in SIZES.items() if n > 1 and name not in MATRICES]
 SCALARS = [name for name, n in SIZES.items() if n == 1]
-_TICK = fastloop.kernels()
+# the moves' loop kernels (where numba runs the ticks)
+_TICK = None if fastloop.kernels() is None else importlib.import_module(fastloop.KERNEL_MODULES[2])
 
 
 def _state(version: int, seed: int) -> TickState:

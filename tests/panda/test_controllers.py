@@ -214,3 +214,29 @@ def test_a_failing_user_controller_stops_with_its_error(
     with pytest.raises(error):
         panda.raise_error()
     assert panda.move_to_start()  # the robot is usable again
+
+
+@pytest.mark.parametrize("space", ["joint", "pose"])
+def test_a_moves_ticks_run_compiled_through_its_settling(panda: panda_py.Panda,
+                                                         space: str) -> None:  # fmt: skip
+    """A move's ticks run compiled while it follows its plan and while it settles at its
+    goal past the trajectory's end: Python's are its first and its last, and no more than
+    a few others (the state it ends on is Python's, which judges it). (The settling's
+    torques against the Python step's: tests/rt/test_fast_ticks.py.)"""
+    q = np.asarray(panda.q)
+    before = _compiled_ticks(panda)
+    if space == "joint":
+        handle = panda.move_to_joint_position(q + 0.15, asynchronous=True)
+    else:
+        handle = panda.move_to_pose(panda.get_position() + [0.05, -0.04, 0.03],
+                                    panda.get_orientation(), asynchronous=True)  # fmt: skip
+    assert handle.wait(60.0)
+    result = handle.result
+    assert result is not None and result.success, result
+    ticks, ran = round(1e3 * result.elapsed), _compiled_ticks(panda) - before
+    if space == "pose":  # (it settles for some ticks; a joint move ends with its
+        assert result.elapsed > result.duration + 0.003  # trajectory on the simulator)
+    if COMPILED:
+        assert ran >= ticks - 4, (ticks, ran, result)
+    else:
+        assert ran == 0

@@ -32,10 +32,11 @@ from panda_py.controllers import (
 from panda_py.controllers.conditions import Distance, Elapsed, Errors, Field, when
 from panda_py.controllers.finalize import Finalize
 from panda_py.controllers.model import ControlModel
-from panda_py.controllers.moves import tracker_for
+from panda_py.controllers.moves import JointMove, tracker_for
 from panda_py.controllers.plans import JointPlan, PosePlan
 from panda_py.libfranka import ControlException, RobotMode, TorqueIO
 from panda_py.libfranka.state import TickState
+from panda_py.motion import rotation
 from panda_py.motion.online import OnlineLimits
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import fastloop
@@ -631,5 +632,78 @@ def test_a_guarded_moves_compiled_ticks_take_the_types_the_warm_up_compiled(kind
         assert guarded.arrays[-2].shape[0] == 4  # (its program: 2 comparisons, ~, |)
         types = [numba.typeof(a) for a in plain.arrays]
         assert [numba.typeof(a) for a in guarded.arrays] == types
+    finally:
+        rig.close()
+
+
+def _settling_states(rig: Rig, ending: str) -> Iterator[bytes]:
+    """States of an arm that follows the move's plan (off it by 1 mrad a joint, 10 for a
+    Cartesian move, whose goal is looser), then, past its end (tick 200), comes to rest
+    at its goal (``ending`` "rest": its offset decays in 15 ms) or stays off it
+    (``ending`` "timeout")."""
+    plan = rig.ref
+    joints = isinstance(plan, JointMove)
+    if not joints:  # the joints from the start to a configuration at the plan's goal
+        T = np.eye(4)
+        T[:3, :3] = rotation.to_matrix(plan.quat[-1])
+        T[:3, 3] = plan.p[-1]
+        q_goal = np.asarray(KIN.ik(T, START_POSE, START_POSE[6]))
+        assert np.isfinite(q_goal).all()
+    for k in range(1, 1300):
+        j = min(k, plan.last)
+        if joints:
+            at, rate = plan.q[j], plan.dq[j] if k <= plan.last else np.zeros(7)
+        else:
+            at = np.asarray(START_POSE) + (j / plan.last) * (q_goal - START_POSE)
+            rate = np.zeros(7)
+        off, off_rate = (1e-3 if joints else 1e-2), 0.0
+        if k > plan.last and ending == "rest":
+            off *= np.exp(-(k - plan.last) / 15.0)
+            off_rate = -off / 15e-3
+        rig.mid += 1
+        yield _state(rig.dialect, rig.mid, at + off, rate + off_rate, np.zeros(7))
+
+
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("ending", ["rest", "timeout"])
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_a_moves_settling_runs_compiled_and_hands_back_the_tick_it_ends_on(
+    kind: str, ending: str, version: int
+) -> None:
+    """Past its trajectory's end a move settles compiled (its integral and friction push
+    as its Python step computes them, to 1e-9) and hands back unanswered the one state it
+    ends on, at rest at its goal or at the settling's time out, where the Python tick
+    finishes it as the reference does."""
+    rig = Rig(version, kind)
+    try:
+        handed_back, finished = [], None
+        for k, data in enumerate(_settling_states(rig, ending), start=1):
+            rig.robot.send(data)
+            outcome = rig.run()
+            expected = rig.reference(data, 1e-3)
+            if outcome.then == "pending":
+                handed_back.append(k)
+                assert outcome.pending == data and outcome.ticks == 0
+                sent = rig.python_tick(data, 1e-3)
+            else:
+                assert outcome.then == "wait" and outcome.ticks == 1
+                rec = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+                sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+                rig.last = data
+                np.testing.assert_allclose(rig.fast.tau, rig.ref_tau, rtol=0.0, atol=1e-9)
+            np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+            state = TickState(rig.dialect, data)
+            if rig.ref.finished(state):
+                assert rig.law.finished(state)
+                finished = k
+                break
+            assert not rig.law.finished(state)
+        assert finished is not None and handed_back == [finished]  # the settling ran compiled
+        past = finished - rig.ref.last  # [ticks] after the trajectory's end
+        # (the time out: 1 s of the robot's clock, summed in 1 ms steps)
+        assert (20 < past < 150) if ending == "rest" else past in (1000, 1001), past
+        np.testing.assert_allclose(rig.law.integral, rig.ref.integral, rtol=0.0, atol=1e-12)
+        assert np.abs(rig.ref.integral).max() > 0.0  # (the integral took part)
+        assert rig.law.result(state) == rig.ref.result(state)
     finally:
         rig.close()

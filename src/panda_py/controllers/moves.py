@@ -401,8 +401,8 @@ class Tracker(ControlLaw):
         return self._until_program
 
     def _follows_plan(self, model: ControlModel) -> bool:
-        """Whether its ticks are the plan's alone from here until the trajectory's end: no
-        lead-in, stop, blend or fired condition (those run in Python), numba running the
+        """Whether its ticks are the plan's alone from here, then its settling at the goal:
+        no lead-in, stop, blend or fired condition (those run in Python), numba running the
         laws. (Its condition, if any, the compiled ticks evaluate: see _program.)"""
         return (
             not (self.leading or self.stopping)
@@ -547,7 +547,7 @@ class JointMove(Tracker):
         return self.q[k], self.dq[k], self.ddq[k]
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """While it follows its plan: ``rt._tick.joint_move_ticks``."""
+        """While it follows its plan and settles: ``rt._tick_moves.joint_move_ticks``."""
         program = self._program(state)
         if program is None or not self._follows_plan(model):
             return None
@@ -558,10 +558,18 @@ class JointMove(Tracker):
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
             readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
-            *program,
+            self._settle(), self.integral, *program,
         )  # fmt: skip
         return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
+
+    def _settle(self) -> FloatArray:
+        """The settling's constants as ``rt._tick_moves.joint_move_ticks`` reads them (its
+        ``S_*`` offsets: step's and finished's, below)."""
+        scale = FRICTION_SPEED / MOVE_FRICTION_SPEED
+        return np.array([self.dq_threshold, SETTLE_JOINT, SETTLE_TIMEOUT, SETTLE_DEADBAND,
+                         SETTLE_INTEGRAL, SETTLE_RATE_JOINT, scale, MOVE_ERROR_RATE * scale,
+                         1.0 / FRICTION_SPEED])  # fmt: skip
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
@@ -723,8 +731,8 @@ class PoseMove(Tracker):
         return self.p[k], self.quat[k], self.v[k], self.a[k]
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """While it follows its plan: ``rt._tick.pose_move_ticks``, on its tracking law's
-        buffer (after that law's first tick)."""
+        """While it follows its plan and settles: ``rt._tick_moves.pose_move_ticks``, on
+        its tracking law's buffer (after that law's first tick)."""
         program = self._program(state)
         if program is None or not self._follows_plan(model):
             return None
@@ -735,7 +743,8 @@ class PoseMove(Tracker):
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
             readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
-            model.coulomb, self._times(), self._samples, *program,
+            model.coulomb, self._times(), self._samples, self._settle(), self.integral,
+            *program,
         )  # fmt: skip
         return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -743,6 +752,13 @@ class PoseMove(Tracker):
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
         self.law.compiled_ran(int(self._samples[2]))
+
+    def _settle(self) -> FloatArray:
+        """The settling's constants as ``rt._tick_moves.pose_move_ticks`` reads them (its
+        ``P_*`` offsets: step's and finished's, below)."""
+        return np.array([self.dq_threshold, SETTLE_POSITION, SETTLE_ORIENTATION,
+                         SETTLE_TIMEOUT, SETTLE_INTEGRAL_POSE, SETTLE_RATE,
+                         1.0 / FRICTION_SPEED])  # fmt: skip
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()

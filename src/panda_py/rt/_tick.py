@@ -33,12 +33,11 @@ offsets of the state datagram: ``lay``, built from the FCI dialect by
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
 
-from panda_py.controllers import condition_program, laws
+from panda_py.controllers import laws
 from panda_py.fci import PERIOD
 from panda_py.jit import cache, libc
 from panda_py.motion import online
@@ -49,21 +48,16 @@ if _FUSED is None or _KERNELS is None or _ONLINE is None:  # plain Python: Pytho
     raise ImportError("the control laws run without numba")
 _cartesian_impedance_step = _FUSED.cartesian_impedance_step
 _joint_tracking_step = _FUSED.joint_tracking_step
-_pose_tracking_step = _FUSED.pose_tracking_step
 _pose_target_step = _FUSED.pose_target_step
 _finalize_torques = _KERNELS.finalize_torques
 _sample = _ONLINE.sample
 
 __all__ = [
     "applied_torque_ticks", "cartesian_impedance_ticks", "cartesian_target_ticks",
-    "integrated_velocity_ticks", "joint_move_ticks", "joint_position_ticks", "joint_target_ticks",
-    "pose_move_ticks",
+    "integrated_velocity_ticks", "joint_position_ticks", "joint_target_ticks",
 ]  # fmt: skip
 
-KEY = (
-    cache.source_key([Path(__file__), Path(libc.__file__), Path(condition_program.__file__)])
-    + _FUSED.KEY[:12]
-)
+KEY = cache.source_key([Path(__file__), Path(libc.__file__)]) + _FUSED.KEY[:12]
 
 # io: the kernel's integer words (in and out)
 UDP, CHAN, LAST_ID, MG, CTRL, MOVE, TAKEN, BUDGET, LOGGING, SLOTS, RECORD = range(11)
@@ -496,126 +490,6 @@ def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             _ema(D, values[at[1] : at[1] + 7], a)
             for i in range(7):
                 tau[i] = applied[i] - D[i] * dq[i]
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
-            return
-
-
-# a guarded move's condition on a state (controllers.condition_program: FALSE, UNKNOWN or
-# TRUE), the program's own source compiled
-_condition_holds = cache.keyed_jit(KEY, nogil=True)(condition_program.evaluate)
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def _until_holds(program, stack, buf, tmp, elapsed, goal, at, n, joints):  # type: ignore[no-untyped-def,unused-ignore]
-    """Whether a guarded move's condition ``program`` holds, or may, on the state in
-    ``buf`` (already decoded: ``tmp`` is free) at the move's time ``elapsed``: its
-    distance to the goal is the largest of ``|goal - at[:n]|`` (``joints``: a joint
-    move's, JointMove.step) or their norm (a Cartesian move's position, PoseMove.step).
-    Where it does, the tick is Python's (check_until decides)."""
-    distance = 0.0
-    for i in range(n):
-        d = goal[i] - at[i]
-        if joints:
-            if math.isnan(d):  # (NumPy's max is NaN then)
-                distance = d
-                break
-            distance = max(distance, abs(d))
-        else:
-            distance += d * d
-    if not joints:
-        distance = math.sqrt(distance)
-    return _condition_holds(program, stack, buf, tmp, elapsed, distance) != 0.0
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, plan_q, plan_dq, plan_ddq, K, D, chain, origin, ca, sa, mass, h,
-    inertia, armature, coulomb, times, samples, program, stack,
-):  # fmt: skip
-    """A joint move while it follows its plan (``controllers.moves.JointMove``, until its
-    trajectory's end ``times[0]``): the sample at the law's time (``times``: t_end, t0,
-    the period, the friction's speed and error rate; ``samples``: k0, the last), tracked
-    by ``_fused.joint_tracking_step``. A state past the trajectory's end, or on which its
-    ``until`` condition (``program``, none if empty) holds, is Python's."""
-    io[TICKS] = 0
-    goal = plan_q[samples[1]]
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            t = _next_time(io, buf, law_t)
-            if t > times[0]:
-                status = PENDING  # the trajectory ended: the settling is Python's
-            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal, q, 7,
-                                                   True):  # fmt: skip
-                status = PENDING  # its condition holds: check_until is Python's
-        if status == 0:
-            _advance(io, buf, law_t)
-            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
-            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
-                                 coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k], times[3],
-                                 times[4], tau)  # fmt: skip
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
-            return
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, plan_p, plan_quat, plan_v, plan_a, law, chain, origin, ca, sa,
-    mass, h, inertia, armature, coulomb, times, samples, program, stack,
-):  # fmt: skip
-    """A Cartesian move while it follows its plan (``controllers.moves.PoseMove``), as
-    :func:`joint_move_ticks`, tracked by ``_fused.pose_tracking_step`` on the tracking
-    law's buffer ``law`` (``tracking.PoseImpedance.compiled_inputs``' scalars set here:
-    ``samples[2]`` counts the ticks until the damping's update, every ``samples[3]``)."""
-    io[TICKS] = 0
-    goal = plan_p[samples[1]]
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            t = _next_time(io, buf, law_t)
-            if t > times[0]:
-                status = PENDING  # the trajectory ended: the settling is Python's
-            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal,
-                                                   pose[12:15], 3, False):  # fmt: skip
-                status = PENDING  # its condition holds: check_until is Python's
-        if status == 0:
-            _advance(io, buf, law_t)
-            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
-            samples[2] -= 1  # (PoseImpedance.compiled_inputs)
-            law[0] = law_t[1]
-            law[7] = 1.0  # a previous Jacobian: this law has ticked before
-            if samples[2] < 0:
-                law[6] = 1.0
-                samples[2] = samples[3] - 1
-            else:
-                law[6] = 0.0
-            _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h, inertia,
-                                armature, coulomb, plan_p[k], plan_quat[k], plan_v[k],
-                                plan_a[k], law, tau)  # fmt: skip
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip

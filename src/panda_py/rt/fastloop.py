@@ -30,8 +30,8 @@ __all__ = ["KERNEL_MODULES", "FastTicks", "Outcome", "kernel", "kernels", "warm_
 
 
 #: the modules of the loop kernels a law's ``CompiledTicks.kernel`` names: the skeleton's
-#: and most laws' (the first), and the force laws' (on the first's skeleton)
-KERNEL_MODULES = ("panda_py.rt._tick", "panda_py.rt._tick_wrench")
+#: and most laws' (the first), the force laws' and the moves' (on the first's skeleton)
+KERNEL_MODULES = ("panda_py.rt._tick", "panda_py.rt._tick_wrench", "panda_py.rt._tick_moves")
 
 
 def kernels() -> Any:

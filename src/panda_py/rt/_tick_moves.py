@@ -1,0 +1,282 @@
+"""The control loop's compiled ticks of the moves (``controllers.moves``): a joint or a
+Cartesian move following its plan, then settling at its goal (the integral of its error,
+the push of the drives' friction), on the skeleton of :mod:`panda_py.rt._tick` (its
+wait, decoding, finishing, sending and publishing; the same arguments first, the same
+statuses), with a guarded move's ``until`` condition compiled
+(:mod:`panda_py.controllers.condition_program`).
+
+What stays Python's (PENDING, the state unanswered): the state a move ends on (at rest at
+its goal, or its settling timed out: the Python tick finishes it and makes its result),
+the one on which its condition holds (``check_until`` decides there), and everything the
+move's compiled form does not cover (a lead-in, a stop, a blend from another space: the
+move then offers no compiled ticks).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from panda_py.controllers import condition_program, laws, tracking
+from panda_py.jit import cache
+from panda_py.motion import rotation
+from panda_py.rt import _tick
+from panda_py.rt._tick import BUDGET, BUDGET_DONE, PENDING, STATUS, TICKS
+
+_FUSED = laws.fused()
+if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
+    raise ImportError("the control laws run without numba")
+_joint_tracking_step = _FUSED.joint_tracking_step
+_pose_tracking_step = _FUSED.pose_tracking_step
+_begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
+_next_time = _tick._next_time
+
+__all__ = ["joint_move_ticks", "pose_move_ticks"]
+
+_SOURCES = [Path(__file__), Path(condition_program.__file__), Path(rotation.__file__)]
+KEY = cache.source_key(_SOURCES) + _tick.KEY[:20]
+
+
+# a guarded move's condition on a state (controllers.condition_program: FALSE, UNKNOWN or
+# TRUE), the program's own source compiled
+_condition_holds = cache.keyed_jit(KEY, nogil=True)(condition_program.evaluate)
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _until_holds(program, stack, buf, tmp, elapsed, goal, at, n, joints):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether a guarded move's condition ``program`` holds, or may, on the state in
+    ``buf`` (already decoded: ``tmp`` is free) at the move's time ``elapsed``: its
+    distance to the goal is the largest of ``|goal - at[:n]|`` (``joints``: a joint
+    move's, JointMove.step) or their norm (a Cartesian move's position, PoseMove.step).
+    Where it does, the tick is Python's (check_until decides)."""
+    distance = 0.0
+    for i in range(n):
+        d = goal[i] - at[i]
+        if joints:
+            if math.isnan(d):  # (NumPy's max is NaN then)
+                distance = d
+                break
+            distance = max(distance, abs(d))
+        else:
+            distance += d * d
+    if not joints:
+        distance = math.sqrt(distance)
+    return _condition_holds(program, stack, buf, tmp, elapsed, distance) != 0.0
+
+
+# a joint move's settling constants (controllers.moves.JointMove._settle): at rest below
+# [rad/s], at the goal within [rad], the settling's time out [s], the deadband [rad], the
+# integral's gain per unit stiffness [1/s], the push's rate [1/s], the friction's speed
+# [rad/s] over the move's, the move's error rate times that [1/s], 1 / the friction's speed
+(S_AT_REST, S_AT_GOAL, S_TIMEOUT, S_DEADBAND, S_INTEGRAL, S_RATE, S_SCALE, S_ERROR_RATE,
+ S_INVERSE_SPEED) = range(9)  # fmt: skip
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _largest_off(a, b, n):  # type: ignore[no-untyped-def,unused-ignore]
+    """``max |a[:n] - b[:n]|`` as NumPy's: NaN if any difference is."""
+    m = 0.0
+    for i in range(n):
+        d = abs(a[i] - b[i])
+        if math.isnan(d):
+            return d
+        m = max(m, d)
+    return m
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _joint_settled(q, dq, goal, settle, over):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether a joint move ends on this state, ``over`` [s] past its trajectory's end
+    (Tracker.finished with JointMove.at_goal): at rest at its goal, or timed out."""
+    rest = 0.0
+    for i in range(7):
+        d = abs(dq[i])
+        if math.isnan(d):
+            rest = d
+            break
+        rest = max(rest, d)
+    if rest <= settle[S_AT_REST] and _largest_off(goal, q, 7) <= settle[S_AT_GOAL]:
+        return True
+    return over >= settle[S_TIMEOUT]
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _joint_settling(q, goal, K, coulomb, settle, integral, dt, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """JointMove.step's terms past the trajectory's end, added to ``tau``: the integral of
+    the error beyond the deadband, and the friction's cancelling along the way back to the
+    goal in place of the tracking's own (the same arithmetic, in the same order)."""
+    band, inverse = settle[S_DEADBAND], settle[S_INVERSE_SPEED]
+    for i in range(7):
+        e = goal[i] - q[i]
+        integral[i] += dt * (e - min(max(e, -band), band))
+        tau[i] += settle[S_INTEGRAL] * K[i] * integral[i]
+        push = e * settle[S_RATE] if abs(e) > band else 0.0
+        tau[i] += (coulomb[i] * math.tanh(push * settle[S_SCALE] * inverse)
+                   - coulomb[i] * math.tanh(e * settle[S_ERROR_RATE] * inverse))  # fmt: skip
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, plan_q, plan_dq, plan_ddq, K, D, chain, origin, ca, sa, mass, h,
+    inertia, armature, coulomb, times, samples, settle, integral, program, stack,
+):  # fmt: skip
+    """A joint move while it follows its plan (``controllers.moves.JointMove``): the
+    sample at the law's time (``times``: t_end, t0, the period, the friction's speed and
+    error rate; ``samples``: k0, the last), tracked by ``_fused.joint_tracking_step``; past
+    the trajectory's end ``times[0]`` its settling (:func:`_joint_settling`, ``settle``'s
+    constants, the error's ``integral`` kept across calls). The state it ends on (at rest
+    at the goal, or the settling's time out: :func:`_joint_settled`), or one on which its
+    ``until`` condition (``program``, none if empty) holds, is Python's."""
+    io[TICKS] = 0
+    goal = plan_q[samples[1]]
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0:
+            t = _next_time(io, buf, law_t)
+            if t - times[0] > 0.0 and _joint_settled(q, dq, goal, settle, t - times[0]):
+                status = PENDING  # it ends on this state: Python's tick finishes it
+            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal, q, 7,
+                                                   True):  # fmt: skip
+                status = PENDING  # its condition holds: check_until is Python's
+        if status == 0:
+            _advance(io, buf, law_t)
+            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
+                                 coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k], times[3],
+                                 times[4], tau)  # fmt: skip
+            if law_t[0] > times[0]:
+                _joint_settling(q, goal, K, coulomb, settle, integral, law_t[1], tau)
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
+
+
+# a Cartesian move's settling constants (controllers.moves.PoseMove._settle): at rest
+# below [rad/s], at the goal within [m] and [rad], the settling's time out [s], the
+# integral's gain per unit stiffness [1/s], the friction push's rate [1/s], 1 / the
+# friction's speed
+(P_AT_REST, P_POSITION, P_ORIENTATION, P_TIMEOUT, P_INTEGRAL, P_RATE,
+ P_INVERSE_SPEED) = range(7)  # fmt: skip
+# the tracking law's arrays in its buffer (tracking.LAW_LAYOUT)
+_K, _ERR = tracking.LAW_LAYOUT["K"][0], tracking.LAW_LAYOUT["err"][0]
+_J, _PINV = tracking.LAW_LAYOUT["J"][0], tracking.LAW_LAYOUT["J_pinv"][0]
+# the rotation's quaternion as the Python step computes it (motion.rotation), compiled
+_quaternion_of = cache.keyed_jit(KEY, nogil=True)(rotation.quaternion_of)
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _pose_settled(pose, dq, goal, goal_quat, settle, over):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether a Cartesian move ends on this state, ``over`` [s] past its trajectory's
+    end (Tracker.finished with PoseMove.at_goal: its position's distance and
+    plans.rotation_angle to the goal's)."""
+    if _largest_off(dq, np.zeros(7), 7) <= settle[P_AT_REST]:
+        d = 0.0
+        for i in range(3):
+            d += (pose[12 + i] - goal[i]) ** 2
+        if math.sqrt(d) <= settle[P_POSITION]:
+            x, y, z, w = _quaternion_of(pose[0], pose[4], pose[8], pose[1], pose[5], pose[9],
+                                        pose[2], pose[6], pose[10])  # fmt: skip
+            g0, g1, g2, g3 = goal_quat[0], goal_quat[1], goal_quat[2], goal_quat[3]
+            dot = x * g0 + y * g1 + z * g2 + w * g3
+            norms = (x * x + y * y + z * z + w * w) * (g0 * g0 + g1 * g1 + g2 * g2 + g3 * g3)
+            if 2.0 * math.acos(min(1.0, abs(dot) / math.sqrt(norms))) <= settle[P_ORIENTATION]:
+                return True
+    return over >= settle[P_TIMEOUT]
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """PoseMove.step's terms past the trajectory's end, added to ``tau``: the integral of
+    the pose error (the tracking's, in ``law``), through the stiffness and the Jacobian,
+    and a push of the drives' friction toward the goal along ``J^+`` of the error."""
+    K = law[_K : _K + 36].reshape((6, 6))
+    J = law[_J : _J + 42].reshape((6, 7))
+    pinv = law[_PINV : _PINV + 42].reshape((7, 6))
+    err = law[_ERR : _ERR + 6]
+    for r in range(6):
+        integral[r] += dt * err[r]
+    wrench = np.empty(6)
+    for r in range(6):
+        s = 0.0
+        for c in range(6):
+            s += K[r, c] * integral[c]
+        wrench[r] = settle[P_INTEGRAL] * s
+    for i in range(7):
+        s = 0.0
+        for r in range(6):
+            s += J[r, i] * wrench[r]
+        tau[i] -= s
+    for i in range(7):
+        s = 0.0
+        for r in range(6):
+            s += pinv[i, r] * (err[r] * -settle[P_RATE])
+        tau[i] += coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
+    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
+    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
+    tau_J_d, q_in, dq_in, pose_in, tau, command,
+    values, guard, guard_key, plan_p, plan_quat, plan_v, plan_a, law, chain, origin, ca, sa,
+    mass, h, inertia, armature, coulomb, times, samples, settle, integral, program, stack,
+):  # fmt: skip
+    """A Cartesian move while it follows its plan (``controllers.moves.PoseMove``), as
+    :func:`joint_move_ticks`, tracked by ``_fused.pose_tracking_step`` on the tracking
+    law's buffer ``law`` (``tracking.PoseImpedance.compiled_inputs``' scalars set here:
+    ``samples[2]`` counts the ticks until the damping's update, every ``samples[3]``);
+    past the trajectory's end its settling (:func:`_pose_settling`), until the state it
+    ends on (:func:`_pose_settled`)."""
+    io[TICKS] = 0
+    goal = plan_p[samples[1]]
+    goal_quat = plan_quat[samples[1]]
+    while True:
+        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
+                        signals, new, values, guard, guard_key)  # fmt: skip
+        if status == 0:
+            t = _next_time(io, buf, law_t)
+            if t - times[0] > 0.0 and _pose_settled(pose, dq, goal, goal_quat, settle,
+                                                    t - times[0]):  # fmt: skip
+                status = PENDING  # it ends on this state: Python's tick finishes it
+            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal,
+                                                   pose[12:15], 3, False):  # fmt: skip
+                status = PENDING  # its condition holds: check_until is Python's
+        if status == 0:
+            _advance(io, buf, law_t)
+            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+            samples[2] -= 1  # (PoseImpedance.compiled_inputs)
+            law[0] = law_t[1]
+            law[7] = 1.0  # a previous Jacobian: this law has ticked before
+            if samples[2] < 0:
+                law[6] = 1.0
+                samples[2] = samples[3] - 1
+            else:
+                law[6] = 0.0
+            _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h, inertia,
+                                armature, coulomb, plan_p[k], plan_quat[k], plan_v[k],
+                                plan_a[k], law, tau)  # fmt: skip
+            if law_t[0] > times[0]:
+                _pose_settling(law, coulomb, settle, integral, law_t[1], tau)
+            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
+                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
+                             flags, fin, tau_max, command)  # fmt: skip
+        if status == 0:
+            io[TICKS] += 1
+            if io[TICKS] >= io[BUDGET]:
+                status = BUDGET_DONE
+        if status != 0:
+            io[STATUS] = status
+            return
