@@ -240,3 +240,25 @@ def test_a_moves_ticks_run_compiled_through_its_settling(panda: panda_py.Panda,
         assert ran >= ticks - 4, (ticks, ran, result)
     else:
         assert ran == 0
+
+
+def test_a_joint_move_that_replaces_another_leads_in_compiled(panda: panda_py.Panda) -> None:
+    """A joint move replacing a running one leads in from its reference with the ticks
+    compiled, as the plan it joins and its settling: Python's are the hand-over's (ruckig
+    calculates the lead-in), the lead-in's end and the end."""
+    q = np.asarray(panda.q)
+    before = _compiled_ticks(panda)
+    first = panda.move_to_joint_position(q + 0.2, asynchronous=True)
+    deadline = time.monotonic() + 30.0
+    while np.abs(np.asarray(panda.q) - q).max() < 0.05:  # a quarter of the way
+        assert time.monotonic() < deadline and not first.done()
+        time.sleep(0.0005)
+    second = panda.move_to_joint_position(q - 0.1, asynchronous=True)
+    assert second.wait(60.0) and first.done()
+    one, two = first.result, second.result
+    assert one is not None and one.cancelled and two is not None and two.success, (one, two)
+    ticks, ran = round(1e3 * (one.elapsed + two.elapsed)), _compiled_ticks(panda) - before
+    if COMPILED:
+        assert ran >= ticks - 8, (ticks, ran)
+    else:
+        assert ran == 0

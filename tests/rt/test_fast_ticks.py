@@ -707,3 +707,63 @@ def test_a_moves_settling_runs_compiled_and_hands_back_the_tick_it_ends_on(
         assert rig.law.result(state) == rig.ref.result(state)
     finally:
         rig.close()
+
+
+@pytest.mark.parametrize("version", [5, 10])
+@pytest.mark.parametrize("then", ["settle", "cancel"])
+def test_a_joint_moves_lead_in_and_stop_run_compiled(then: str, version: int) -> None:
+    """A joint move that leads in from where the arm is (2 cm off its plan's start) runs
+    its online generator compiled, with the Python step's torques (to 1e-9), and hands
+    Python the ticks only it can do: the first (ruckig calculates), the one the lead-in
+    joins the plan on, and the one it ends on; cancelled on the way, its stop too: the
+    tick of the cancel's ruckig step, the one its generator comes to rest on."""
+    rig = Rig(version, "JointMove")
+    try:
+        start = TickState(rig.dialect, _state(rig.dialect, rig.mid, rig.q + 0.02, np.zeros(7),
+                                              np.zeros(7)))  # fmt: skip
+        rig.law.handover(None, start, MODEL)
+        rig.ref.handover(None, start, MODEL)
+        python, pending, finished = [], [], None
+        for k in range(1, 2000):
+            if then == "cancel" and k == 150:
+                rig.law.cancel("stopped")
+                rig.ref.cancel("stopped")
+            past = max(0.0, rig.ref.t - rig.ref.t_end)  # the offset settles to the goal
+            rig.mid += 1
+            ref_q, ref_dq = rig.ref.ref[0], rig.ref.ref[1]
+            data = _state(rig.dialect, rig.mid, ref_q + 5e-4 * np.exp(-past / 15e-3), ref_dq,
+                          np.zeros(7))  # fmt: skip
+            compiled = rig.law.compiled(TickState(rig.dialect, rig.last), MODEL)
+            expected = rig.reference(data, 1e-3)
+            if compiled is None:
+                python.append(k)
+                sent = rig.python_tick(data, 1e-3)
+            else:
+                rig.robot.send(data)
+                outcome = rig.fast.run(rig.law, compiled, rig.last, chan=-1, requests_taken=0,
+                                       log=None, budget=1, wait_ms=1000)  # fmt: skip
+                if outcome.then == "pending":
+                    pending.append(k)
+                    sent = rig.python_tick(data, 1e-3)
+                else:
+                    assert outcome.then == "wait" and outcome.ticks == 1
+                    rec = np.frombuffer(rig.robot.recv(4096), rig.dialect.command_dtype)[0]
+                    sent = np.frombuffer(rec["tau_J_d"].tobytes(), np.float64)
+                    rig.last = data
+                    np.testing.assert_allclose(rig.fast.tau, rig.ref_tau, rtol=0.0, atol=1e-9)
+            np.testing.assert_allclose(sent, expected, rtol=0.0, atol=1e-9)
+            for a, b in zip(rig.law.ref, rig.ref.ref, strict=True):
+                np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12)
+            state = TickState(rig.dialect, data)
+            if rig.ref.finished(state):
+                assert rig.law.finished(state)
+                finished = k
+                break
+            assert not rig.law.finished(state)
+        assert finished is not None
+        assert python == ([1, 150] if then == "cancel" else [1])  # ruckig's steps
+        assert len(pending) == 2 and pending[-1] == finished  # the lead's end, the move's
+        assert finished > 150
+        assert rig.law.result(state) == rig.ref.result(state)
+    finally:
+        rig.close()

@@ -45,6 +45,8 @@ _NO_INPUTS = np.zeros(0)
 _NO_GUARD = np.zeros((0, 2), dtype=np.int64)
 # a move without an ``until`` condition: an empty program (condition_program)
 _NO_PROGRAM = (np.zeros((0, COLUMNS)), np.zeros(1))
+# a move that is not leading: no generator's trajectory to sample (read-only, as one is)
+_NO_TRAJECTORY = readonly(np.zeros((0, 0)))
 
 FloatArray = NDArray[np.float64]
 
@@ -401,17 +403,28 @@ class Tracker(ControlLaw):
         return self._until_program
 
     def _follows_plan(self, model: ControlModel) -> bool:
-        """Whether its ticks are the plan's alone from here, then its settling at the goal:
-        no lead-in, stop, blend or fired condition (those run in Python), numba running the
-        laws. (Its condition, if any, the compiled ticks evaluate: see _program.)"""
+        """Whether its compiled ticks can run from here: following its plan, then settling
+        at the goal, or leading in or stopping where its compiled ticks run its generator
+        (_lead_compiled); no blend or fired condition (those run in Python), numba running
+        the laws. (Its condition, if any, the compiled ticks evaluate: see _program.)"""
         return (
-            not (self.leading or self.stopping)
+            (not (self.leading or self.stopping) or (self.leading and self._lead_compiled()))
             and self.previous is None
             and self.successor is None
-            and self.t_end < math.inf
+            and (self.t_end < math.inf or self.leading)
             and laws.fused() is not None
             and type(model) is ControlModel
         )
+
+    def _lead_compiled(self) -> bool:
+        """Whether its compiled ticks run its online generator's steps too (a lead-in, a
+        stop), from here: none by default."""
+        return False
+
+    def _lead_ran(self) -> tuple[FloatArray, ...]:
+        """After compiled ticks that ran its generator's steps: the generator told, and
+        its reference (see _lead_compiled)."""
+        raise NotImplementedError
 
     def _times(self) -> FloatArray:
         """The plan's clock as a compiled loop reads it: the trajectory's end, the law's
@@ -420,7 +433,7 @@ class Tracker(ControlLaw):
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
-        self.ref = self._sampled(self.sample())
+        self.ref = self._lead_ran() if self.leading else self._sampled(self.sample())
 
     def _sampled(self, k: int) -> tuple[FloatArray, ...]:
         raise NotImplementedError
@@ -460,6 +473,9 @@ class JointMove(Tracker):
         self.ref: tuple[FloatArray, FloatArray, FloatArray] = (plan.q[0], plan.dq[0], plan.ddq[0])
         self.viscous_gain: FloatArray | None = None  # (see _damped_velocity)
         self._dq_law: FloatArray | None = None  # the plan's velocities times viscous_gain
+        # the compiled ticks' generator scalars and its velocity times viscous_gain
+        self._lead = np.zeros(5)
+        self._lead_dq = np.zeros(7)
 
     def _damped_velocity(self, model: ControlModel) -> FloatArray:
         """The drives' viscous friction ``b dq_d`` fed forward through the damping:
@@ -552,16 +568,36 @@ class JointMove(Tracker):
         if program is None or not self._follows_plan(model):
             return None
         chain, arm = model.kernel_arrays(state)
+        gain = self._damped_velocity(model)
         if self._dq_law is None:
-            self._dq_law = self.dq * self._damped_velocity(model)
+            self._dq_law = self.dq * gain
+        gen = self.gen
+        self._lead[:] = 0.0  # (rt._tick_moves.G_*)
+        traj = _NO_TRAJECTORY
+        if self.leading:
+            sampling = gen.sampling()
+            assert sampling is not None  # (_lead_compiled)
+            traj = readonly(sampling[0])
+            time, finished, duration = gen.clock()
+            self._lead[:] = (1.0, 1.0 if self.stopping else 0.0, time, 1.0 if finished else 0.0,
+                             duration)  # fmt: skip
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
             readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
-            self._settle(), self.integral, *program,
+            self._settle(), self.integral, self._lead, traj, gen.position, gen.velocity,
+            gen.acceleration, gain, self._lead_dq, *program,
         )  # fmt: skip
         return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
+
+    def _lead_compiled(self) -> bool:
+        return self.gen.sampling() is not None  # (not before ruckig's step on a new input)
+
+    def _lead_ran(self) -> tuple[FloatArray, ...]:
+        gen, lead = self.gen, self._lead
+        gen.compiled_steps(float(lead[2]), lead[3] != 0.0)
+        return gen.position, gen.velocity, gen.acceleration
 
     def _settle(self) -> FloatArray:
         """The settling's constants as ``rt._tick_moves.joint_move_ticks`` reads them (its

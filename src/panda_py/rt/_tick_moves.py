@@ -29,6 +29,7 @@ _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
     raise ImportError("the control laws run without numba")
 _joint_tracking_step = _FUSED.joint_tracking_step
+_sample = _tick._sample
 _pose_tracking_step = _FUSED.pose_tracking_step
 _begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
 _next_time = _tick._next_time
@@ -87,17 +88,23 @@ def _largest_off(a, b, n):  # type: ignore[no-untyped-def,unused-ignore]
 
 
 @cache.keyed_jit(KEY, nogil=True)
-def _joint_settled(q, dq, goal, settle, over):  # type: ignore[no-untyped-def,unused-ignore]
-    """Whether a joint move ends on this state, ``over`` [s] past its trajectory's end
-    (Tracker.finished with JointMove.at_goal): at rest at its goal, or timed out."""
+def _at_rest(dq, limit):  # type: ignore[no-untyped-def,unused-ignore]
+    """Tracker.finished's at rest: every joint slower than ``limit`` [rad/s] (NumPy's max:
+    not with a NaN)."""
     rest = 0.0
     for i in range(7):
         d = abs(dq[i])
         if math.isnan(d):
-            rest = d
-            break
+            return False
         rest = max(rest, d)
-    if rest <= settle[S_AT_REST] and _largest_off(goal, q, 7) <= settle[S_AT_GOAL]:
+    return rest <= limit
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _joint_settled(q, dq, goal, settle, over):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether a joint move ends on this state, ``over`` [s] past its trajectory's end
+    (Tracker.finished with JointMove.at_goal): at rest at its goal, or timed out."""
+    if _at_rest(dq, settle[S_AT_REST]) and _largest_off(goal, q, 7) <= settle[S_AT_GOAL]:
         return True
     return over >= settle[S_TIMEOUT]
 
@@ -117,40 +124,71 @@ def _joint_settling(q, goal, K, coulomb, settle, integral, dt, tau):  # type: ig
                    - coulomb[i] * math.tanh(e * settle[S_ERROR_RATE] * inverse))  # fmt: skip
 
 
+# a joint move's online generator as its compiled ticks run it (JointMove._lead): 1 while
+# it leads (a lead-in, or coming to rest), 1 while it stops; the generator's time in its
+# trajectory [s], 1 once it finished, the trajectory's duration [s]
+G_LEADING, G_STOPPING, G_TIME, G_FINISHED, G_DURATION = range(5)
+
+
 @cache.keyed_jit(KEY, nogil=True)
 def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
     tau_J_d, q_in, dq_in, pose_in, tau, command,
     values, guard, guard_key, plan_q, plan_dq, plan_ddq, K, D, chain, origin, ca, sa, mass, h,
-    inertia, armature, coulomb, times, samples, settle, integral, program, stack,
+    inertia, armature, coulomb, times, samples, settle, integral, gs, traj, gen_q, gen_dq,
+    gen_ddq, gain, lead_dq, program, stack,
 ):  # fmt: skip
-    """A joint move while it follows its plan (``controllers.moves.JointMove``): the
-    sample at the law's time (``times``: t_end, t0, the period, the friction's speed and
-    error rate; ``samples``: k0, the last), tracked by ``_fused.joint_tracking_step``; past
-    the trajectory's end ``times[0]`` its settling (:func:`_joint_settling`, ``settle``'s
-    constants, the error's ``integral`` kept across calls). The state it ends on (at rest
-    at the goal, or the settling's time out: :func:`_joint_settled`), or one on which its
-    ``until`` condition (``program``, none if empty) holds, is Python's."""
+    """A joint move (``controllers.moves.JointMove``). Following its plan: the sample at
+    the law's time (``times``: t_end, t0, the period, the friction's speed and error rate;
+    ``samples``: k0, the last), tracked by ``_fused.joint_tracking_step``; past the
+    trajectory's end ``times[0]`` its settling (:func:`_joint_settling`, ``settle``'s
+    constants, the error's ``integral`` kept across calls). Leading in, or coming to rest
+    (``gs``: G_*), the online generator's reference instead: its trajectory ``traj``
+    (packed, as ruckig calculated it) sampled into ``gen_q``, ``gen_dq``, ``gen_ddq``, its
+    velocity times the viscous ``gain`` (into ``lead_dq``) tracked. Python's, the state
+    unanswered: the tick the generator reaches its target on (the lead-in joins the plan,
+    or the stop's reference ends), the state the move ends on (at rest at the goal, or
+    stopped at rest, or the settling's time out: :func:`_joint_settled`), and one on which
+    its ``until`` condition (``program``, none if empty) holds while it is not stopping."""
     io[TICKS] = 0
     goal = plan_q[samples[1]]
+    stopping, leading = gs[G_STOPPING] != 0.0, False
     while True:
         status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
                         signals, new, values, guard, guard_key)  # fmt: skip
         if status == 0:
             t = _next_time(io, buf, law_t)
-            if t - times[0] > 0.0 and _joint_settled(q, dq, goal, settle, t - times[0]):
+            over = t - times[0]
+            leading = gs[G_LEADING] != 0.0
+            if leading and gs[G_FINISHED] == 0.0 and gs[G_TIME] + times[2] > gs[G_DURATION]:
+                status = PENDING  # the generator reaches its target: Python's
+            elif over > 0.0 and (
+                (_at_rest(dq, settle[S_AT_REST]) or over >= settle[S_TIMEOUT]) if stopping
+                else _joint_settled(q, dq, goal, settle, over)
+            ):  # fmt: skip
                 status = PENDING  # it ends on this state: Python's tick finishes it
-            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal, q, 7,
-                                                   True):  # fmt: skip
+            elif not stopping and program.shape[0] and _until_holds(
+                program, stack, buf, tmp, t, goal, q, 7, True
+            ):  # fmt: skip
                 status = PENDING  # its condition holds: check_until is Python's
         if status == 0:
             _advance(io, buf, law_t)
-            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
-            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
-                                 coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k], times[3],
-                                 times[4], tau)  # fmt: skip
-            if law_t[0] > times[0]:
+            if leading:
+                if gs[G_FINISHED] == 0.0:  # (OnlineGenerator.step, compiled)
+                    gs[G_TIME] += times[2]
+                    _sample(traj, gs[G_DURATION], gs[G_TIME], gen_q, gen_dq, gen_ddq)
+                for i in range(7):
+                    lead_dq[i] = gen_dq[i] * gain[i]
+                _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
+                                     coulomb, K, D, gen_q, lead_dq, gen_ddq, times[3],
+                                     times[4], tau)  # fmt: skip
+            else:
+                k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+                _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
+                                     coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k],
+                                     times[3], times[4], tau)  # fmt: skip
+            if law_t[0] > times[0] and not stopping:
                 _joint_settling(q, goal, K, coulomb, settle, integral, law_t[1], tau)
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
@@ -182,7 +220,7 @@ def _pose_settled(pose, dq, goal, goal_quat, settle, over):  # type: ignore[no-u
     """Whether a Cartesian move ends on this state, ``over`` [s] past its trajectory's
     end (Tracker.finished with PoseMove.at_goal: its position's distance and
     plans.rotation_angle to the goal's)."""
-    if _largest_off(dq, np.zeros(7), 7) <= settle[P_AT_REST]:
+    if _at_rest(dq, settle[P_AT_REST]):
         d = 0.0
         for i in range(3):
             d += (pose[12 + i] - goal[i]) ** 2
