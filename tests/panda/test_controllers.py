@@ -228,7 +228,7 @@ def test_a_moves_ticks_run_compiled_through_its_settling(panda: panda_py.Panda,
     if space == "joint":
         handle = panda.move_to_joint_position(q + 0.15, asynchronous=True)
     else:
-        handle = panda.move_to_pose(panda.get_position() + [0.05, -0.04, 0.03],
+        handle = panda.move_to_pose(np.add(panda.get_position(), [0.05, -0.04, 0.03]),
                                     panda.get_orientation(), asynchronous=True)  # fmt: skip
     assert handle.wait(60.0)
     result = handle.result
@@ -242,18 +242,28 @@ def test_a_moves_ticks_run_compiled_through_its_settling(panda: panda_py.Panda,
         assert ran == 0
 
 
-def test_a_joint_move_that_replaces_another_leads_in_compiled(panda: panda_py.Panda) -> None:
-    """A joint move replacing a running one leads in from its reference with the ticks
+@pytest.mark.parametrize("space", ["joint", "pose"])
+def test_a_move_that_replaces_another_leads_in_compiled(panda: panda_py.Panda,
+                                                        space: str) -> None:  # fmt: skip
+    """A move replacing a running one leads in from its reference with the ticks
     compiled, as the plan it joins and its settling: Python's are the hand-over's (ruckig
-    calculates the lead-in), the lead-in's end and the end."""
-    q = np.asarray(panda.q)
+    calculates the lead-in; a Cartesian one again on its refined limits), the lead-in's
+    end and the end."""
+    q, x, rot = np.asarray(panda.q), panda.get_position(), panda.get_orientation()
+
+    def move(offset: float) -> Any:
+        if space == "joint":
+            return panda.move_to_joint_position(q + offset, asynchronous=True)
+        return panda.move_to_pose(np.add(x, [offset * 0.4, -offset * 0.3, 0.0]), rot,
+                                  asynchronous=True)  # fmt: skip
+
     before = _compiled_ticks(panda)
-    first = panda.move_to_joint_position(q + 0.2, asynchronous=True)
+    first = move(0.2)
     deadline = time.monotonic() + 30.0
-    while np.abs(np.asarray(panda.q) - q).max() < 0.05:  # a quarter of the way
+    while np.abs(np.asarray(panda.q) - q).max() < 0.03:  # some way along
         assert time.monotonic() < deadline and not first.done()
         time.sleep(0.0005)
-    second = panda.move_to_joint_position(q - 0.1, asynchronous=True)
+    second = move(-0.1)
     assert second.wait(60.0) and first.done()
     one, two = first.result, second.result
     assert one is not None and one.cancelled and two is not None and two.success, (one, two)

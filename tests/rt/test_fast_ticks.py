@@ -711,13 +711,16 @@ def test_a_moves_settling_runs_compiled_and_hands_back_the_tick_it_ends_on(
 
 @pytest.mark.parametrize("version", [5, 10])
 @pytest.mark.parametrize("then", ["settle", "cancel"])
-def test_a_joint_moves_lead_in_and_stop_run_compiled(then: str, version: int) -> None:
-    """A joint move that leads in from where the arm is (2 cm off its plan's start) runs
-    its online generator compiled, with the Python step's torques (to 1e-9), and hands
-    Python the ticks only it can do: the first (ruckig calculates), the one the lead-in
-    joins the plan on, and the one it ends on; cancelled on the way, its stop too: the
-    tick of the cancel's ruckig step, the one its generator comes to rest on."""
-    rig = Rig(version, "JointMove")
+@pytest.mark.parametrize("kind", ["JointMove", "PoseMove"])
+def test_a_moves_lead_in_and_stop_run_compiled(kind: str, then: str, version: int) -> None:
+    """A move that leads in from where the arm is (0.02 rad a joint off its plan's start)
+    runs its online generator compiled, with the Python step's torques (to 1e-9) and
+    reference, and hands Python the ticks only it can do: the first (ruckig calculates),
+    the one its generator reaches its target on, and the one it ends on; cancelled on the
+    way, its stop too: the tick of the cancel's ruckig step, the one its generator comes
+    to rest on. (The joint move's arm follows its reference and comes to rest at the goal;
+    the Cartesian move's stays where it was, at rest: it times out settling.)"""
+    rig = Rig(version, kind)
     try:
         start = TickState(rig.dialect, _state(rig.dialect, rig.mid, rig.q + 0.02, np.zeros(7),
                                               np.zeros(7)))  # fmt: skip
@@ -730,11 +733,15 @@ def test_a_joint_moves_lead_in_and_stop_run_compiled(then: str, version: int) ->
                 rig.ref.cancel("stopped")
             past = max(0.0, rig.ref.t - rig.ref.t_end)  # the offset settles to the goal
             rig.mid += 1
-            ref_q, ref_dq = rig.ref.ref[0], rig.ref.ref[1]
-            data = _state(rig.dialect, rig.mid, ref_q + 5e-4 * np.exp(-past / 15e-3), ref_dq,
-                          np.zeros(7))  # fmt: skip
+            if kind == "JointMove":
+                ref_q, ref_dq = rig.ref.ref[0], rig.ref.ref[1]
+                q, dq = ref_q + 5e-4 * np.exp(-past / 15e-3), ref_dq
+            else:
+                q, dq = start.q, np.zeros(7)
+            data = _state(rig.dialect, rig.mid, q, dq, np.zeros(7))
             compiled = rig.law.compiled(TickState(rig.dialect, rig.last), MODEL)
             expected = rig.reference(data, 1e-3)
+            rig.ref.published()  # (the loop's, after the command: a lead-in's limits refined)
             if compiled is None:
                 python.append(k)
                 sent = rig.python_tick(data, 1e-3)
@@ -761,7 +768,10 @@ def test_a_joint_moves_lead_in_and_stop_run_compiled(then: str, version: int) ->
                 break
             assert not rig.law.finished(state)
         assert finished is not None
-        assert python == ([1, 150] if then == "cancel" else [1])  # ruckig's steps
+        # ruckig's steps: the first, a Cartesian lead-in's again on its refined limits (the
+        # tick after the first command: PoseMove.published), the cancel's
+        ruckig = [1] if kind == "JointMove" else [1, 2]
+        assert python == ruckig + ([150] if then == "cancel" else [])
         assert len(pending) == 2 and pending[-1] == finished  # the lead's end, the move's
         assert finished > 150
         assert rig.law.result(state) == rig.ref.result(state)

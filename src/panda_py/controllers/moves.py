@@ -673,6 +673,7 @@ class PoseMove(Tracker):
         self.spec: Any = None  # the robot's (the model's), known from the first tick
         self.refine = False  # the lead-in's limits are the worst case's (see published)
         self.ref: tuple[FloatArray, ...] = (self.p[0], self.quat[0], self.v[0], self.a[0])
+        self._lead = np.zeros(5)  # the compiled ticks' generator scalars
 
     def handover(self, prev: Tracker | None, state: StateView, model: ControlModel) -> None:
         """As :meth:`JointMove.handover`, in Cartesian space."""
@@ -776,11 +777,17 @@ class PoseMove(Tracker):
             return None
         chain, arm = model.kernel_arrays(state)
         self._samples = np.array([self.k0, self.last, self.law.damping_due, DAMPING_TICKS])
+        self._lead[:] = 0.0  # (rt._tick_moves.G_*)
+        if self.leading:
+            time, finished, duration = self.gen.gen.clock()
+            self._lead[:] = (1.0, 1.0 if self.stopping else 0.0, time, 1.0 if finished else 0.0,
+                             duration)  # fmt: skip
+        traj, *sampling = self.gen.sampling()
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
             readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
             model.coulomb, self._times(), self._samples, self._settle(), self.integral,
-            *program,
+            self._lead, readonly(traj), *sampling, *program,
         )  # fmt: skip
         return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -788,6 +795,15 @@ class PoseMove(Tracker):
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
         self.law.compiled_ran(int(self._samples[2]))
+
+    def _lead_compiled(self) -> bool:
+        # after the lead-in's limits were refined (published), not before ruckig's step
+        return not self.refine and self.gen.gen.sampling() is not None
+
+    def _lead_ran(self) -> tuple[FloatArray, ...]:
+        gen, lead = self.gen, self._lead
+        gen.gen.compiled_steps(float(lead[2]), lead[3] != 0.0)
+        return gen.position, gen.orientation, gen.twist, gen.accel
 
     def _settle(self) -> FloatArray:
         """The settling's constants as ``rt._tick_moves.pose_move_ticks`` reads them (its

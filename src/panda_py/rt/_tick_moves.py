@@ -21,7 +21,7 @@ import numpy as np
 
 from panda_py.controllers import condition_program, laws, tracking
 from panda_py.jit import cache
-from panda_py.motion import rotation
+from panda_py.motion import online, rotation
 from panda_py.rt import _tick
 from panda_py.rt._tick import BUDGET, BUDGET_DONE, PENDING, STATUS, TICKS
 
@@ -30,6 +30,7 @@ if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as we
     raise ImportError("the control laws run without numba")
 _joint_tracking_step = _FUSED.joint_tracking_step
 _sample = _tick._sample
+_sample_pose = online.compiled_kernels().sample_pose
 _pose_tracking_step = _FUSED.pose_tracking_step
 _begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
 _next_time = _tick._next_time
@@ -270,31 +271,42 @@ def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
     tau_J_d, q_in, dq_in, pose_in, tau, command,
     values, guard, guard_key, plan_p, plan_quat, plan_v, plan_a, law, chain, origin, ca, sa,
-    mass, h, inertia, armature, coulomb, times, samples, settle, integral, program, stack,
+    mass, h, inertia, armature, coulomb, times, samples, settle, integral, gs, traj, gen_x,
+    gen_dx, gen_ddx, Ft, Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a, program, stack,
 ):  # fmt: skip
-    """A Cartesian move while it follows its plan (``controllers.moves.PoseMove``), as
-    :func:`joint_move_ticks`, tracked by ``_fused.pose_tracking_step`` on the tracking
-    law's buffer ``law`` (``tracking.PoseImpedance.compiled_inputs``' scalars set here:
-    ``samples[2]`` counts the ticks until the damping's update, every ``samples[3]``);
-    past the trajectory's end its settling (:func:`_pose_settling`), until the state it
-    ends on (:func:`_pose_settled`)."""
+    """A Cartesian move (``controllers.moves.PoseMove``), as :func:`joint_move_ticks`,
+    tracked by ``_fused.pose_tracking_step`` on the tracking law's buffer ``law``
+    (``tracking.PoseImpedance.compiled_inputs``' scalars set here: ``samples[2]`` counts
+    the ticks until the damping's update, every ``samples[3]``); past the trajectory's end
+    its settling (:func:`_pose_settling`), until the state it ends on
+    (:func:`_pose_settled`). Leading in or coming to rest (``gs``), its online pose
+    generator's reference (``OnlinePose.step``: ``_online_jit.sample_pose`` of the packed
+    trajectory ``traj`` into the generator's state ``gen_*`` and, through its frames
+    ``Ft``, ``Fr`` and anchor ``R0``, ``q0``, into ``lead_*``)."""
     io[TICKS] = 0
     goal = plan_p[samples[1]]
     goal_quat = plan_quat[samples[1]]
+    stopping, leading = gs[G_STOPPING] != 0.0, False
     while True:
         status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
                         signals, new, values, guard, guard_key)  # fmt: skip
         if status == 0:
             t = _next_time(io, buf, law_t)
-            if t - times[0] > 0.0 and _pose_settled(pose, dq, goal, goal_quat, settle,
-                                                    t - times[0]):  # fmt: skip
+            over = t - times[0]
+            leading = gs[G_LEADING] != 0.0
+            if leading and gs[G_FINISHED] == 0.0 and gs[G_TIME] + times[2] > gs[G_DURATION]:
+                status = PENDING  # the generator reaches its target: Python's
+            elif over > 0.0 and (
+                (_at_rest(dq, settle[P_AT_REST]) or over >= settle[P_TIMEOUT]) if stopping
+                else _pose_settled(pose, dq, goal, goal_quat, settle, over)
+            ):  # fmt: skip
                 status = PENDING  # it ends on this state: Python's tick finishes it
-            elif program.shape[0] and _until_holds(program, stack, buf, tmp, t, goal,
-                                                   pose[12:15], 3, False):  # fmt: skip
+            elif not stopping and program.shape[0] and _until_holds(
+                program, stack, buf, tmp, t, goal, pose[12:15], 3, False
+            ):  # fmt: skip
                 status = PENDING  # its condition holds: check_until is Python's
         if status == 0:
             _advance(io, buf, law_t)
-            k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
             samples[2] -= 1  # (PoseImpedance.compiled_inputs)
             law[0] = law_t[1]
             law[7] = 1.0  # a previous Jacobian: this law has ticked before
@@ -303,10 +315,20 @@ def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
                 samples[2] = samples[3] - 1
             else:
                 law[6] = 0.0
-            _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h, inertia,
-                                armature, coulomb, plan_p[k], plan_quat[k], plan_v[k],
-                                plan_a[k], law, tau)  # fmt: skip
-            if law_t[0] > times[0]:
+            if leading:
+                if gs[G_FINISHED] == 0.0:  # (OnlinePose.step, compiled)
+                    gs[G_TIME] += times[2]
+                    _sample_pose(traj, gs[G_DURATION], gs[G_TIME], gen_x, gen_dx, gen_ddx, Ft,
+                                 Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a)  # fmt: skip
+                _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
+                                    inertia, armature, coulomb, lead_p, lead_quat, lead_v,
+                                    lead_a, law, tau)  # fmt: skip
+            else:
+                k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+                _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
+                                    inertia, armature, coulomb, plan_p[k], plan_quat[k],
+                                    plan_v[k], plan_a[k], law, tau)  # fmt: skip
+            if law_t[0] > times[0] and not stopping:
                 _pose_settling(law, coulomb, settle, integral, law_t[1], tau)
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
