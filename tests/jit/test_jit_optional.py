@@ -88,7 +88,7 @@ def test_the_built_in_kernels_all_load_through_it() -> None:
 
     for loaded in (kinematics.compiled_kernels(), dynamics.compiled_kernels(), laws.compiled(),
                    laws.fused(), online.compiled_kernels(), fastloop.kernels(),
-                   fastloop.kernel("force_ticks")):  # fmt: skip
+                   fastloop.kernel("force_ticks"), fastloop.kernel("pose_move_ticks")):  # fmt: skip
         assert loaded is not None
     for name in ("panda_py.kinematics._numba", "panda_py.dynamics._compiled",
                  "panda_py.controllers._kernels", "panda_py.controllers._fused",
