@@ -24,7 +24,7 @@ class JointSpring(controllers.TorqueController):
 
 
 if __name__ == "__main__":
-    with robot_host(__doc__) as (hostname, args):
+    with robot_host(__doc__, paced=True) as (hostname, args):
         panda = connect(hostname)
         panda.move_to_start()
         q0 = panda.q

@@ -37,7 +37,7 @@ def resolved_rate(model, q, goal):
 
 
 if __name__ == "__main__":
-    with robot_host(__doc__) as (hostname, args):
+    with robot_host(__doc__, paced=True) as (hostname, args):
         panda = connect(hostname)
         panda.move_to_start()
         model = rtb.models.Panda()

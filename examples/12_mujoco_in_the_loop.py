@@ -22,7 +22,7 @@ def options(parser):
 
 
 if __name__ == "__main__":
-    with robot_host(__doc__, options=options) as (hostname, args):
+    with robot_host(__doc__, options=options, paced=True) as (hostname, args):
         panda = connect(hostname)
         panda.move_to_start()
 

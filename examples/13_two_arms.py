@@ -17,7 +17,7 @@ def options(parser):
 
 
 if __name__ == "__main__":
-    with robot_hosts(__doc__, 2, options=options) as (hosts, args):
+    with robot_hosts(__doc__, 2, options=options, paced=True) as (hosts, args):
         arms = [connect(host) for host in hosts]
         with ThreadPoolExecutor(len(arms)) as pool:  # a blocking move per thread: together
             reached = list(pool.map(lambda arm: arm.move_to_start(), arms))

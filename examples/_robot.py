@@ -39,7 +39,7 @@ def _parser(
         metavar="X",
         help="lockstep: the simulated robot's time runs at most X times as fast as the wall "
         "clock (1: the robot's own pace, still waiting for every command; default: as fast "
-        "as the client answers)",
+        "as the client answers, or 1 where the example's own loop keeps the wall clock)",
     )
     if options is not None:
         options(parser)
@@ -51,6 +51,14 @@ def _check(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
         parser.error("--max-speed: paces the lockstep simulator (not --realtime, not --host)")
 
 
+def _max_speed(args: argparse.Namespace, paced: bool) -> float | None:
+    """The lockstep robot's speed cap: ``--max-speed``, or the wall clock's pace for an
+    example whose loop keeps the wall clock (``paced``)."""
+    if args.max_speed is not None or args.realtime:
+        return args.max_speed
+    return 1.0 if paced else None
+
+
 @contextlib.contextmanager
 def robot_host(
     description: str | None,
@@ -59,6 +67,7 @@ def robot_host(
     *,
     desk: bool = False,
     camera: tuple[int, int] | None = None,
+    paced: bool = False,
 ) -> Iterator[tuple[str, argparse.Namespace]]:
     """Parse the example's arguments and yield ``(hostname, args)``: ``--host`` if given,
     otherwise the address of a simulator started here (``--robot``, ``--realtime``,
@@ -66,7 +75,12 @@ def robot_host(
     ``desk``: the simulator also serves its Desk, locked as after power-up, and
     ``args.desk_host`` is its address (a real robot's Desk is at ``--host``).
     ``camera=(width, height)``: ``args.render()`` returns the simulator's image of the
-    robot (None on a real robot: bring your own camera)."""
+    robot (None on a real robot: bring your own camera).
+    ``paced``: the example's own loop keeps the wall clock (a ``PandaContext``), as it
+    would beside a real robot, so the lockstep robot is held to the wall clock too
+    (``--max-speed 1`` unless given): let loose, its time would run many times faster
+    than the loop that feeds it, and every command would be held for many of the robot's
+    milliseconds."""
     parser = _parser(description, options)
     parser.add_argument("--host", help="the robot's FCI address (default: a simulated robot)")
     args = parser.parse_args(argv)
@@ -84,7 +98,7 @@ def robot_host(
         free_loopback_host(),
         robot=args.robot,
         lockstep=not args.realtime,
-        lockstep_max_speed=args.max_speed,
+        lockstep_max_speed=_max_speed(args, paced),
         desk=config,
         camera_size=camera,
     ) as sim:
@@ -101,6 +115,8 @@ def robot_hosts(
     count: int,
     argv: Sequence[str] | None = None,
     options: Callable[[argparse.ArgumentParser], None] | None = None,
+    *,
+    paced: bool = False,
 ) -> Iterator[tuple[list[str], argparse.Namespace]]:
     """:func:`robot_host` for ``count`` robots: ``--host A --host B`` (one per robot), or
     that many simulated robots started here (each its own simulator, as each real arm
@@ -126,7 +142,7 @@ def robot_hosts(
                     free_loopback_host(),
                     robot=args.robot,
                     lockstep=not args.realtime,
-                    lockstep_max_speed=args.max_speed,
+                    lockstep_max_speed=_max_speed(args, paced),
                 )
             )
             hosts.append(sim.host)
