@@ -563,7 +563,9 @@ class JointMove(Tracker):
         return self.q[k], self.dq[k], self.ddq[k]
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """While it follows its plan and settles: ``rt._tick_moves.joint_move_ticks``."""
+        """Every phase of the move: its lead-in (planned while another ran, or replacing
+        one), its plan, its stop and its settling: ``rt._tick_moves.joint_move_ticks``
+        (Python keeps ruckig's steps and the tick the lead-in reaches its target on)."""
         program = self._program(state)
         if program is None or not self._follows_plan(model):
             return None
@@ -768,8 +770,9 @@ class PoseMove(Tracker):
         return self.p[k], self.quat[k], self.v[k], self.a[k]
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """While it follows its plan and settles: ``rt._tick_moves.pose_move_ticks``, on
-        its tracking law's buffer (after that law's first tick)."""
+        """Every phase of the move (lead-in, plan, stop, settling), as
+        :meth:`JointMove.compiled`'s: ``rt._tick_moves.pose_move_ticks``, on its tracking
+        law's buffer (after that law's first tick)."""
         program = self._program(state)
         if program is None or not self._follows_plan(model):
             return None
