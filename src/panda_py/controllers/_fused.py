@@ -237,8 +237,9 @@ def pose_tracking_step(  # type: ignore[no-untyped-def,unused-ignore]
     J = law[_J : _J + 42].reshape((1, 6, 7))
     J_prev = law[_JP : _JP + 42].reshape((1, 6, 7))
     has_prev = scalars[7] != 0.0
-    if has_prev:
-        J_prev[:] = J
+    if has_prev:  # (a loop: numba's slice assignment costs several times more)
+        for i in range(42):
+            law[_JP + i] = law[_J + i]
     if not _jacobian_or_nan(q, chain, J, tau):
         return
     K = law[_K : _K + 36].reshape((6, 6))

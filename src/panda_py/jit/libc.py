@@ -1,6 +1,6 @@
 """The C library's calls the compiled loops make, as numba intrinsics: ``poll``, ``recv``,
 ``recvfrom``, ``recvmmsg``, ``send``, ``sendto``, ``clock_gettime``, this thread's
-``errno``, and a memory fence.
+``errno``, a memory fence, and a copy between arrays that costs what ``memcpy`` costs.
 
 Each is called as an external symbol that the dynamic linker resolves when the compiled
 code loads (no address is compiled in), so the kernels that call them cache on disk as
@@ -13,6 +13,7 @@ Imported by the kernel modules only (it imports numba).
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from llvmlite import ir
@@ -20,10 +21,14 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from panda_py.jit import cache
+
 __all__ = [
-    "clock_gettime", "errno", "fence", "poll", "recv", "recvfrom", "recvmmsg", "send",
+    "clock_gettime", "copy", "errno", "fence", "poll", "recv", "recvfrom", "recvmmsg", "send",
     "sendto",
 ]  # fmt: skip
+
+KEY = cache.source_key([Path(__file__)])
 
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
 _PTR = ir.IntType(8).as_pointer()
@@ -123,3 +128,16 @@ recvmmsg: Any = intrinsic(_recvmmsg_typer)
 clock_gettime: Any = intrinsic(_clock_typer)
 errno: Any = intrinsic(_errno_typer)
 fence: Any = intrinsic(_fence_typer)
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def copy(dst, dst_at, src, src_at, n):  # type: ignore[no-untyped-def,unused-ignore]
+    """``dst[dst_at : dst_at + n] = src[src_at : src_at + n]`` (1-d arrays of one type) as
+    a plain loop, which the compiler turns into a vector copy: numba's slice assignment
+    costs some 15 ns a call and 0.23 ns a byte (a state of protocol 5, 2373 bytes: 550 ns a
+    copy against 30 here, and a control loop's tick copies it four times). Bounds checked,
+    as the slices were."""
+    if n < 0 or dst_at < 0 or src_at < 0 or dst_at + n > dst.size or src_at + n > src.size:
+        raise IndexError("a compiled copy out of its arrays' bounds")
+    for i in range(n):
+        dst[dst_at + i] = src[src_at + i]

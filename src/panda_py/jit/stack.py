@@ -15,34 +15,38 @@ from __future__ import annotations
 
 from typing import Any
 
-import numba
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
+from numba.np.arrayobj import populate_array
 
 __all__ = ["stack_array"]
 
-_F8P = types.CPointer(types.float64)
+_F8_1D = types.Array(types.float64, 1, "C")
 
 
-def _alloca_typer(typingctx: Any, n: Any) -> Any:
-    """A pointer to ``n`` (a literal) float64 on the caller's stack (its entry block: once
-    per call, not per loop iteration)."""
+def _stack_array_typer(typingctx: Any, n: Any) -> Any:
+    """An array of ``n`` (a literal) float64 on the caller's stack (in its entry block:
+    once per call, not per loop iteration), built in place as ``numba.carray`` builds
+    one, without a meminfo: it compiles in kernels without numba's reference counting too
+    (``rt._tick.LOOP_KERNEL``), where ``carray``'s own function may not return an array."""
     if not isinstance(n, types.IntegerLiteral) or n.literal_value <= 0:
         return None
     size = n.literal_value
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        return cgutils.alloca_once(builder, ir.DoubleType(), size=size)
+        data = cgutils.alloca_once(builder, ir.DoubleType(), size=size)
+        ary = context.make_array(_F8_1D)(context, builder)
+        itemsize = context.get_constant(types.intp, 8)
+        shape = [context.get_constant(types.intp, size)]
+        strides = [itemsize]
+        populate_array(ary, data=data, shape=shape, strides=strides, itemsize=itemsize,
+                       meminfo=None)  # fmt: skip
+        return ary._getvalue()
 
-    return _F8P(n), codegen
+    return _F8_1D(n), codegen
 
 
-_alloca: Any = intrinsic(_alloca_typer)
-
-
-@numba.njit(inline="always")
-def stack_array(n: Any) -> Any:  # pragma: no cover - compiled only
-    """A float64 array of ``n`` (a literal) on the stack of the kernel that calls it."""
-    return numba.carray(_alloca(n), n)
+stack_array: Any = intrinsic(_stack_array_typer)
+stack_array.__doc__ = "A float64 array of ``n`` (a literal) on the stack of the kernel calling it."

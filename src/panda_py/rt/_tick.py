@@ -92,9 +92,18 @@ RECV_BATCH = 4
 MMSG_BYTES, IOVEC_BYTES = 64, 16
 SCRATCH_PER_STATE = MMSG_BYTES + IOVEC_BYTES
 
+# The loop kernels' compile options: numba's reference counting off in them. Every numba
+# function counts a reference to each array it is given, on entry and again on exit, with
+# an atomic instruction each (which the compiler's pruning cannot remove around a call): a
+# tick passes some 200 arrays down through its helpers, and those 400 atomics were a tenth
+# of the control process's CPU (perf). An array that enters a kernel compiled without the
+# counting carries none, and its helpers skip theirs (a test and a branch each). The
+# kernels allocate nothing; the arrays are the caller's, which holds them throughout.
+LOOP_KERNEL = {"nogil": True, "_nrt": False}
+
 # the C library's calls and the fence, as intrinsics (panda_py.jit.libc)
 _send, _recvmmsg, _poll = libc.send, libc.recvmmsg, libc.poll
-_errno, _fence = libc.errno, libc.fence
+_errno, _fence, _copy = libc.errno, libc.fence, libc.copy
 
 
 @cache.keyed_jit(KEY, nogil=True)
@@ -102,10 +111,9 @@ def _decode(buf, offset, size, count, tmp, out):  # type: ignore[no-untyped-def,
     """``count`` floats of ``size`` bytes each at ``offset`` of ``buf`` into ``out``
     (float64), through the aligned scratch ``tmp``."""
     raw = tmp.view(np.uint8)
-    n = size * count
-    raw[:n] = buf[offset : offset + n]
+    _copy(raw, 0, buf, offset, size * count)
     if size == 8:
-        out[:count] = tmp[:count]
+        _copy(out, 0, tmp, 0, count)
     else:
         small = tmp.view(np.float32)
         for i in range(count):
@@ -149,7 +157,7 @@ def _receive_newest(io, buf, scratch):  # type: ignore[no-untyped-def,unused-ign
             mid = np.int64(slot[:8].view(np.uint64)[0])
             if mid > io[LAST_ID] and mid > best:
                 best = mid
-                buf[:n] = slot
+                _copy(buf, 0, slot, 0, n)
                 io[LENGTH] = n
         if got < RECV_BATCH:  # the queue is empty
             return best
@@ -192,9 +200,8 @@ def _unchanged(lay, buf, key):  # type: ignore[no-untyped-def,unused-ignore]
 @cache.keyed_jit(KEY, nogil=True)
 def _answer(io, lay, buf, cmd, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """The command for the state in ``buf`` (its message_id, the torques ``tau``) sent."""
-    cmd[:8] = buf[:8]
-    at = lay[L_CMD_TAU]
-    cmd[at : at + 56] = tau.view(np.uint8)
+    _copy(cmd, 0, buf, 0, 8)
+    _copy(cmd, lay[L_CMD_TAU], tau.view(np.uint8), 0, 56)
     n = _send(io[UDP], cmd.ctypes.data, cmd.size, 0)
     return n == cmd.size
 
@@ -207,12 +214,12 @@ def _publish(io, buf, header, states, ring, spans):  # type: ignore[no-untyped-d
     half = io[STATE_MAX]
     header[H_STATE_SEQ] += 1
     _fence()
-    states[:n] = buf[:n]
+    _copy(states, 0, buf, 0, n)
     header[H_STATE_LEN] = n
     _fence()
     header[H_STATE_SEQ] += 1
     _fence()
-    states[half : half + n] = buf[:n]
+    _copy(states, half, buf, 0, n)
     _fence()
     header[H_TICKS] += 1
     if io[LOGGING] != 0:
@@ -220,7 +227,7 @@ def _publish(io, buf, header, states, ring, spans):  # type: ignore[no-untyped-d
         base = (count % io[SLOTS]) * io[RECORD]
         for s in range(spans.shape[0]):
             src, dst, length = spans[s, 0], spans[s, 1], spans[s, 2]
-            ring[base + dst : base + dst + length] = buf[src : src + length]
+            _copy(ring, base + dst, buf, src, length)
         _fence()
         header[H_LOG_COUNT] = count + 1
 
@@ -230,11 +237,11 @@ def _outputs(header, outputs, values, n):  # type: ignore[no-untyped-def,unused-
     """The law's outputs into the shared block's latch (``SharedBlock.write_outputs``)."""
     header[H_OUT_SEQ] += 1
     _fence()
-    outputs[0, :n] = values[:n]
+    _copy(outputs[0], 0, values, 0, n)
     _fence()
     header[H_OUT_SEQ] += 1
     _fence()
-    outputs[1, :n] = values[:n]
+    _copy(outputs[1], 0, values, 0, n)
 
 
 @cache.keyed_jit(KEY, nogil=True)
@@ -246,7 +253,7 @@ def _signals(io, header, signals, scratch, n):  # type: ignore[no-untyped-def,un
     if seq == io[IN_SEQ] or seq & 1:
         return -1
     _fence()
-    scratch[:n] = signals[:n]
+    _copy(scratch, 0, signals, 0, n)
     _fence()
     if header[H_IN_SEQ] != seq:
         return -1
@@ -305,7 +312,7 @@ def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, o
         io[ERRNO] = _errno()
         return SEND_FAILED
     n = io[LENGTH]
-    answered[:n] = buf[:n]
+    _copy(answered, 0, buf, 0, n)
     io[ANSWERED] = n
     _publish(io, buf, header, states, ring, spans)
     if io[OUT_N] > 0:
@@ -338,7 +345,7 @@ def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, s
             if new[guard[g, 0] + i] != guard_key[k]:
                 return PENDING
             k += 1
-    values[:] = new[:n]
+    _copy(values, 0, new, 0, n)
     io[IN_SEQ] = seq
     return 0
 
@@ -355,7 +362,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
     """``controllers.laws.ema``: in place, ``filtered <- alpha target + (1 - alpha)
     filtered`` (at once for alpha >= 1)."""
     if alpha >= 1.0:
-        filtered[:] = target
+        _copy(filtered, 0, target, 0, filtered.size)
     else:
         for i in range(filtered.size):
             filtered[i] += alpha * (target[i] - filtered[i])
@@ -368,7 +375,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
 # for read-only state arrays); ``values``/``values_in`` likewise the law's inputs.
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -400,7 +407,7 @@ def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -435,7 +442,7 @@ def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -470,7 +477,7 @@ def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -520,7 +527,7 @@ def _gen_advance(s):  # type: ignore[no-untyped-def,unused-ignore]
     return s[T_GEN_TIME]
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -568,7 +575,7 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, nogil=True)
+@cache.keyed_jit(KEY, **LOOP_KERNEL)
 def cartesian_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,

@@ -74,7 +74,7 @@ _SOCKADDR_IN = 16  # sizeof(struct sockaddr_in)
 
 # the C library's calls, as intrinsics (panda_py.jit.libc)
 _poll, _recvfrom, _recv, _sendto = libc.poll, libc.recvfrom, libc.recv, libc.sendto
-_clock_gettime, _errno = libc.clock_gettime, libc.errno
+_clock_gettime, _errno, _copy = libc.clock_gettime, libc.errno, libc.copy
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -130,17 +130,16 @@ def _encode(io, sb, runs, state, tmp, rate):  # type: ignore[no-untyped-def,unus
         else:
             for i in range(count):
                 single[i] = np.float32(sb[start + i])
-        n = size * count
-        state[at : at + n] = raw[:n]
+        _copy(state, at, raw, 0, size * count)
     tmp.view(np.uint64)[0] = np.uint64(io[LAST_ID])
-    state[:8] = raw[:8]
+    _copy(state, 0, raw, 0, 8)
     at = io[RATE_AT]
     if io[RATE_SIZE] == 4:
         single[0] = np.float32(rate)
-        state[at : at + 4] = raw[:4]
+        _copy(state, at, raw, 0, 4)
     else:
         tmp[0] = rate
-        state[at : at + 8] = raw[:8]
+        _copy(state, at, raw, 0, 8)
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
@@ -153,9 +152,9 @@ def _send_hand_state(io, tick, qpos, hand, hand_target, hand_state, tmp):  # typ
     width = min(max(opening, 0.0), hand[HAND_MAX_WIDTH])
     raw = tmp.view(np.uint8)
     tmp.view(np.uint32)[0] = np.uint32(tick & 0xFFFFFFFF)
-    hand_state[HAND_ID_AT : HAND_ID_AT + 4] = raw[:4]
+    _copy(hand_state, HAND_ID_AT, raw, 0, 4)
     tmp[0] = width
-    hand_state[HAND_WIDTH_AT : HAND_WIDTH_AT + 8] = raw[:8]
+    _copy(hand_state, HAND_WIDTH_AT, raw, 0, 8)
     grasped = hand[HAND_GRASP_LO] <= width <= hand[HAND_GRASP_HI]  # (False for NaN)
     hand_state[HAND_GRASPED_AT] = 1 if grasped else 0
     _sendto(io[HAND_FD], hand_state.ctypes.data, hand_state.size, 0, hand_target.ctypes.data,
@@ -216,7 +215,7 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
                     same = False
             if same:
                 raw = tmp.view(np.uint8)
-                raw[:8] = scratch[:8]
+                _copy(raw, 0, scratch, 0, 8)
                 mid = np.int64(tmp.view(np.uint64)[0])
         io[SIZE] = n
         io[MID] = mid
@@ -232,7 +231,7 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
         raw = tmp.view(np.uint8)
         at = io[DQ_AT]
-        raw[:56] = scratch[at : at + 56]
+        _copy(raw, 0, scratch, at, 56)
         for i in range(7):
             if tmp[i] != 0.0:
                 io[STATUS] = _COMMAND
@@ -248,7 +247,7 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             io[STATUS] = _COMMAND
             return
         at = io[TAU_AT]
-        raw[:56] = scratch[at : at + 56]
+        _copy(raw, 0, scratch, at, 56)
         for i in range(7):
             tau[i] = tmp[i]
         # -- the tick (CompiledTick.command), then the state (FciSession._send_state)
@@ -257,7 +256,7 @@ def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             io[STATUS] = _COMMAND  # nothing changed: the reference ticks with it
             return
         size = io[CMD_SIZE]
-        command[:size] = scratch[:size]  # (CommandWire.accept)
+        _copy(command, 0, scratch, 0, size)  # (CommandWire.accept)
         ticks += 1
         io[TICKS] = ticks
         if status != _DONE:
