@@ -1,6 +1,6 @@
 """The compiled loops' helpers (panda_py.jit.stack, panda_py.jit.libc.copy) and the loop
 kernels' compile options: the kernels run without numba's reference counting
-(``rt._tick.LOOP_KERNEL``), so every helper they call must compile there too."""
+(``jit.libc.LOOP_KERNEL``), so every helper they call must compile there too."""
 
 from __future__ import annotations
 
@@ -61,3 +61,6 @@ def test_every_loop_kernel_runs_without_reference_counting() -> None:
                 assert kernel.targetoptions.get("_nrt") is False, f"{module_name}.{name}"
                 names.append(name)
     assert {"cartesian_impedance_ticks", "joint_move_ticks", "pose_move_ticks"} <= set(names)
+    from panda_py.sim import _lockstep_jit  # (the simulator's lockstep ticks: the same)
+
+    assert _lockstep_jit.lockstep_ticks.targetoptions.get("_nrt") is False

@@ -24,11 +24,24 @@ from numba.extending import intrinsic
 from panda_py.jit import cache
 
 __all__ = [
-    "clock_gettime", "copy", "errno", "fence", "poll", "recv", "recvfrom", "recvmmsg", "send",
-    "sendto",
+    "LOOP_KERNEL", "clock_gettime", "copy", "errno", "fence", "poll", "recv", "recvfrom",
+    "recvmmsg", "send", "sendto",
 ]  # fmt: skip
 
 KEY = cache.source_key([Path(__file__)])
+
+#: The compile options of the loops that run whole ticks (the control loop's and the
+#: simulator's lockstep ticks): numba's reference counting off. Every numba function counts
+#: a reference to each array it is given, on entry and again on exit, with an atomic
+#: instruction each (which the compiler's pruning cannot remove around a call): a control
+#: loop's tick passes some 200 arrays down through its helpers, and those 400 atomics were
+#: a tenth of the control process's CPU (perf). An array that enters a kernel compiled
+#: without the counting carries none, and the helpers compiled within skip theirs. Such a
+#: kernel allocates nothing (``jit.stack`` for temporaries, :func:`copy` for copies:
+#: numba's slice copies need the runtime) and works on its caller's arrays, which the
+#: caller holds throughout the call. (Here, not in ``jit.cache``: both loops' cache keys
+#: cover this file, so a change of the options compiles them afresh.)
+LOOP_KERNEL: dict[str, Any] = {"nogil": True, "_nrt": False}
 
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
 _PTR = ir.IntType(8).as_pointer()

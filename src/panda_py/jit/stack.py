@@ -30,7 +30,7 @@ def _stack_array_typer(typingctx: Any, n: Any) -> Any:
     """An array of ``n`` (a literal) float64 on the caller's stack (in its entry block:
     once per call, not per loop iteration), built in place as ``numba.carray`` builds
     one, without a meminfo: it compiles in kernels without numba's reference counting too
-    (``rt._tick.LOOP_KERNEL``), where ``carray``'s own function may not return an array."""
+    (``jit.libc.LOOP_KERNEL``), where ``carray``'s own function may not return an array."""
     if not isinstance(n, types.IntegerLiteral) or n.literal_value <= 0:
         return None
     size = n.literal_value

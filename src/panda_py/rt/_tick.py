@@ -92,14 +92,6 @@ RECV_BATCH = 4
 MMSG_BYTES, IOVEC_BYTES = 64, 16
 SCRATCH_PER_STATE = MMSG_BYTES + IOVEC_BYTES
 
-# The loop kernels' compile options: numba's reference counting off in them. Every numba
-# function counts a reference to each array it is given, on entry and again on exit, with
-# an atomic instruction each (which the compiler's pruning cannot remove around a call): a
-# tick passes some 200 arrays down through its helpers, and those 400 atomics were a tenth
-# of the control process's CPU (perf). An array that enters a kernel compiled without the
-# counting carries none, and its helpers skip theirs (a test and a branch each). The
-# kernels allocate nothing; the arrays are the caller's, which holds them throughout.
-LOOP_KERNEL = {"nogil": True, "_nrt": False}
 
 # the C library's calls and the fence, as intrinsics (panda_py.jit.libc)
 _send, _recvmmsg, _poll = libc.send, libc.recvmmsg, libc.poll
@@ -375,7 +367,7 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
 # for read-only state arrays); ``values``/``values_in`` likewise the law's inputs.
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -407,7 +399,7 @@ def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -442,7 +434,7 @@ def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -477,7 +469,7 @@ def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -527,7 +519,7 @@ def _gen_advance(s):  # type: ignore[no-untyped-def,unused-ignore]
     return s[T_GEN_TIME]
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -575,7 +567,7 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, **LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def cartesian_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,

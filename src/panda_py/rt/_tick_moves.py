@@ -18,7 +18,7 @@ import math
 from pathlib import Path
 
 from panda_py.controllers import condition_program, laws, tracking
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 from panda_py.jit.stack import stack_array
 from panda_py.motion import online, rotation
 from panda_py.rt import _tick
@@ -130,7 +130,7 @@ def _joint_settling(q, goal, K, coulomb, settle, integral, dt, tau):  # type: ig
 G_LEADING, G_STOPPING, G_TIME, G_FINISHED, G_DURATION = range(5)
 
 
-@cache.keyed_jit(KEY, **_tick.LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -246,7 +246,7 @@ def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-
     err = law[_ERR : _ERR + 6]
     for r in range(6):
         integral[r] += dt * err[r]
-    wrench = stack_array(6)  # (the loop kernels allocate nothing: rt._tick.LOOP_KERNEL)
+    wrench = stack_array(6)  # (the loop kernels allocate nothing: jit.libc.LOOP_KERNEL)
     for r in range(6):
         s = 0.0
         for c in range(6):
@@ -264,7 +264,7 @@ def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-
         tau[i] += coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
 
 
-@cache.keyed_jit(KEY, **_tick.LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,

@@ -16,7 +16,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from panda_py.controllers import laws
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 from panda_py.rt import _tick
 from panda_py.rt._tick import BUDGET, BUDGET_DONE, L_TAU_J, L_TAU_J_SIZE, PENDING, STATUS, TICKS
 
@@ -34,7 +34,7 @@ __all__ = ["applied_force_ticks", "force_ticks"]
 KEY = cache.source_key([Path(__file__)]) + _tick.KEY[:20]
 
 
-@cache.keyed_jit(KEY, **_tick.LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def applied_force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
@@ -63,7 +63,7 @@ def applied_force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             return
 
 
-@cache.keyed_jit(KEY, **_tick.LOOP_KERNEL)
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
 def force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
     signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,

@@ -161,7 +161,7 @@ def _send_hand_state(io, tick, qpos, hand, hand_target, hand_state, tmp):  # typ
             _SOCKADDR_IN)  # fmt: skip
 
 
-@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL, error_model="numpy")
 def lockstep_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     io, pfd, ts, target, source, addrlen, scratch, command, state, sb, runs, tmp, tau,
     desk, qpos, hand, hand_target, hand_state, robot,
