@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from panda_py.controllers import laws
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 from panda_py.motion import online
 from panda_py.sim import compiled as sim
 
@@ -37,7 +37,7 @@ if _KERNELS is None or _FUSED is None or _ONLINE is None:
 __all__ = ["Stop", "joint_target_ticks", "pose_target_ticks", "read_state"]
 
 KEY = hashlib.sha256(
-    (cache.source_key([Path(__file__)]) + sim.KEY + _FUSED.KEY).encode()
+    (cache.source_key([Path(__file__), Path(libc.__file__)]) + sim.KEY + _FUSED.KEY).encode()
 ).hexdigest()[:20]
 
 _finalize = _KERNELS.finalize_torques
@@ -130,7 +130,7 @@ def _finish(s, tau, q, dq, tau_J_d, walls, cmd, out, robot, cull):  # type: igno
     return status, True
 
 
-@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL, error_model="numpy")
 def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     n, s, tick, gen, law, arm, target, out, reads, walls, buf, robot, cull
 ):  # fmt: skip
@@ -180,7 +180,7 @@ def pose_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     return n, _DONE
 
 
-@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+@cache.keyed_jit(KEY, **libc.LOOP_KERNEL, error_model="numpy")
 def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     n, s, gen, gains, arm, target, out, reads, walls, buf, robot, cull
 ):  # fmt: skip
