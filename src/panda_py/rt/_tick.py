@@ -360,6 +360,20 @@ def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
             filtered[i] += alpha * (target[i] - filtered[i])
 
 
+@cache.keyed_jit(KEY, nogil=True)
+def _ends(io, status):  # type: ignore[no-untyped-def,unused-ignore]
+    """A loop kernel's tick done with ``status`` (0: it ran and was answered): counted
+    against the budget; True where the kernel returns, the reason in ``io[STATUS]``."""
+    if status == 0:
+        io[TICKS] += 1
+        if io[TICKS] >= io[BUDGET]:
+            status = BUDGET_DONE
+    if status != 0:
+        io[STATUS] = status
+        return True
+    return False
+
+
 # Every loop kernel takes the loop's arrays first, in this order (rt.fastloop.FastTicks),
 # then the law's (its ``compiled()``); each runs ticks from waiting for the next state until
 # a reason to return (io[STATUS]; the ticks run in io[TICKS]). ``q_in``, ``dq_in``,
@@ -390,12 +404,7 @@ def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -425,12 +434,7 @@ def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -460,12 +464,7 @@ def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -492,12 +491,7 @@ def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -558,12 +552,7 @@ def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -609,10 +598,5 @@ def cartesian_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return

@@ -22,7 +22,7 @@ from panda_py.jit import cache, libc
 from panda_py.jit.stack import stack_array
 from panda_py.motion import online, rotation
 from panda_py.rt import _tick
-from panda_py.rt._tick import BUDGET, BUDGET_DONE, PENDING, STATUS, TICKS
+from panda_py.rt._tick import PENDING, TICKS
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
@@ -33,6 +33,7 @@ _sample_pose = online.compiled_kernels().sample_pose
 _pose_tracking_step = _FUSED.pose_tracking_step
 _begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
 _next_time = _tick._next_time
+_ends = _tick._ends
 
 __all__ = ["joint_move_ticks", "pose_move_ticks"]
 
@@ -193,12 +194,7 @@ def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -332,10 +328,5 @@ def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return

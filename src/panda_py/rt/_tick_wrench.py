@@ -18,7 +18,7 @@ from pathlib import Path
 from panda_py.controllers import laws
 from panda_py.jit import cache, libc
 from panda_py.rt import _tick
-from panda_py.rt._tick import BUDGET, BUDGET_DONE, L_TAU_J, L_TAU_J_SIZE, PENDING, STATUS, TICKS
+from panda_py.rt._tick import L_TAU_J, L_TAU_J_SIZE, PENDING, TICKS
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
@@ -27,7 +27,7 @@ _applied_force_step = _FUSED.applied_force_step
 _force_exceeded = _FUSED.force_exceeded
 _force_step = _FUSED.force_step
 _begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
-_decode, _next_time = _tick._decode, _tick._next_time
+_decode, _next_time, _ends = _tick._decode, _tick._next_time, _tick._ends
 
 __all__ = ["applied_force_ticks", "force_ticks"]
 
@@ -54,12 +54,7 @@ def applied_force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
 
 
@@ -93,10 +88,5 @@ def force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
             status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
                              out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
                              flags, fin, tau_max, command)  # fmt: skip
-        if status == 0:
-            io[TICKS] += 1
-            if io[TICKS] >= io[BUDGET]:
-                status = BUDGET_DONE
-        if status != 0:
-            io[STATUS] = status
+        if _ends(io, status):
             return
