@@ -75,6 +75,7 @@ def test_every_compiled_module_caches_under_a_key_over_its_own_file() -> None:
         assert kernel.stats.cache_path == str(jitcache.cache_dir(module.KEY)), module.__name__
 
 
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: no loop kernels load")
 def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> None:
     """The control loop's ticks and the simulator's lockstep ticks call the C library
     through one module's intrinsics (jit.libc): both keys cover it, so an edit to a call's

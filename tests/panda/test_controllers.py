@@ -272,3 +272,28 @@ def test_a_move_that_replaces_another_leads_in_compiled(panda: panda_py.Panda,
         assert ran >= ticks - 8, (ticks, ran)
     else:
         assert ran == 0
+
+
+def test_without_the_jit_the_built_in_laws_tick_in_python() -> None:
+    """``PANDA_PY_NO_JIT=1``: the built-in laws still offer their compiled form, and the
+    control process runs them in Python instead (it once took the offer, found no loop
+    kernels and ended the motion with a bare AssertionError: teaching mode failed)."""
+    from panda_py.sim import Simulator, free_loopback_host
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PANDA_PY_NO_JIT", "1")
+        with (
+            Simulator(free_loopback_host(), lockstep=True) as sim,
+            panda_py.Panda(sim.host) as panda,
+        ):
+            panda.teaching_mode(True)  # AppliedTorque
+            time.sleep(0.2)
+            panda.raise_error()
+            panda.teaching_mode(False)
+            ctrl = controllers.JointPosition()
+            panda.start_controller(ctrl)
+            _run_for(panda, ctrl, 0.3)
+            panda.raise_error()
+            panda.stop_controller()
+            assert _compiled_ticks(panda) == 0
+            assert np.abs(panda.q - np.asarray(constants.JOINT_POSITION_START)).max() < 0.01

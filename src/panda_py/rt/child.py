@@ -419,6 +419,9 @@ class ControlServer:
         next_check = PARENT_CHECK_TICKS
         active = None
         fast: FastTicks | None = None
+        # compiled ticks where asked for and where the loop kernels run (not without numba
+        # or with PANDA_PY_NO_JIT=1, where a built-in law still offers its compiled form)
+        fast_ticks = FAST_TICKS and fastloop.kernels() is not None
         pending: bytes | None = None  # a state the compiled ticks left for Python to answer
         udp, requests = robot.fileno(), chan.fileno()
         try:
@@ -455,7 +458,7 @@ class ControlServer:
                         if self._parent_gone() or chan.peer_closed():  # the user's side is gone
                             self.closing = self.stopping = True
                     compiled = None
-                    if self.replacement is None and not self.stopping and FAST_TICKS:
+                    if self.replacement is None and not self.stopping and fast_ticks:
                         compiled = law.compiled(state, model)
                     if compiled is None:
                         break
