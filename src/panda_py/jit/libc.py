@@ -1,6 +1,6 @@
 """The C library's calls the compiled loops make, as numba intrinsics: ``poll``, ``recv``,
 ``recvfrom``, ``recvmmsg``, ``send``, ``sendto``, ``clock_gettime``, this thread's
-``errno``, a memory fence, and a copy between arrays that costs what ``memcpy`` costs.
+``errno``, a memory fence, and a copy between arrays at about ``memcpy``'s cost.
 
 Each is called as an external symbol that the dynamic linker resolves when the compiled
 code loads (no address is compiled in), so the kernels that call them cache on disk as

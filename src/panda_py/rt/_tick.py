@@ -92,7 +92,6 @@ RECV_BATCH = 4
 MMSG_BYTES, IOVEC_BYTES = 64, 16
 SCRATCH_PER_STATE = MMSG_BYTES + IOVEC_BYTES
 
-
 # the C library's calls and the fence, as intrinsics (panda_py.jit.libc)
 _send, _recvmmsg, _poll = libc.send, libc.recvmmsg, libc.poll
 _errno, _fence, _copy = libc.errno, libc.fence, libc.copy

@@ -32,8 +32,7 @@ _sample = _tick._sample
 _sample_pose = online.compiled_kernels().sample_pose
 _pose_tracking_step = _FUSED.pose_tracking_step
 _begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
-_next_time = _tick._next_time
-_ends = _tick._ends
+_next_time, _ends = _tick._next_time, _tick._ends
 
 __all__ = ["joint_move_ticks", "pose_move_ticks"]
 
