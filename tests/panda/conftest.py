@@ -38,6 +38,19 @@ def panda(sim: Simulator) -> Iterator[panda_py.Panda]:
         p.close()
 
 
+@pytest.fixture
+def paced_panda() -> Iterator[panda_py.Panda]:
+    """A Panda on a lockstep simulator held to the wall clock (``lockstep_max_speed=1``:
+    it still waits for every command). For a user's loop that runs on the wall clock (or
+    reads the robot's clock between sleeps): a lockstep robot let loose runs many times the
+    wall clock, and each stall of the test's process becomes many of its milliseconds."""
+    with (
+        Simulator(free_loopback_host(), lockstep=True, lockstep_max_speed=1.0) as sim,
+        panda_py.Panda(sim.host) as p,
+    ):
+        yield p
+
+
 @pytest.fixture(scope="module")
 def shared_sim() -> Iterator[Simulator]:
     """The lockstep simulator of the module's Panda (``shared_panda``)."""

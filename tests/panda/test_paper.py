@@ -4,14 +4,12 @@ outcome. Block 1 (the Desk) is the Desk's."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 
 import panda_py
 from panda_py import controllers, libfranka
-from panda_py.sim import Simulator, free_loopback_host
+from panda_py.sim import Simulator
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -102,19 +100,6 @@ def test_logged_paths_straight_and_curved(panda: panda_py.Panda) -> None:
         "q", "dq", "tau_J", "O_T_EE", "O_F_ext_hat_K", "K_F_ext_hat_K",
         "tau_ext_hat_filtered", "elbow", "control_command_success_rate", "time",
     }  # fmt: skip
-
-
-@pytest.fixture
-def paced_panda() -> Iterator[panda_py.Panda]:
-    """A Panda on a lockstep simulator held to the wall clock (``lockstep_max_speed=1``:
-    it still waits for every command). For a user's loop that runs on the wall clock: the
-    robot then runs the ticks the test judges, where one running ahead of the clock ran
-    about five times as many, on two busy processes, for nothing."""
-    with (
-        Simulator(free_loopback_host(), lockstep=True, lockstep_max_speed=1.0) as sim,
-        panda_py.Panda(sim.host) as p,
-    ):
-        yield p
 
 
 def test_block6_cartesian_impedance(paced_panda: panda_py.Panda) -> None:

@@ -10,7 +10,7 @@ cannot be collected in one run.)"""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -19,24 +19,18 @@ from test_async_moves import motion_limits, robot_ms
 import panda_py
 from panda_py import controllers
 from panda_py.robots.params import get_robot
-from panda_py.sim import Simulator, free_loopback_host
 
 pytestmark = pytest.mark.timeout(300)
 
 
 @pytest.fixture
-def panda() -> Iterator[panda_py.Panda]:
-    """A fresh lockstep robot held to the wall clock (``lockstep_max_speed=1``), as a
-    robot beside a policy is: the tests' 20 Hz loop reads the robot's clock between
-    sleeps, and a lockstep robot let loose (some 18x the wall clock since the loop's ticks
-    were compiled) turns each stall of this process on a loaded machine into tens of the
-    robot's milliseconds: a target sent late, the next early, the reference with less time
-    between them (the random walk's lag reached 0.074 m in a CI run so)."""
-    with (
-        Simulator(free_loopback_host(), lockstep=True, lockstep_max_speed=1.0) as sim,
-        panda_py.Panda(sim.host) as p,
-    ):
-        yield p
+def panda(paced_panda: panda_py.Panda) -> panda_py.Panda:
+    """A fresh robot held to the wall clock (conftest.paced_panda), as a robot beside a
+    policy is: the tests' 20 Hz loop reads the robot's clock between sleeps, and a
+    lockstep robot let loose (some 18x the wall clock since the loop's ticks were
+    compiled) turned this process's stalls on a loaded machine into targets late and
+    early, the reference with less time between them (a random-walk lag of 0.074 m)."""
+    return paced_panda
 
 
 FER = get_robot("fer")  # the simulator's default robot
