@@ -17,8 +17,11 @@ The issue's targets: the fast world >= 1.2x panda-gym's steps per CPU-second, 2 
 workers >= 1.8x one; panda-sim >= 10x real time.
 The machine is a noisy 2-core VM: run it more than once.
 
-``--vector N`` adds the fast world in ``gymnasium.vector.AsyncVectorEnv`` with 1 and with
-N worker processes (steps of all environments per second, and the ratio).
+``--vector N`` adds the fast world vectorised with 1 and with N workers, in Gymnasium's
+``AsyncVectorEnv`` and in ours (``PandaVectorEnv``, ``gymnasium.make_vec``'s default for
+the ids), beside N independent single-world processes started together (the machine's
+own bound for N workers: nothing shared, nothing waited for); steps of all environments
+per second and the ratios to one worker, in alternating rounds (``--rounds``).
 """
 
 from __future__ import annotations
@@ -152,37 +155,120 @@ def peer(steps: int) -> dict[str, list[float]] | None:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def vector(workers: int, steps: int) -> None:
+SOLO_SCRIPT = """
+import sys, time
+import numpy as np
+import gymnasium, panda_py.learning
+from panda_py.learning import reach_policy
+
+steps, rate = int(sys.argv[1]), float(sys.argv[2])
+env = gymnasium.make("PandaReach-v0", policy_rate=rate)
+obs, _ = env.reset(seed=int(sys.argv[3]))
+for _ in range(20):
+    obs, *_ = env.step(reach_policy(obs))
+print("ready", flush=True)
+sys.stdin.readline()
+t0 = time.perf_counter()
+for i in range(steps):
+    obs, _, terminated, truncated, _ = env.step(reach_policy(obs))
+    if terminated or truncated:
+        obs, _ = env.reset()
+print(steps / (time.perf_counter() - t0), flush=True)
+"""
+
+
+def independent(n: int, steps: int) -> float:
+    """The machine's own bound for ``n`` workers: ``n`` processes, each stepping one fast
+    world of its own with nothing between them, started together: their summed steps/s."""
+    procs = [subprocess.Popen([sys.executable, "-c", SOLO_SCRIPT, str(steps), str(RATE), str(i)],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+             for i in range(n)]  # fmt: skip
+    try:
+        for p in procs:
+            assert p.stdout is not None and p.stdout.readline().strip() == "ready"
+        for p in procs:
+            assert p.stdin is not None
+            p.stdin.write("go\n")
+            p.stdin.flush()
+        return sum(float(p.communicate(timeout=600)[0]) for p in procs)
+    finally:
+        for p in procs:
+            p.kill() if p.poll() is None else None
+
+
+def vector(workers: int, steps: int, rounds: int = 3, n_envs: int = 8) -> None:
+    """Steps of all environments per second with 1 and ``workers`` workers, Gymnasium's
+    ``AsyncVectorEnv`` and ours (``PandaVectorEnv``: ``gymnasium.make_vec``'s default for
+    the ids) with one environment a worker and with ``n_envs`` on 1 and on ``workers``, and
+    ``workers`` independent processes (the machine's bound), in alternating rounds; the
+    ratios to one worker of the same kind."""
     import gymnasium
 
     from panda_py.learning import reach_policy
+    from panda_py.learning.vector import PandaVectorEnv
 
     def make():  # type: ignore[no-untyped-def]
         return gymnasium.make("PandaReach-v0", policy_rate=RATE)
 
-    rates = {}
-    for n in sorted({1, workers}):
-        envs = gymnasium.vector.AsyncVectorEnv([make] * n)
-        try:
-            obs, _ = envs.reset(seed=list(range(n)))
-            count, t0 = 0, time.perf_counter()
-            while count < steps:
-                actions = np.stack([reach_policy({k: v[i] for k, v in obs.items()})
-                                    for i in range(n)])  # fmt: skip
-                obs, *_ = envs.step(actions)  # ended environments reset themselves
-                count += n
-            rates[n] = count / (time.perf_counter() - t0)
-        finally:
-            envs.close()
-        print(f"{'AsyncVectorEnv, ' + str(n) + ' workers':<28} {rates[n]:8.1f} steps/s"
-              f"  {rates[n] / rates[1]:5.2f}x one worker")  # fmt: skip
+    kinds = {
+        "AsyncVectorEnv": lambda n: gymnasium.vector.AsyncVectorEnv([make] * n),
+        "PandaVectorEnv": lambda n: PandaVectorEnv("PandaReach-v0", n, workers=n,
+                                                   policy_rate=RATE),
+    }  # fmt: skip
+
+    def rate(envs, n: int) -> float:  # type: ignore[no-untyped-def]
+        obs, _ = envs.reset(seed=list(range(n)))
+        count, t0 = 0, time.perf_counter()
+        while count < steps:
+            actions = np.stack([reach_policy({k: v[i] for k, v in obs.items()})
+                                for i in range(n)])  # fmt: skip
+            obs, *_ = envs.step(actions)  # ended environments reset themselves
+            count += n
+        return count / (time.perf_counter() - t0)
+
+    fixed = f"PandaVectorEnv, {n_envs} envs"
+    ratios: dict[str, list[float]] = {k: [] for k in (*kinds, fixed, "independent processes")}
+    print(f"\nvectorised, {steps} steps of all environments each, {rounds} alternating rounds;"
+          f" one environment a worker, and {n_envs} on 1 and on {workers} workers")  # fmt: skip
+
+    def measure(label: str, build, sizes) -> None:  # type: ignore[no-untyped-def]
+        rates = []
+        for n, w in sizes:
+            envs = build(n, w)
+            try:
+                rate(envs, n)  # (warm: the workers' first steps)
+                rates.append(rate(envs, n))
+            finally:
+                envs.close()
+        ratios[label].append(rates[1] / rates[0])
+        print(f"  round {r}: {label + ',':<28} 1 worker {rates[0]:7.1f} steps/s, "
+              f"{workers}: {rates[1]:7.1f}  {ratios[label][-1]:5.2f}x")  # fmt: skip
+
+    for r in range(rounds):
+        for label, build in kinds.items():
+            measure(label, lambda n, w, build=build: build(n), ((1, 1), (workers, workers)))
+        measure(fixed, lambda n, w: PandaVectorEnv("PandaReach-v0", n, workers=w, policy_rate=RATE),
+                ((n_envs, 1), (n_envs, workers)))  # fmt: skip
+        one, many = independent(1, steps), independent(workers, steps // workers)
+        ratios["independent processes"].append(many / one)
+        print(f"  round {r}: {'independent processes,':<28} 1 {one:7.1f} steps/s, "
+              f"{workers}: {many:7.1f}  {many / one:5.2f}x (the machine's bound)")  # fmt: skip
+    for label, values in ratios.items():
+        print(f"{label:<28} {workers} workers against one: median {np.median(values):.2f}x "
+              f"({min(values):.2f}-{max(values):.2f})")  # fmt: skip
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2000, help="environment steps each")
     parser.add_argument("--vector", type=int, default=0, help="also N vectorised workers")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating rounds (--vector)")
+    parser.add_argument("--envs", type=int, default=8, help="environments on 1 and N workers")
+    parser.add_argument("--vector-only", action="store_true", help="skip the one-core part")
     args = parser.parse_args()
+    if args.vector_only:
+        vector(max(args.vector, 2), args.steps, args.rounds, args.envs)
+        return
     import gymnasium
 
     from panda_py.learning import RobotArm
@@ -211,7 +297,7 @@ def main() -> None:
             env.close()
             arm.close()
     if args.vector:
-        vector(args.vector, args.steps)
+        vector(args.vector, args.steps, args.rounds, args.envs)
 
 
 if __name__ == "__main__":

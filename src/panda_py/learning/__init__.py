@@ -1,7 +1,9 @@
 """Robot learning on the same code: Gymnasium environments that run unchanged on a fast
 in-process training world and on any ``Panda`` (a robot, or ``panda-sim``)
 (:mod:`~panda_py.learning.env`, :mod:`~panda_py.learning.tasks`,
-:mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`); deploying policies
+:mod:`~panda_py.learning.world`, :mod:`~panda_py.learning.arm`), many of them stepped by
+worker processes (:mod:`~panda_py.learning.vector`, ``gymnasium.make_vec``'s default for
+the ids); deploying policies
 (DROID's action contract, chunked actions at a policy rate,
 :mod:`~panda_py.learning.deploy`, :mod:`~panda_py.learning.policy_runner`), serving a
 policy to openpi's client (:mod:`~panda_py.learning.policy_server`) and recording
@@ -43,6 +45,7 @@ if TYPE_CHECKING:
     from panda_py.learning.recording import EpisodeWriter, read_recording
     from panda_py.learning.rollouts import EpisodeResult, RolloutWorkers, run_rollouts
     from panda_py.learning.tasks import PandaPickAndPlaceEnv, PandaReachEnv
+    from panda_py.learning.vector import PandaVectorEnv
     from panda_py.learning.world import FastWorld
 
 # public name -> submodule that defines it
@@ -58,6 +61,7 @@ _LAZY: dict[str, str] = {
     "PandaEnv": "panda_py.learning.env",
     "PandaPickAndPlaceEnv": "panda_py.learning.tasks",
     "PandaReachEnv": "panda_py.learning.tasks",
+    "PandaVectorEnv": "panda_py.learning.vector",
     "PolicyRunner": "panda_py.learning.policy_runner",
     "PolicyServer": "panda_py.learning.policy_server",
     "Reward": "panda_py.learning.env",
@@ -87,6 +91,7 @@ __all__ = [
     "PandaEnv",
     "PandaPickAndPlaceEnv",
     "PandaReachEnv",
+    "PandaVectorEnv",
     "PolicyRunner",
     "PolicyServer",
     "Reward",

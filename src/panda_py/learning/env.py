@@ -35,7 +35,7 @@ from panda_py import controllers, kinematics
 from panda_py.learning.actions import ActionKind, ActionMap
 from panda_py.learning.backend import Backend, FloatArray, Snapshot
 from panda_py.motion import rotation
-from panda_py.robots.params import START_POSE, get_robot
+from panda_py.robots.params import START_POSE, RobotSpec, get_robot
 
 __all__ = ["PandaEnv", "Reward"]
 
@@ -130,18 +130,7 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         self.backend = backend
         spec = get_robot(backend.spec_name)
         self.kind = kind
-        self.actions = ActionMap(kind, spec, hand=self.uses_hand)
-        self.action_space = spaces.Box(
-            self.actions.low.astype(np.float32), self.actions.high.astype(np.float32),
-            dtype=np.float32,
-        )  # fmt: skip
-        # gymnasium 1.4 types Dict as a space of dicts of spaces; its samples are arrays
-        observations = spaces.Dict({
-            "observation": _box(21 + self.task_size),
-            "achieved_goal": _box(3),
-            "desired_goal": _box(3),
-        })  # fmt: skip
-        self.observation_space = cast("spaces.Space[dict[str, np.ndarray]]", observations)
+        self.actions, self.action_space, self.observation_space = self._spaces(kind, spec)
         self.period = 1.0 / float(policy_rate)  # [s]
         self.policy_rate = float(policy_rate)
         self.speed_factor = float(speed_factor)
@@ -156,6 +145,25 @@ class PandaEnv(gymnasium.Env[dict[str, np.ndarray], np.ndarray]):
         self._ended: str | None = None  # why the episode ended early (a reflex)
         self._started = False
         self._snap: Snapshot | None = None  # the state the last step (or reset) observed
+
+    @classmethod
+    def _spaces(
+        cls, kind: ActionKind, spec: RobotSpec
+    ) -> tuple[ActionMap, spaces.Box, spaces.Space[dict[str, np.ndarray]]]:
+        """The task's actions on robot ``spec`` with ``kind``: their map, the action space
+        and the observation space (what a vector of these environments lays out before
+        any is made)."""
+        actions = ActionMap(kind, spec, hand=cls.uses_hand)
+        action_space = spaces.Box(
+            actions.low.astype(np.float32), actions.high.astype(np.float32), dtype=np.float32
+        )
+        # gymnasium 1.4 types Dict as a space of dicts of spaces; its samples are arrays
+        observations = spaces.Dict({
+            "observation": _box(21 + cls.task_size),
+            "achieved_goal": _box(3),
+            "desired_goal": _box(3),
+        })  # fmt: skip
+        return actions, action_space, cast("spaces.Space[dict[str, np.ndarray]]", observations)
 
     @property
     def spec(self) -> EnvSpec | None:

@@ -14,6 +14,11 @@ ENVIRONMENTS = {
     "PandaReach-v0": ("panda_py.learning.tasks:PandaReachEnv", 50),
     "PandaPickAndPlace-v0": ("panda_py.learning.tasks:PandaPickAndPlaceEnv", 100),
 }
+# id -> what ``gymnasium.make_vec`` makes by default: a PandaVectorEnv (worker processes)
+_VECTOR_ENTRY_POINTS = {
+    "PandaReach-v0": "panda_py.learning.vector:reach",
+    "PandaPickAndPlace-v0": "panda_py.learning.vector:pick_and_place",
+}
 
 
 def register() -> None:
@@ -25,4 +30,5 @@ def register() -> None:
 
     for env_id, (entry, steps) in ENVIRONMENTS.items():
         if env_id not in gymnasium.registry:
-            gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps)
+            gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps,
+                               vector_entry_point=_VECTOR_ENTRY_POINTS[env_id])  # fmt: skip
