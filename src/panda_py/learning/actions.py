@@ -119,6 +119,26 @@ class ActionMap:
             clipped.append(high if v > high else low if v < low else v)  # (np.clip's)
         return np.array(clipped)
 
+    def check_rows(self, actions: Any, rows: int) -> FloatArray:
+        """``rows`` actions (one per environment) as float64 (rows, size), by the rule of
+        :meth:`check` (the bounds' tolerance; clipping is left to each environment's own
+        check); ValueError naming the first bad one."""
+        what = f"({rows}, {self.size}) numbers"
+        try:
+            a = np.array(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions: expected {what}, got {actions!r}") from None
+        if a.shape != (rows, self.size):
+            raise ValueError(f"actions: expected shape ({rows}, {self.size}), got shape {a.shape}")
+        bad = ~np.isfinite(a) | (a < self.low - _TOLERANCE) | (a > self.high + _TOLERANCE)
+        if bad.any():
+            i, j = (int(x) for x in np.argwhere(bad)[0])
+            raise ValueError(
+                f"actions: environment {i}'s value {j} is {a[i, j]}: expected a finite value "
+                f"within [{self.low[j]}, {self.high[j]}]; nothing was sent"
+            )
+        return a
+
     def target(self, action: FloatArray, q: FloatArray, position: FloatArray) -> FloatArray:
         """The target of a checked ``action`` from the measured joints ``q`` [rad] and end
         effector ``position`` [m]: a position [m] (Cartesian) or joint positions [rad],

@@ -5,9 +5,11 @@ its own process."""
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
+from typing import Any
 
-__all__ = ["ENVIRONMENTS", "register"]
+__all__ = ["ENVIRONMENTS", "env_class", "register"]
 
 #: the registered Gymnasium ids: id -> (entry point, episode length in policy steps)
 ENVIRONMENTS = {
@@ -32,3 +34,11 @@ def register() -> None:
         if env_id not in gymnasium.registry:
             gymnasium.register(env_id, entry_point=entry, max_episode_steps=steps,
                                vector_entry_point=_VECTOR_ENTRY_POINTS[env_id])  # fmt: skip
+
+
+def env_class(env_id: str) -> Any:
+    """The environment class registered as ``env_id`` (ValueError naming the ids)."""
+    if env_id not in ENVIRONMENTS:
+        raise ValueError(f"env_id: expected one of {sorted(ENVIRONMENTS)}, got {env_id!r}")
+    module, _, name = ENVIRONMENTS[env_id][0].partition(":")
+    return getattr(importlib.import_module(module), name)

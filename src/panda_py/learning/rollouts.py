@@ -33,7 +33,7 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from panda_py.learning.registry import ENVIRONMENTS, register
+from panda_py.learning.registry import ENVIRONMENTS, env_class, register
 
 __all__ = ["EpisodeResult", "RolloutWorkers", "run_rollouts"]
 
@@ -84,8 +84,7 @@ class _Worker:
         if host is not None:
             from panda_py.learning.arm import RobotArm
 
-            entry, _ = ENVIRONMENTS[env_id]
-            self.arm = RobotArm(host, hand=_env_class(entry).uses_hand)
+            self.arm = RobotArm(host, hand=env_class(env_id).uses_hand)
             kwargs = {**kwargs, "backend": self.arm}
         try:
             self.env = gymnasium.make(env_id, **kwargs)
@@ -124,11 +123,6 @@ def _check_run(policy: Any, episodes: Any, seed: Any) -> None:
         raise ValueError(f"policy: expected a callable (obs -> action), got {policy!r}")
 
 
-def _env_class(entry: str) -> Any:
-    module, name = entry.split(":")
-    return getattr(importlib.import_module(module), name)
-
-
 class RolloutWorkers:
     """``n_workers`` Ray actors, each with its own ``env_id`` environment (made with
     ``env_kwargs``): on the fast world, or with ``hosts`` one actor per robot or
@@ -151,7 +145,7 @@ class RolloutWorkers:
                 raise ValueError(f"hosts: expected a non-empty list of host names, got {hosts!r}")
             if len(set(hosts)) < len(hosts):
                 raise ValueError(f"hosts: expected distinct hosts (a worker each), got {hosts!r}")
-            if _env_class(ENVIRONMENTS[env_id][0]).uses_cube:
+            if env_class(env_id).uses_cube:
                 raise ValueError(
                     "env_id: expected a task without the cube on hosts (PandaReach-v0: "
                     f"placing the cube needs a scene, not given on a host), got {env_id!r}"

@@ -24,6 +24,7 @@ caller's ``close`` ends them) and end when the caller's process does.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import mmap
 import os
@@ -41,9 +42,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from panda_py import warmstart
-from panda_py.learning import actions as _actions
 from panda_py.learning.actions import ActionKind
-from panda_py.learning.registry import ENVIRONMENTS, register
+from panda_py.learning.registry import ENVIRONMENTS, env_class, register
 from panda_py.robots.params import get_robot
 from panda_py.rt.shm import anonymous_file
 
@@ -54,15 +54,6 @@ _INFO_NUMBERS = {"is_success": np.bool_, "distance": np.float64, "time": np.floa
 _OK, _EXTRAS, _ERROR = b"K", b"X", b"E"  # a worker's answers
 _STEP, _RESET, _CALL, _QUIT = b"S", b"R", b"C", b"Q"  # the caller's requests
 SPIN = 0.002  # [s] how long a side waiting for the other looks before it sleeps
-
-
-def _task_class(env_id: str) -> Any:
-    if env_id not in ENVIRONMENTS:
-        raise ValueError(f"env_id: expected one of {sorted(ENVIRONMENTS)}, got {env_id!r}")
-    module, _, name = ENVIRONMENTS[env_id][0].partition(":")
-    import importlib
-
-    return getattr(importlib.import_module(module), name)
 
 
 class PandaVectorEnv(VectorEnv):
@@ -84,7 +75,7 @@ class PandaVectorEnv(VectorEnv):
         spin: float = SPIN,
         **kwargs: Any,
     ) -> None:
-        task = _task_class(env_id)
+        task = env_class(env_id)
         if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs: expected a whole number >= 1, got {num_envs!r}")
         if workers is None:
@@ -122,41 +113,38 @@ class PandaVectorEnv(VectorEnv):
         fields += list(_INFO_NUMBERS.items())
         layout = np.dtype(fields, align=True)
         size = max(layout.itemsize * num_envs, 1)
+        self._procs: list[Any] = []
+        self._conns: list[Connection] = []
+        self._shares: list[tuple[int, int]] = []
+        self._local: _Served | None = None
+        make = {"max_episode_steps": max_episode_steps, **kwargs}
+        counts = [num_envs // workers + (w < num_envs % workers) for w in range(workers)]
         fd = anonymous_file(size, "panda_py-vector")
         try:
             self._mm = mmap.mmap(fd, size)
             self._rec = np.frombuffer(self._mm, dtype=layout, count=num_envs)
-            self._procs: list[Any] = []
-            self._conns: list[Connection] = []
-            self._shares: list[tuple[int, int]] = []
-            make = {"max_episode_steps": max_episode_steps, **kwargs}
-            expected = pickle.dumps((single_actions, single_obs))
-            counts = [num_envs // workers + (w < num_envs % workers) for w in range(workers)]
             start = counts[0]
             for w in range(1, workers):
-                self._start(w, fd, size, layout, make, start, counts[w], expected)
+                self._start(w, fd, size, layout, make, start, counts[w])
                 start += counts[w]
-        finally:
-            os.close(fd)
-        self._local: _Served | None = None
-        try:
             envs = [gymnasium.make(env_id, **make) for _ in range(counts[0])]
             self._local = _Served(envs, self._rec[: counts[0]], 0)
             for w in range(len(self._conns)):
                 self._answer(w)  # each made its environments (or says why not)
         except BaseException:
-            self.close()
+            self.close()  # (no worker started is left behind)
             raise
+        finally:
+            os.close(fd)
 
     def _start(self, w: int, fd: int, size: int, layout: np.dtype[Any], make: dict[str, Any],
-               first: int, count: int, expected: bytes) -> None:  # fmt: skip
+               first: int, count: int) -> None:  # fmt: skip
         mine, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         proc = warmstart.context().Process(
             target=warmstart.run_with_environ,
             args=(dict(os.environ), "panda_py.learning.vector:_worker",
                   warmstart.InheritedFd(theirs.fileno()), warmstart.InheritedFd(fd), size,
-                  layout, self.env_id, make, first, count, self.num_envs, expected,
-                  self._spin),
+                  layout, self.env_id, make, first, count, self.num_envs, self._spin),
             name=f"panda_py-vector-{w}",
             daemon=True,
         )  # fmt: skip
@@ -242,7 +230,7 @@ class PandaVectorEnv(VectorEnv):
         self, actions: Any
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every environment with its row of ``actions`` (num_envs, action size)."""
-        self._rec["action"] = self._check(actions)
+        self._rec["action"] = self._map.check_rows(actions, self.num_envs)
         answers = self._all(_STEP)
         rec = self._rec
         return (self._observations(), rec["reward"].copy(), rec["terminated"].copy(),
@@ -274,37 +262,16 @@ class PandaVectorEnv(VectorEnv):
         for conn in self._conns:
             conn.close()
         self._conns, self._procs = [], []
-        local, self._local = getattr(self, "_local", None), None
+        local, self._local = self._local, None
         if local is not None:
             for env in local.envs:
                 env.close()
 
     def __del__(self) -> None:
-        if not getattr(self, "closed", True) and hasattr(self, "_conns"):
+        if not getattr(self, "closed", True) and hasattr(self, "_local"):
             self.close()
 
     # --- the batch --------------------------------------------------------------------------
-
-    def _check(self, actions: Any) -> np.ndarray:
-        """The actions as float64 (num_envs, size); ValueError naming the first bad one."""
-        m, n = self._map, self.num_envs
-        try:
-            a = np.array(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"actions: expected ({n}, {m.size}) numbers, got {actions!r}"
-            ) from None
-        if a.shape != (n, m.size):
-            raise ValueError(f"actions: expected shape ({n}, {m.size}), got shape {a.shape}")
-        tol = _actions._TOLERANCE
-        bad = ~np.isfinite(a) | (a < m.low - tol) | (a > m.high + tol)
-        if bad.any():
-            i, j = (int(x) for x in np.argwhere(bad)[0])
-            raise ValueError(
-                f"actions: environment {i}'s value {j} is {a[i, j]}: expected a finite value "
-                f"within [{m.low[j]}, {m.high[j]}]; nothing was sent"
-            )
-        return a
 
     def _observations(self) -> dict[str, np.ndarray]:
         rec = self._rec
@@ -321,14 +288,9 @@ class PandaVectorEnv(VectorEnv):
         return infos
 
 
-def reach(num_envs: int = 1, **kwargs: Any) -> PandaVectorEnv:
-    """``PandaReach-v0``'s vector entry point (``gymnasium.make_vec``)."""
-    return PandaVectorEnv("PandaReach-v0", num_envs, **kwargs)
-
-
-def pick_and_place(num_envs: int = 1, **kwargs: Any) -> PandaVectorEnv:
-    """``PandaPickAndPlace-v0``'s vector entry point (``gymnasium.make_vec``)."""
-    return PandaVectorEnv("PandaPickAndPlace-v0", num_envs, **kwargs)
+# the ids' vector entry points (gymnasium.make_vec calls them with num_envs=...)
+reach = functools.partial(PandaVectorEnv, "PandaReach-v0")
+pick_and_place = functools.partial(PandaVectorEnv, "PandaPickAndPlace-v0")
 
 
 # --- the worker's side ------------------------------------------------------------------------
@@ -336,7 +298,7 @@ def pick_and_place(num_envs: int = 1, **kwargs: Any) -> PandaVectorEnv:
 
 def _worker(conn_fd: warmstart.InheritedFd, shm_fd: warmstart.InheritedFd, size: int,
             layout: np.dtype[Any], env_id: str, make: dict[str, Any], first: int, count: int,
-            num_envs: int, expected: bytes, spin: float) -> None:  # fmt: skip
+            num_envs: int, spin: float) -> None:  # fmt: skip
     """A worker process: make environments ``first .. first + count - 1`` and serve the
     caller's requests on them until it quits or is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the caller's to handle
@@ -347,9 +309,6 @@ def _worker(conn_fd: warmstart.InheritedFd, shm_fd: warmstart.InheritedFd, size:
     try:
         register()
         envs = [gymnasium.make(env_id, **make) for _ in range(count)]
-        made = (envs[0].action_space, envs[0].observation_space)
-        if made != pickle.loads(expected):
-            raise RuntimeError(f"PandaVectorEnv: {env_id}'s spaces are {made}, not as laid out")
     except Exception as exc:
         conn.send_bytes(_ERROR + _pickled(exc))
         return
@@ -397,7 +356,7 @@ class _Served:
     """A worker's environments over their rows of the shared block."""
 
     def __init__(self, envs: list[Any], rec: np.ndarray, first: int) -> None:
-        self.envs, self.rec, self.first = envs, rec, first
+        self.envs, self.first = envs, first
         self.keys = tuple(envs[0].observation_space.keys())
         self.done = [False] * len(envs)
         self.rows = [rec[i] for i in range(len(envs))]  # (each a view of its record)
