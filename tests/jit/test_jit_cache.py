@@ -81,6 +81,7 @@ def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> No
     through one module's intrinsics (jit.libc): both keys cover it, so an edit to a call's
     declaration compiles both afresh instead of loading machine code made for the old."""
     import panda_py.rt._tick as loop
+    import panda_py.rt._tick_laws as controllers
     import panda_py.rt._tick_moves as moves
     import panda_py.rt._tick_wrench as wrench
     import panda_py.sim._lockstep_jit as lockstep
@@ -91,11 +92,12 @@ def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> No
 
     own = [Path(loop.__file__), Path(libc.__file__)]
     assert loop.KEY.startswith(jitcache.source_key(own))
-    # (the force laws' and the moves' loop kernels, on the loop's skeleton: keyed over it
-    # too; the moves' also over the guarded moves' condition program and the rotation's
-    # quaternion, whose sources they compile)
-    assert wrench.KEY.startswith(jitcache.source_key([Path(wrench.__file__)]))
-    assert loop.KEY[:20] in wrench.KEY
+    # (the laws' loop kernels, on the loop's skeleton: keyed over it too; the moves' also
+    # over the guarded moves' condition program and the rotation's quaternion, whose
+    # sources they compile)
+    for laws in (controllers, wrench):
+        assert laws.KEY.startswith(jitcache.source_key([Path(laws.__file__)])), laws.__name__
+        assert loop.KEY[:20] in laws.KEY
     compiled_here = [Path(moves.__file__), Path(condition_program.__file__),
                      Path(rotation.__file__)]  # fmt: skip
     assert moves.KEY.startswith(jitcache.source_key(compiled_here))

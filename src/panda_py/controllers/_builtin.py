@@ -128,7 +128,7 @@ class JointPosition(TorqueController):
         self._K, self._D = self._K_t.copy(), self._D_t.copy()
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """Its ticks in ``rt._tick.joint_position_ticks``."""
+        """Its ticks in ``rt._tick_laws.joint_position_ticks``."""
         L = self._sig_layout
         at = np.array([L[n][0] for n in ("position", "velocity", "stiffness", "damping",
                                          "filter_coeff")])  # fmt: skip
@@ -187,7 +187,7 @@ class IntegratedVelocity(TorqueController):
         self.set_output("q_d", self._q_d)
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """Its ticks in ``rt._tick.integrated_velocity_ticks``."""
+        """Its ticks in ``rt._tick_laws.integrated_velocity_ticks``."""
         if self._lower is None:
             return None
         L = self._sig_layout
@@ -260,7 +260,7 @@ class AppliedTorque(_Applied):
         self._set_input(torque)
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """Its ticks in ``rt._tick.applied_torque_ticks``."""
+        """Its ticks in ``rt._tick_laws.applied_torque_ticks``."""
         L = self._sig_layout
         at = np.array([L["torque"][0], L["damping"][0], L["filter_coeff"][0]])
         arrays = (self._values, _NO_GUARD, _NO_KEY, at, self._in, self._D)
@@ -559,7 +559,7 @@ class CartesianImpedance(TorqueController):
         self._J = np.empty((1, 6, 7))
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """Its ticks in ``rt._tick.cartesian_impedance_ticks``: the fused step (where numba
+        """Its ticks in ``rt._tick_laws.cartesian_impedance_ticks``: the fused step (where numba
         runs it) on its own buffers, the impedance and the damping ratio guarded (the
         damping target is computed here)."""
         if laws.fused() is None or type(model) is not ControlModel or self._Kd_key is None:

@@ -168,8 +168,9 @@ def readonly(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class CompiledTicks:
     """A law's part of a compiled loop's ticks (:meth:`ControlLaw.compiled`): the name of
-    its loop kernel (in :mod:`panda_py.rt._tick` or another of
-    ``rt.fastloop.KERNEL_MODULES``), the law's arrays in the kernel's order,
+    its loop kernel (in one of ``rt.fastloop.KERNEL_MODULES``, each a law's tick on the
+    skeleton of :mod:`panda_py.rt._tick`), the law's arrays in the kernel's order (its
+    inputs, their guard and the guard's key first, then what the law's tick unpacks),
     and the state's fields those arrays were made for (the end effector, the load: a
     state in which they changed goes to :meth:`ControlLaw.step`)."""
 

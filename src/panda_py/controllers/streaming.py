@@ -146,10 +146,10 @@ class _Streamed(TorqueController):
 
     def _compiled_parts(self, model: ControlModel, gen: OnlineGenerator,
                         extra: tuple[float, ...]) -> tuple[Any, ...] | None:  # fmt: skip
-        """What both compiled loop kernels take first (``rt._tick.joint_target_ticks``,
+        """What both compiled loop kernels take first (``rt._tick_laws.joint_target_ticks``,
         ``cartesian_target_ticks``): the inputs, the count of targets guarded (a new target
         is the Python step's: ruckig calculates), and the scalars the kernel reads and
-        advances (``rt._tick.T_*``, in that order: when the last target arrived, the
+        advances (``rt._tick_laws.T_*``, in that order: when the last target arrived, the
         timeout, stale, the generator's clock, then ``extra``); None where the next tick
         is the Python step's (no numba, a model of the user's, a generator whose input
         changed)."""
@@ -262,7 +262,7 @@ class JointTarget(_Streamed):
             gen.set_rest()
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
-        """Between its news: ``rt._tick.joint_target_ticks``."""
+        """Between its news: ``rt._tick_laws.joint_target_ticks``."""
         gen = self._gen
         extra = (0.0, 0.0, FRICTION_SPEED, FRICTION_ERROR_RATE, float(self._sig_layout["q"][0]),
                  float(self._out_layout["q_d"][0]))  # fmt: skip
@@ -426,7 +426,7 @@ class CartesianTarget(_Streamed):
 
     def compiled(self, state: StateView, model: ControlModel) -> CompiledTicks | None:
         """Between its news, after its first tick (the tracking's Jacobian):
-        ``rt._tick.cartesian_target_ticks``."""
+        ``rt._tick_laws.cartesian_target_ticks``."""
         law, gen = self._law, self._gen
         extra = (float(law.damping_due), float(DAMPING_TICKS), 0.0, 0.0, 0.0, 0.0)
         parts = self._compiled_parts(model, gen.gen, extra)

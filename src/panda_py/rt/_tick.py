@@ -1,12 +1,16 @@
-"""The control loop's ticks compiled: numba code that runs whole ticks of a built-in law
-without returning to Python, as a C++ loop would: wait for the robot's state datagram
+"""The control loop's ticks compiled, their one skeleton: numba code that runs whole ticks
+of a built-in law without returning to Python, as a C++ loop would: wait for the robot's
+state datagram
 (``poll`` on it and on the request channel), take the newest, check the robot still runs
 the motion, decode the fields the law reads, read the user's signals from shared memory
 (the seqlock), run the law, the joint walls, the torque-rate saturation, the torque limits
 and the low-pass filter, encode and send the command, publish the state to shared memory,
-append it to the log ring and publish the law's outputs.
+append it to the log ring and publish the law's outputs. Each law's part of the tick is
+its own (:func:`loop_kernel` makes its kernel on this skeleton): the controllers' and the
+streamed targets' in :mod:`panda_py.rt._tick_laws`, the force laws' in
+:mod:`panda_py.rt._tick_wrench`, the moves' in :mod:`panda_py.rt._tick_moves`.
 
-It returns to Python (:mod:`panda_py.rt.fastloop`) for whatever Python must do, with the
+A kernel returns to Python (:mod:`panda_py.rt.fastloop`) for whatever Python must do, with the
 reason in ``io[STATUS]``:
 
 * ``REQUEST``: a request came on the channel (or was counted) while waiting for a state;
@@ -33,31 +37,41 @@ offsets of the state datagram: ``lay``, built from the FCI dialect by
 
 from __future__ import annotations
 
+import sys
+import types
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from panda_py.controllers import laws
-from panda_py.fci import PERIOD
 from panda_py.jit import cache, libc
-from panda_py.motion import online
 
 _FUSED, _KERNELS = laws.fused(), laws.compiled()
-_ONLINE = online.compiled_kernels()
-if _FUSED is None or _KERNELS is None or _ONLINE is None:  # plain Python: Python ticks
+if _FUSED is None or _KERNELS is None:  # plain Python: Python ticks
     raise ImportError("the control laws run without numba")
-_cartesian_impedance_step = _FUSED.cartesian_impedance_step
-_joint_tracking_step = _FUSED.joint_tracking_step
-_pose_target_step = _FUSED.pose_target_step
 _finalize_torques = _KERNELS.finalize_torques
-_sample = _ONLINE.sample
 
-__all__ = [
-    "applied_torque_ticks", "cartesian_impedance_ticks", "cartesian_target_ticks",
-    "integrated_velocity_ticks", "joint_position_ticks", "joint_target_ticks",
-]  # fmt: skip
+__all__ = ["advance", "loop_kernel", "next_time"]
 
 KEY = cache.source_key([Path(__file__), Path(libc.__file__)]) + _FUSED.KEY[:12]
+
+# a loop kernel's arguments: (loop, view, law). ``view`` is what a law's tick reads and
+# writes (loop_kernel), in this order: the io words, the state datagram, its layout
+# (``lay``), an aligned decoding scratch, the law's time and last dt [s], the decoded q,
+# dq, O_T_EE (read-only: the fused steps are compiled for read-only state arrays), the
+# law's inputs (and the guard on them that _begin checks, with its key), its outputs (the
+# time first), and the torques it computes
+IO, BUF, LAY, TMP, LAW_T, Q, DQ, POSE, VALUES, GUARD, GUARD_KEY, OUT_VALUES, TAU = range(13)
+# ``loop``: the loop's own arrays, which no law reads, as a pair: what taking a state
+# needs (_begin's ``taking``) and what answering it needs (_finish's ``answering``);
+# rt.fastloop.FastTicks builds them (once) and the view (each run). A kernel takes the
+# arrays of the four one after the other (loop_kernel): its arguments up to TAKING are
+# taking's, then up to ANSWERING answering's, then up to VIEWED the view's, the rest the
+# law's
+TAKING = 10
+ANSWERING = TAKING + 14
+VIEWED = ANSWERING + 13
 
 # io: the kernel's integer words (in and out)
 UDP, CHAN, LAST_ID, MG, CTRL, MOVE, TAKEN, BUDGET, LOGGING, SLOTS, RECORD = range(11)
@@ -74,15 +88,6 @@ LAY_SIZE = L_KEY_SPANS + 2 * 8  # up to eight spans (offset, length) of the mode
 # the shared block's header words (panda_py.rt.shm.HEADER)
 H_STATE_SEQ, H_STATE_LEN, H_TICKS, H_OUT_SEQ, H_LOG_COUNT, H_REQUESTS = 0, 1, 2, 6, 7, 8
 H_IN_SEQ = 5
-# a streamed target's scalars (controllers.streaming._Streamed.compiled): when the last
-# target arrived [s], the timeout [s] (inf: none), 1 if stale; the generator's time in its
-# trajectory [s], 1 once it finished, the trajectory's duration [s]; the ticks until the
-# tracking's damping update and their period (CartesianTarget); the friction's speed and
-# error rate, the offsets of the target among the inputs and of the reference among the
-# outputs (JointTarget)
-(T_TARGET, T_TIMEOUT, T_STALE, T_GEN_TIME, T_FINISHED, T_DURATION, T_DAMPING_DUE,
- T_DAMPING_TICKS, T_FRICTION_SPEED, T_ERROR_RATE, T_TARGET_AT, T_OUT_AT) = range(12)  # fmt: skip
-TARGET_SCALARS = 12
 POLLIN = 1
 MSG_DONTWAIT = 0x40
 # datagrams a receive takes at most (recvmmsg), and the sizes of Linux's struct mmsghdr and
@@ -279,47 +284,15 @@ def _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J
 
 
 @cache.keyed_jit(KEY, nogil=True)
-def _advance(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
-    """The law's clock to the state in ``buf``: its time and dt [s] in ``law_t`` (the
-    robot's clock: message_id counts milliseconds, as libfranka's Duration)."""
-    mid = np.int64(buf[:8].view(np.uint64)[0])
-    dt = (mid - io[LAST_ID]) / 1000.0
-    io[LAST_ID] = mid
-    law_t[0] += dt
-    law_t[1] = dt
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs, out_values, t,
-            tau, q, dq, tau_J_d, walls, scale, flags, fin, tau_max, command):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
-    """The law's torques ``tau`` finished (walls, rate, limits, filter: ``fin`` holds the
-    rate bound and the filter's gain) into ``command``, sent, the state kept in
-    ``answered``, published and logged, the outputs published (time ``t`` first): 0, or
-    the status to return with."""
-    if not _finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, fin[0],
-                                     tau_max, fin[1], command):  # fmt: skip
-        return NONFINITE
-    if not _answer(io, lay, buf, cmd, command):
-        io[ERRNO] = _errno()
-        return SEND_FAILED
-    n = io[LENGTH]
-    _copy(answered, 0, buf, 0, n)
-    io[ANSWERED] = n
-    _publish(io, buf, header, states, ring, spans)
-    if io[OUT_N] > 0:
-        out_values[0] = t
-        _outputs(header, outputs, out_values, io[OUT_N])
-    return 0
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, signals, new,
-           values, guard, guard_key):  # type: ignore[no-untyped-def,unused-ignore]  # fmt: skip
+def _begin(taking, view):  # type: ignore[no-untyped-def,unused-ignore]
     """A tick's beginning: wait for the next state, take and decode it, and read the
-    law's inputs ``values`` from ``signals`` (through ``new``) if the user changed them,
-    unless the inputs at ``guard``'s spans (offset, length) differ from ``guard_key`` (what
-    the law computes from them is Python's to compute: PENDING, the inputs left unread).
-    0, or the status to return with."""
+    law's inputs ``view[VALUES]`` from the shared block's signals (through ``new``) if the
+    user changed them, unless the inputs at ``guard``'s spans (offset, length) differ from
+    ``guard_key`` (what the law computes from them is Python's to compute: PENDING, the
+    inputs left unread). 0, or the status to return with."""
+    pfd, scratch, key, header, signals, new, q, dq, pose, tau_J_d = taking
+    io, buf, lay, tmp, values = view[IO], view[BUF], view[LAY], view[TMP], view[VALUES]
+    guard, guard_key = view[GUARD], view[GUARD_KEY]
     status = _wait(io, pfd, header)
     if status == 0:
         status = _take_state(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose,
@@ -342,21 +315,49 @@ def _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d, s
 
 
 @cache.keyed_jit(KEY, nogil=True)
-def _next_time(io, buf, law_t):  # type: ignore[no-untyped-def,unused-ignore]
-    """The law's time at the state in ``buf`` (not yet advanced: :func:`_advance`)."""
-    mid = np.int64(buf[:8].view(np.uint64)[0])
-    return law_t[0] + (mid - io[LAST_ID]) / 1000.0
+def _finish(answering, view):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's torques ``view[TAU]`` finished (walls, rate, limits, filter: ``fin``
+    holds the rate bound and the filter's gain) into ``command``, sent, the state kept in
+    ``answered``, published and logged, the outputs published (the law's time first): 0,
+    or the status to return with."""
+    (answered, cmd, header, states, ring, spans, outputs, fin, walls, scale, flags, tau_max,
+     tau_J_d, command) = answering  # fmt: skip
+    io, buf, lay, tau, out_values = view[IO], view[BUF], view[LAY], view[TAU], view[OUT_VALUES]
+    q, dq = view[Q], view[DQ]
+    if not _finalize_torques(tau, q, dq, tau_J_d, walls, scale, flags, fin[0], tau_max,
+                             fin[1], command):  # fmt: skip
+        return NONFINITE
+    if not _answer(io, lay, buf, cmd, command):
+        io[ERRNO] = _errno()
+        return SEND_FAILED
+    n = io[LENGTH]
+    _copy(answered, 0, buf, 0, n)
+    io[ANSWERED] = n
+    _publish(io, buf, header, states, ring, spans)
+    if io[OUT_N] > 0:
+        out_values[0] = view[LAW_T][0]
+        _outputs(header, outputs, out_values, io[OUT_N])
+    return 0
 
 
 @cache.keyed_jit(KEY, nogil=True)
-def _ema(filtered, target, alpha):  # type: ignore[no-untyped-def,unused-ignore]
-    """``controllers.laws.ema``: in place, ``filtered <- alpha target + (1 - alpha)
-    filtered`` (at once for alpha >= 1)."""
-    if alpha >= 1.0:
-        _copy(filtered, 0, target, 0, filtered.size)
-    else:
-        for i in range(filtered.size):
-            filtered[i] += alpha * (target[i] - filtered[i])
+def advance(view):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's clock to the state in ``view[BUF]``: its time and dt [s] in
+    ``view[LAW_T]`` (the robot's clock: message_id counts milliseconds, as libfranka's
+    Duration)."""
+    io, law_t = view[IO], view[LAW_T]
+    mid = np.int64(view[BUF][:8].view(np.uint64)[0])
+    dt = (mid - io[LAST_ID]) / 1000.0
+    io[LAST_ID] = mid
+    law_t[0] += dt
+    law_t[1] = dt
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def next_time(view):  # type: ignore[no-untyped-def,unused-ignore]
+    """The law's time at the state in ``view[BUF]`` (not yet advanced: :func:`advance`)."""
+    mid = np.int64(view[BUF][:8].view(np.uint64)[0])
+    return view[LAW_T][0] + (mid - view[IO][LAST_ID]) / 1000.0
 
 
 @cache.keyed_jit(KEY, nogil=True)
@@ -373,229 +374,52 @@ def _ends(io, status):  # type: ignore[no-untyped-def,unused-ignore]
     return False
 
 
-# Every loop kernel takes the loop's arrays first, in this order (rt.fastloop.FastTicks),
-# then the law's (its ``compiled()``); each runs ticks from waiting for the next state until
-# a reason to return (io[STATUS]; the ticks run in io[TICKS]). ``q_in``, ``dq_in``,
-# ``pose_in``: read-only views of the decoded q, dq, O_T_EE (the fused steps are compiled
-# for read-only state arrays); ``values``/``values_in`` likewise the law's inputs.
-
-
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def cartesian_impedance_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, values_in, at, filtered, Kd_t, chain, origin, ca, sa, mass, h,
-    inertia, J,
-):  # fmt: skip
-    """``CartesianImpedance`` (``controllers._fused.cartesian_impedance_step``); the
-    impedance and the damping ratio are guarded (the damping target ``Kd_t`` is Python's
-    to compute)."""
+def _skeleton(taking, answering, view, law):  # type: ignore[no-untyped-def,unused-ignore]
+    """Ticks from waiting for the next state until a reason to return (``io[STATUS]``;
+    the ticks run in ``io[TICKS]``): each tick begun (:func:`_begin`), the law's
+    ``_law_tick`` run on it (a global of each kernel made by :func:`loop_kernel`), its
+    torques finished and sent (:func:`_finish`)."""
+    io = view[IO]
     io[TICKS] = 0
     while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
+        status = _begin(taking, view)
         if status == 0:
-            _advance(io, buf, law_t)
-            _cartesian_impedance_step(values_in, at, filtered, Kd_t, pose_in, q_in, dq_in,
-                                      chain, origin, ca, sa, mass, h, inertia, J,
-                                      tau)  # fmt: skip
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
+            status = _law_tick(view, law)  # noqa: F821  (the kernel's own global)
+        if status == 0:
+            status = _finish(answering, view)
         if _ends(io, status):
             return
 
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def joint_position_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, at, q_d, dq_d, K, D,
-):  # fmt: skip
-    """``JointPosition``: its inputs (at ``at``: position, velocity, stiffness, damping,
-    filter_coeff) filtered into ``q_d``, ``dq_d``, ``K``, ``D``; ``tau = K (q_d - q) +
-    D (dq_d - dq)``."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            _advance(io, buf, law_t)
-            a = values[at[4]]
-            _ema(q_d, values[at[0] : at[0] + 7], a)
-            _ema(dq_d, values[at[1] : at[1] + 7], a)
-            _ema(K, values[at[2] : at[2] + 7], a)
-            _ema(D, values[at[3] : at[3] + 7], a)
-            for i in range(7):
-                tau[i] = K[i] * (q_d[i] - q[i]) + D[i] * (dq_d[i] - dq[i])
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+def loop_kernel(law_tick: Any, name: str, arity: int) -> Any:
+    """The loop kernel ``name`` of a law whose tick is ``law_tick``, on ``arity`` arrays of
+    its own: :func:`_skeleton` with ``law_tick`` as its ``_law_tick``, compiled without
+    reference counting (``jit.libc.LOOP_KERNEL``) and cached under the key of
+    ``law_tick``'s module (its ``KEY``, which covers this one's).
 
+    ``law_tick(view, law)`` runs one tick of the law on a state taken and decoded, and
+    returns 0 with its torques in ``view[TAU]`` (its clock advanced: :func:`advance`), or
+    PENDING with nothing changed where the state is Python's to answer. ``view`` is what a
+    law reads and writes (``IO`` ... ``TAU``: the io words, the state datagram and its
+    layout, a decoding scratch, the law's time and dt, the decoded q, dq, O_T_EE as
+    read-only arrays, the law's inputs, their guard, its outputs, the torques), ``law`` the
+    law's own arrays (``CompiledTicks.arrays`` past the inputs and their guard).
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def integrated_velocity_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, at, q_d, lower, upper,
-):  # fmt: skip
-    """``IntegratedVelocity``: ``q_d += dt dq_d`` within [``lower``, ``upper``] (published
-    at ``at[3]`` of the outputs), ``tau = K (q_d - q) - D dq`` (the inputs at ``at``:
-    velocity, stiffness, damping)."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            _advance(io, buf, law_t)
-            dt = law_t[1]
-            v, k, d, o = at[0], at[1], at[2], at[3]
-            for i in range(7):
-                x = q_d[i] + dt * values[v + i]
-                q_d[i] = min(max(x, lower[i]), upper[i])  # (np.clip's order)
-                out_values[o + i] = q_d[i]
-                tau[i] = values[k + i] * (q_d[i] - q[i]) - values[d + i] * dq[i]
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
-
-
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def applied_torque_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, at, applied, D,
-):  # fmt: skip
-    """``AppliedTorque``: its inputs (at ``at``: torque, damping, filter_coeff) filtered
-    into ``applied`` and ``D``; ``tau = applied - D dq``."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            _advance(io, buf, law_t)
-            a = values[at[2]]
-            _ema(applied, values[at[0] : at[0] + 7], a)
-            _ema(D, values[at[1] : at[1] + 7], a)
-            for i in range(7):
-                tau[i] = applied[i] - D[i] * dq[i]
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def _stale_due(io, buf, law_t, s):  # type: ignore[no-untyped-def,unused-ignore]
-    """Whether the state in ``buf`` is the one at which a streamed target's timeout passes
-    (``_Streamed._pending``: that tick is Python's)."""
-    return s[T_STALE] == 0.0 and _next_time(io, buf, law_t) - s[T_TARGET] > s[T_TIMEOUT]
-
-
-@cache.keyed_jit(KEY, nogil=True)
-def _gen_advance(s):  # type: ignore[no-untyped-def,unused-ignore]
-    """``OnlineGenerator._advance`` (its input unchanged since ruckig's step, its
-    trajectory packed): the time to sample at, or -1 where it finished (it stands)."""
-    if s[T_FINISHED] != 0.0:
-        return -1.0
-    s[T_GEN_TIME] += PERIOD
-    s[T_FINISHED] = 1.0 if s[T_GEN_TIME] > s[T_DURATION] else 0.0
-    return s[T_GEN_TIME]
-
-
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def joint_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, s, traj, position, velocity, acceleration, K, D, origin, ca, sa,
-    mass, h, inertia, armature, coulomb,
-):  # fmt: skip
-    """``JointTarget`` between its news (``controllers.streaming``): its generator's
-    compiled step (the trajectory ``traj`` ruckig calculated, sampled into ``position``,
-    ``velocity``, ``acceleration``), ``_fused.joint_tracking_step`` toward it and its
-    outputs. A new target (the count of targets, guarded: the inputs left unread) or the
-    timeout passing (``s``: the scalars, ``T_*``) is Python's: PENDING."""
-    io[TICKS] = 0
-    t_at, o = int(s[T_TARGET_AT]), int(s[T_OUT_AT])
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0 and _stale_due(io, buf, law_t, s):
-            status = PENDING
-        if status == 0:
-            _advance(io, buf, law_t)
-            t = _gen_advance(s)
-            if t >= 0.0:
-                _sample(traj, s[T_DURATION], t, position, velocity, acceleration)
-            _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
-                                 coulomb, K, D, position, velocity, acceleration,
-                                 s[T_FRICTION_SPEED], s[T_ERROR_RATE], tau)  # fmt: skip
-            lag = 0.0
-            for i in range(7):  # (JointTarget._publish)
-                out_values[o + i] = position[i]
-                out_values[o + 7 + i] = velocity[i]
-                out_values[o + 14 + i] = acceleration[i]
-                lag = max(lag, abs(values[t_at + i] - position[i]))
-            out_values[o + 21] = lag
-            out_values[o + 22] = s[T_STALE]
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
-
-
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def cartesian_target_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, s, step, traj, p, v, a, Ft, Fr, R0, q0, position, orientation,
-    twist, accel, law, target, chain, origin, ca, sa, mass, h, inertia, armature, coulomb,
-):  # fmt: skip
-    """``CartesianTarget`` between its news, as :func:`joint_target_ticks`: one
-    ``_fused.pose_target_step`` a tick (its generator's compiled step, the tracking on the
-    tracking law's buffer ``law``, the outputs), ``step`` its per-tick scalars (sample,
-    duration, time, stale, the outputs' offset: ``CartesianTarget._fused_step``), the
-    buffer's scalars set as ``tracking.PoseImpedance.compiled_inputs`` sets them."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0 and _stale_due(io, buf, law_t, s):
-            status = PENDING
-        if status == 0:
-            _advance(io, buf, law_t)
-            t = _gen_advance(s)
-            if t < 0.0:
-                step[0] = 0.0  # the reference stands
-            else:
-                step[0], step[1], step[2] = 1.0, s[T_DURATION], t
-            step[3] = s[T_STALE]
-            s[T_DAMPING_DUE] -= 1.0  # (PoseImpedance.compiled_inputs)
-            law[0] = law_t[1]
-            law[7] = 1.0  # a previous Jacobian: this law has ticked before
-            if s[T_DAMPING_DUE] < 0.0:
-                law[6] = 1.0
-                s[T_DAMPING_DUE] = s[T_DAMPING_TICKS] - 1.0
-            else:
-                law[6] = 0.0
-            _pose_target_step(step, traj, p, v, a, Ft, Fr, R0, q0, position, orientation, twist,
-                              accel, pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
-                              inertia, armature, coulomb, law, target, out_values,
-                              tau)  # fmt: skip
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+    The kernel takes every array as an argument of its own, the loop's, the view's and
+    the law's one after the other, and packs them into the skeleton's four tuples (numba
+    calls a function of 60 arrays a microsecond sooner than one of the same arrays in
+    tuples). The skeleton is made a kernel's own from its code with the law's tick as a
+    global, not as a closure: numba caches no closure on disk."""
+    module = sys.modules[law_tick.__module__]
+    jit = cache.keyed_jit(module.KEY, **libc.LOOP_KERNEL)
+    body = types.FunctionType(_skeleton.__code__, {**globals(), "_law_tick": law_tick})
+    body.__qualname__, body.__module__ = f"{name}_skeleton", module.__name__
+    names = [f"a{i}" for i in range(VIEWED + arity)]
+    groups = (names[:TAKING], names[TAKING:ANSWERING], names[ANSWERING:VIEWED], names[VIEWED:])
+    packed = ", ".join("(" + "".join(f"{n}, " for n in group) + ")" for group in groups)
+    scope = {"_skeleton": jit(body)}
+    # (generated, as dataclasses and namedtuple generate theirs: the argument list)
+    exec(f"def {name}({', '.join(names)}):\n    _skeleton({packed})\n", scope)
+    kernel = scope[name]
+    kernel.__qualname__, kernel.__module__, kernel.__doc__ = name, module.__name__, law_tick.__doc__
+    return jit(kernel)

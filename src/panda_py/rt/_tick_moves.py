@@ -1,8 +1,8 @@
 """The control loop's compiled ticks of the moves (``controllers.moves``): a joint or a
 Cartesian move following its plan, then settling at its goal (the integral of its error,
-the push of the drives' friction), on the skeleton of :mod:`panda_py.rt._tick` (its
-wait, decoding, finishing, sending and publishing; the same arguments first, the same
-statuses), with a guarded move's ``until`` condition compiled
+the push of the drives' friction): each move's part of a tick, on the skeleton of
+:mod:`panda_py.rt._tick` (``loop_kernel``: its wait, decoding, finishing, sending and
+publishing around it), with a guarded move's ``until`` condition compiled
 (:mod:`panda_py.controllers.condition_program`).
 
 What stays Python's (PENDING, the state unanswered): the state a move ends on (at rest at
@@ -18,21 +18,20 @@ import math
 from pathlib import Path
 
 from panda_py.controllers import condition_program, laws, tracking
-from panda_py.jit import cache, libc
+from panda_py.jit import cache
 from panda_py.jit.stack import stack_array
 from panda_py.motion import online, rotation
-from panda_py.rt import _tick
-from panda_py.rt._tick import PENDING, TICKS
+from panda_py.rt import _tick, _tick_laws
+from panda_py.rt._tick import BUF, DQ, LAW_T, PENDING, POSE, TAU, TMP, Q
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
     raise ImportError("the control laws run without numba")
 _joint_tracking_step = _FUSED.joint_tracking_step
-_sample = _tick._sample
+_sample = _tick_laws._sample
 _sample_pose = online.compiled_kernels().sample_pose
 _pose_tracking_step = _FUSED.pose_tracking_step
-_begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
-_next_time, _ends = _tick._next_time, _tick._ends
+_advance, _next_time = _tick.advance, _tick.next_time
 
 __all__ = ["joint_move_ticks", "pose_move_ticks"]
 
@@ -130,15 +129,19 @@ def _joint_settling(q, goal, K, coulomb, settle, integral, dt, tau):  # type: ig
 G_LEADING, G_STOPPING, G_TIME, G_FINISHED, G_DURATION = range(5)
 
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, plan_q, plan_dq, plan_ddq, K, D, chain, origin, ca, sa, mass, h,
-    inertia, armature, coulomb, times, samples, settle, integral, gs, traj, gen_q, gen_dq,
-    gen_ddq, gain, lead_dq, program, stack,
-):  # fmt: skip
+@cache.keyed_jit(KEY, nogil=True)
+def _generator_hands_back(gs, times, dq, over, at_rest, timeout):  # type: ignore[no-untyped-def,unused-ignore]
+    """Whether a move's online generator (``gs``: G_*) hands this state to Python: it
+    reaches its target on this tick (the lead-in joins the plan, or the stop's reference
+    ends), or, stopping, the arm came to rest below ``at_rest`` [rad/s] (or ``timeout`` [s]
+    passed) ``over`` [s] past the trajectory's end."""
+    if gs[G_LEADING] != 0.0 and gs[G_FINISHED] == 0.0 and gs[G_TIME] + times[2] > gs[G_DURATION]:
+        return True
+    return gs[G_STOPPING] != 0.0 and over > 0.0 and (_at_rest(dq, at_rest) or over >= timeout)
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     """A joint move (``controllers.moves.JointMove``). Following its plan: the sample at
     the law's time (``times``: t_end, t0, the period, the friction's speed and error rate;
     ``samples``: k0, the last), tracked by ``_fused.joint_tracking_step``; past the
@@ -151,50 +154,42 @@ def joint_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     or the stop's reference ends), the state the move ends on (at rest at the goal, or
     stopped at rest, or the settling's time out: :func:`_joint_settled`), and one on which
     its ``until`` condition (``program``, none if empty) holds while it is not stopping."""
-    io[TICKS] = 0
+    (plan_q, plan_dq, plan_ddq, K, D, _chain, origin, ca, sa, mass, h, inertia, armature,
+     coulomb, times, samples, settle, integral, gs, traj, gen_q, gen_dq, gen_ddq, gain,
+     lead_dq, program, stack) = law  # fmt: skip
+    q, dq, law_t = view[Q], view[DQ], view[LAW_T]
     goal = plan_q[samples[1]]
-    stopping, leading = gs[G_STOPPING] != 0.0, False
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            t = _next_time(io, buf, law_t)
-            over = t - times[0]
-            leading = gs[G_LEADING] != 0.0
-            if leading and gs[G_FINISHED] == 0.0 and gs[G_TIME] + times[2] > gs[G_DURATION]:
-                status = PENDING  # the generator reaches its target: Python's
-            elif over > 0.0 and (
-                (_at_rest(dq, settle[S_AT_REST]) or over >= settle[S_TIMEOUT]) if stopping
-                else _joint_settled(q, dq, goal, settle, over)
-            ):  # fmt: skip
-                status = PENDING  # it ends on this state: Python's tick finishes it
-            elif not stopping and program.shape[0] and _until_holds(
-                program, stack, buf, tmp, t, goal, q, 7, True
-            ):  # fmt: skip
-                status = PENDING  # its condition holds: check_until is Python's
-        if status == 0:
-            _advance(io, buf, law_t)
-            if leading:
-                if gs[G_FINISHED] == 0.0:  # (OnlineGenerator.step, compiled)
-                    gs[G_TIME] += times[2]
-                    _sample(traj, gs[G_DURATION], gs[G_TIME], gen_q, gen_dq, gen_ddq)
-                for i in range(7):
-                    lead_dq[i] = gen_dq[i] * gain[i]
-                _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
-                                     coulomb, K, D, gen_q, lead_dq, gen_ddq, times[3],
-                                     times[4], tau)  # fmt: skip
-            else:
-                k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
-                _joint_tracking_step(q_in, dq_in, origin, ca, sa, mass, h, inertia, armature,
-                                     coulomb, K, D, plan_q[k], plan_dq[k], plan_ddq[k],
-                                     times[3], times[4], tau)  # fmt: skip
-            if law_t[0] > times[0] and not stopping:
-                _joint_settling(q, goal, K, coulomb, settle, integral, law_t[1], tau)
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+    stopping, leading = gs[G_STOPPING] != 0.0, gs[G_LEADING] != 0.0
+    t = _next_time(view)
+    over = t - times[0]
+    if _generator_hands_back(gs, times, dq, over, settle[S_AT_REST], settle[S_TIMEOUT]):
+        return PENDING
+    if not stopping and over > 0.0 and _joint_settled(q, dq, goal, settle, over):
+        return PENDING  # it ends on this state: Python's tick finishes it
+    if not stopping and program.shape[0] and _until_holds(
+        program, stack, view[BUF], view[TMP], t, goal, q, 7, True
+    ):  # fmt: skip
+        return PENDING  # its condition holds: check_until is Python's
+    _advance(view)
+    if leading:
+        if gs[G_FINISHED] == 0.0:  # (OnlineGenerator.step, compiled)
+            gs[G_TIME] += times[2]
+            _sample(traj, gs[G_DURATION], gs[G_TIME], gen_q, gen_dq, gen_ddq)
+        for i in range(7):
+            lead_dq[i] = gen_dq[i] * gain[i]
+        _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
+                             gen_q, lead_dq, gen_ddq, times[3], times[4], view[TAU])  # fmt: skip
+    else:
+        k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+        _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
+                             plan_q[k], plan_dq[k], plan_ddq[k], times[3], times[4],
+                             view[TAU])  # fmt: skip
+    if law_t[0] > times[0] and not stopping:
+        _joint_settling(q, goal, K, coulomb, settle, integral, law_t[1], view[TAU])
+    return 0
+
+
+joint_move_ticks = _tick.loop_kernel(_joint_move, "joint_move_ticks", 27)
 
 
 # a Cartesian move's settling constants (controllers.moves.PoseMove._settle): at rest
@@ -259,17 +254,10 @@ def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-
         tau[i] += coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
 
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, plan_p, plan_quat, plan_v, plan_a, law, chain, origin, ca, sa,
-    mass, h, inertia, armature, coulomb, times, samples, settle, integral, gs, traj, gen_x,
-    gen_dx, gen_ddx, Ft, Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a, program, stack,
-):  # fmt: skip
-    """A Cartesian move (``controllers.moves.PoseMove``), as :func:`joint_move_ticks`,
-    tracked by ``_fused.pose_tracking_step`` on the tracking law's buffer ``law``
+@cache.keyed_jit(KEY, nogil=True)
+def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
+    """A Cartesian move (``controllers.moves.PoseMove``), as :func:`_joint_move`, tracked
+    by ``_fused.pose_tracking_step`` on the tracking law's buffer ``tracking``
     (``tracking.PoseImpedance.compiled_inputs``' scalars set here: ``samples[2]`` counts
     the ticks until the damping's update, every ``samples[3]``); past the trajectory's end
     its settling (:func:`_pose_settling`), until the state it ends on
@@ -277,55 +265,47 @@ def pose_move_ticks(  # type: ignore[no-untyped-def,unused-ignore]
     generator's reference (``OnlinePose.step``: ``_online_jit.sample_pose`` of the packed
     trajectory ``traj`` into the generator's state ``gen_*`` and, through its frames
     ``Ft``, ``Fr`` and anchor ``R0``, ``q0``, into ``lead_*``)."""
-    io[TICKS] = 0
-    goal = plan_p[samples[1]]
-    goal_quat = plan_quat[samples[1]]
-    stopping, leading = gs[G_STOPPING] != 0.0, False
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            t = _next_time(io, buf, law_t)
-            over = t - times[0]
-            leading = gs[G_LEADING] != 0.0
-            if leading and gs[G_FINISHED] == 0.0 and gs[G_TIME] + times[2] > gs[G_DURATION]:
-                status = PENDING  # the generator reaches its target: Python's
-            elif over > 0.0 and (
-                (_at_rest(dq, settle[P_AT_REST]) or over >= settle[P_TIMEOUT]) if stopping
-                else _pose_settled(pose, dq, goal, goal_quat, settle, over)
-            ):  # fmt: skip
-                status = PENDING  # it ends on this state: Python's tick finishes it
-            elif not stopping and program.shape[0] and _until_holds(
-                program, stack, buf, tmp, t, goal, pose[12:15], 3, False
-            ):  # fmt: skip
-                status = PENDING  # its condition holds: check_until is Python's
-        if status == 0:
-            _advance(io, buf, law_t)
-            samples[2] -= 1  # (PoseImpedance.compiled_inputs)
-            law[0] = law_t[1]
-            law[7] = 1.0  # a previous Jacobian: this law has ticked before
-            if samples[2] < 0:
-                law[6] = 1.0
-                samples[2] = samples[3] - 1
-            else:
-                law[6] = 0.0
-            if leading:
-                if gs[G_FINISHED] == 0.0:  # (OnlinePose.step, compiled)
-                    gs[G_TIME] += times[2]
-                    _sample_pose(traj, gs[G_DURATION], gs[G_TIME], gen_x, gen_dx, gen_ddx, Ft,
-                                 Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a)  # fmt: skip
-                _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
-                                    inertia, armature, coulomb, lead_p, lead_quat, lead_v,
-                                    lead_a, law, tau)  # fmt: skip
-            else:
-                k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
-                _pose_tracking_step(pose_in, q_in, dq_in, chain, origin, ca, sa, mass, h,
-                                    inertia, armature, coulomb, plan_p[k], plan_quat[k],
-                                    plan_v[k], plan_a[k], law, tau)  # fmt: skip
-            if law_t[0] > times[0] and not stopping:
-                _pose_settling(law, coulomb, settle, integral, law_t[1], tau)
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+    (plan_p, plan_quat, plan_v, plan_a, tracking, chain, origin, ca, sa, mass, h, inertia,
+     armature, coulomb, times, samples, settle, integral, gs, traj, gen_x, gen_dx, gen_ddx, Ft,
+     Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a, program, stack) = law  # fmt: skip
+    q, dq, pose, law_t = view[Q], view[DQ], view[POSE], view[LAW_T]
+    goal, goal_quat = plan_p[samples[1]], plan_quat[samples[1]]
+    stopping, leading = gs[G_STOPPING] != 0.0, gs[G_LEADING] != 0.0
+    t = _next_time(view)
+    over = t - times[0]
+    if _generator_hands_back(gs, times, dq, over, settle[P_AT_REST], settle[P_TIMEOUT]):
+        return PENDING
+    if not stopping and over > 0.0 and _pose_settled(pose, dq, goal, goal_quat, settle, over):
+        return PENDING  # it ends on this state: Python's tick finishes it
+    if not stopping and program.shape[0] and _until_holds(
+        program, stack, view[BUF], view[TMP], t, goal, pose[12:15], 3, False
+    ):  # fmt: skip
+        return PENDING  # its condition holds: check_until is Python's
+    _advance(view)
+    samples[2] -= 1  # (PoseImpedance.compiled_inputs)
+    tracking[0] = law_t[1]
+    tracking[7] = 1.0  # a previous Jacobian: this law has ticked before
+    if samples[2] < 0:
+        tracking[6] = 1.0
+        samples[2] = samples[3] - 1
+    else:
+        tracking[6] = 0.0
+    if leading:
+        if gs[G_FINISHED] == 0.0:  # (OnlinePose.step, compiled)
+            gs[G_TIME] += times[2]
+            _sample_pose(traj, gs[G_DURATION], gs[G_TIME], gen_x, gen_dx, gen_ddx, Ft, Fr, R0,
+                         q0, lead_p, lead_quat, lead_v, lead_a)  # fmt: skip
+        _pose_tracking_step(pose, q, dq, chain, origin, ca, sa, mass, h, inertia, armature,
+                            coulomb, lead_p, lead_quat, lead_v, lead_a, tracking,
+                            view[TAU])  # fmt: skip
+    else:
+        k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+        _pose_tracking_step(pose, q, dq, chain, origin, ca, sa, mass, h, inertia, armature,
+                            coulomb, plan_p[k], plan_quat[k], plan_v[k], plan_a[k], tracking,
+                            view[TAU])  # fmt: skip
+    if law_t[0] > times[0] and not stopping:
+        _pose_settling(tracking, coulomb, settle, integral, law_t[1], view[TAU])
+    return 0
+
+
+pose_move_ticks = _tick.loop_kernel(_pose_move, "pose_move_ticks", 33)

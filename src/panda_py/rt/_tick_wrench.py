@@ -1,8 +1,8 @@
 """The control loop's compiled ticks of the laws that push with a force at the end
 effector: ``AppliedForce`` (a wrench) and ``Force`` (its PI law on the measured joint
-torques, aborting once the end effector moved past its threshold), on the skeleton of
-:mod:`panda_py.rt._tick` (its wait, decoding, finishing, sending and publishing; the same
-arguments first, the same statuses), each law's torque the fused step Python's ``step``
+torques, aborting once the end effector moved past its threshold): each law's part of a
+tick, on the skeleton of :mod:`panda_py.rt._tick` (``loop_kernel``: its wait, decoding,
+finishing, sending and publishing around it), its torque the fused step Python's ``step``
 calls (:mod:`panda_py.controllers._fused`).
 
 ``Force`` reads one field of the state the other laws do not, the measured torques
@@ -16,9 +16,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from panda_py.controllers import laws
-from panda_py.jit import cache, libc
+from panda_py.jit import cache
 from panda_py.rt import _tick
-from panda_py.rt._tick import L_TAU_J, L_TAU_J_SIZE, PENDING, TICKS
+from panda_py.rt._tick import BUF, DQ, L_TAU_J, L_TAU_J_SIZE, LAW_T, LAY, PENDING, POSE, TAU, TMP, Q
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
@@ -26,67 +26,41 @@ if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as we
 _applied_force_step = _FUSED.applied_force_step
 _force_exceeded = _FUSED.force_exceeded
 _force_step = _FUSED.force_step
-_begin, _advance, _finish = _tick._begin, _tick._advance, _tick._finish
-_decode, _next_time, _ends = _tick._decode, _tick._next_time, _tick._ends
+_advance, _next_time, _decode = _tick.advance, _tick.next_time, _tick._decode
 
 __all__ = ["applied_force_ticks", "force_ticks"]
 
 KEY = cache.source_key([Path(__file__)]) + _tick.KEY[:20]
 
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def applied_force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, values_in, at, applied, D, chain, J,
-):  # fmt: skip
+@cache.keyed_jit(KEY, nogil=True)
+def _applied_force(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     """``AppliedForce`` (``controllers._fused.applied_force_step``): its inputs (at
     ``at``: force, damping, filter_coeff) filtered into ``applied`` and ``D``; ``tau =
     J^T applied - D dq``, the Jacobian of ``chain`` (the key's end effector) into ``J``."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if status == 0:
-            _advance(io, buf, law_t)
-            _applied_force_step(values_in, at, applied, D, q_in, dq_in, chain, J, tau)
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+    values_in, at, applied, D, chain, J = law
+    _advance(view)
+    _applied_force_step(values_in, at, applied, D, view[Q], view[DQ], chain, J, view[TAU])
+    return 0
 
 
-@cache.keyed_jit(KEY, **libc.LOOP_KERNEL)
-def force_ticks(  # type: ignore[no-untyped-def,unused-ignore]
-    io, lay, pfd, buf, scratch, answered, key, cmd, header, states, ring, spans, outputs,
-    signals, new, fin, walls, scale, flags, tau_max, law_t, out_values, tmp, q, dq, pose,
-    tau_J_d, q_in, dq_in, pose_in, tau, command,
-    values, guard, guard_key, values_in, at, law, tau_J, tau_J_in, chain, origin, ca, sa, mass,
-    h, inertia, J,
-):  # fmt: skip
-    """``Force`` (``controllers._fused.force_step``) on its buffer ``law``, the measured
+@cache.keyed_jit(KEY, nogil=True)
+def _force(view, law):  # type: ignore[no-untyped-def,unused-ignore]
+    """``Force`` (``controllers._fused.force_step``) on its buffer ``buffer``, the measured
     torques decoded into ``tau_J`` (read by the step through ``tau_J_in``); a state past
     the threshold (``_fused.force_exceeded``, after the law's first tick) is Python's:
     PENDING, the law's buffer and time unchanged."""
-    io[TICKS] = 0
-    while True:
-        status = _begin(io, lay, pfd, header, buf, scratch, key, tmp, q, dq, pose, tau_J_d,
-                        signals, new, values, guard, guard_key)  # fmt: skip
-        if (
-            status == 0
-            and _next_time(io, buf, law_t) > 0.0
-            and _force_exceeded(values_in, at, law, pose_in) >= 0.0
-        ):
-            status = PENDING  # the controller aborts: its step raises, in Python
-        if status == 0:
-            _decode(buf, lay[L_TAU_J], lay[L_TAU_J_SIZE], 7, tmp, tau_J)
-            _advance(io, buf, law_t)
-            _force_step(values_in, at, law, law_t[0], law_t[1], pose_in, q_in, dq_in, tau_J_in,
-                        chain, origin, ca, sa, mass, h, inertia, J, tau)  # fmt: skip
-            status = _finish(io, lay, buf, answered, cmd, header, states, ring, spans, outputs,
-                             out_values, law_t[0], tau, q_in, dq_in, tau_J_d, walls, scale,
-                             flags, fin, tau_max, command)  # fmt: skip
-        if _ends(io, status):
-            return
+    values_in, at, buffer, tau_J, tau_J_in, chain, origin, ca, sa, mass, h, inertia, J = law
+    if _next_time(view) > 0.0 and _force_exceeded(values_in, at, buffer, view[POSE]) >= 0.0:
+        return PENDING  # the controller aborts: its step raises, in Python
+    lay = view[LAY]
+    _decode(view[BUF], lay[L_TAU_J], lay[L_TAU_J_SIZE], 7, view[TMP], tau_J)
+    _advance(view)
+    law_t = view[LAW_T]
+    _force_step(values_in, at, buffer, law_t[0], law_t[1], view[POSE], view[Q], view[DQ],
+                tau_J_in, chain, origin, ca, sa, mass, h, inertia, J, view[TAU])  # fmt: skip
+    return 0
+
+
+applied_force_ticks = _tick.loop_kernel(_applied_force, "applied_force_ticks", 6)
+force_ticks = _tick.loop_kernel(_force, "force_ticks", 13)

@@ -29,17 +29,20 @@ from panda_py.rt.shm import STATE_MAX, LogRing, SharedBlock
 __all__ = ["KERNEL_MODULES", "FastTicks", "Outcome", "kernel", "kernels", "warm_up"]
 
 
-#: the modules of the loop kernels a law's ``CompiledTicks.kernel`` names: the skeleton's
-#: and most laws' (the first), the force laws' and the moves' (on the first's skeleton)
-KERNEL_MODULES = ("panda_py.rt._tick", "panda_py.rt._tick_wrench", "panda_py.rt._tick_moves")
+#: the modules of the loop kernels a law's ``CompiledTicks.kernel`` names, each kernel a
+#: law's tick on the skeleton of :mod:`panda_py.rt._tick`: the controllers' and the
+#: streamed targets', the force laws', the moves'
+KERNEL_MODULES = ("panda_py.rt._tick_laws", "panda_py.rt._tick_wrench",
+                  "panda_py.rt._tick_moves")  # fmt: skip
 
 
 def kernels() -> Any:
-    """The loop kernels (:mod:`panda_py.rt._tick`), or None where the laws run without
-    numba (or ``PANDA_PY_NO_JIT=1``): imported, and compiled or loaded, on first use."""
+    """The loop kernels' skeleton (:mod:`panda_py.rt._tick`: its constants, its helpers),
+    or None where the laws run without numba (or ``PANDA_PY_NO_JIT=1``): imported, and
+    compiled or loaded, on first use."""
     from panda_py.controllers import laws
 
-    return jit.optional(KERNEL_MODULES[0], requires=laws.fused)
+    return jit.optional("panda_py.rt._tick", requires=laws.fused)
 
 
 def kernel(name: str) -> Any:
@@ -129,22 +132,45 @@ class FastTicks:
         )
         self._ring_of: LogRing | None = None
         self._kernels: dict[str, Any] = {}
+        self._key_spans: tuple[tuple[int, int], ...] = ()
+        # the loop's part of the kernel's arguments, and the log ring it was made for
+        self._loop: tuple[LogRing | None, Any] = (None, None)
 
     def _set_key(self, fields: tuple[str, ...], data: bytes) -> None:
         """The spans of ``fields`` in the state, and their bytes in ``data`` (the state the
         law's arrays were made for)."""
-        tick, lay = self.tick, self.lay
-        spans = self.layout.spans(fields)
-        if len(spans) > 8:
-            raise ValueError(f"key_fields: at most 8 runs of fields, got {fields}")
         if fields != self._key_fields:
+            tick, lay = self.tick, self.lay
+            spans = self.layout.spans(fields)
+            if len(spans) > 8:
+                raise ValueError(f"key_fields: at most 8 runs of fields, got {fields}")
             lay[tick.L_KEY_SPANS :] = 0
             for i, (start, stop) in enumerate(spans):
                 lay[tick.L_KEY_SPANS + 2 * i] = start
                 lay[tick.L_KEY_SPANS + 2 * i + 1] = stop - start
-            self._key_fields = fields
-        key = b"".join([data[a:b] for a, b in spans])
+            self._key_spans, self._key_fields = spans, fields
+        key = b"".join([data[a:b] for a, b in self._key_spans])
         self.key[: len(key)] = np.frombuffer(key, np.uint8)
+
+    def _arguments(self, compiled: CompiledTicks, out: np.ndarray) -> tuple[Any, ...]:
+        """The loop kernel's arguments (:func:`panda_py.rt._tick.loop_kernel`) for
+        ``compiled``, whose outputs are ``out``, one after the other: the loop's arrays
+        (taking a state, answering it: made again only for another log ring), the view of
+        what the law reads and writes, the law's own arrays."""
+        ring_of, loop = self._loop
+        if loop is None or ring_of is not self._ring_of:
+            header, states, outputs, signals = self.shared
+            q, dq, pose, tau_J_d = self.decoded[1:]
+            taking = (self.pfd, self.scratch, self.key, header, signals, self.new, q, dq, pose,
+                      tau_J_d)  # fmt: skip
+            answering = (self.answered, self.torque_io.command, header, states, *self._ring,
+                         outputs, *self.finish, tau_J_d, self.command)  # fmt: skip
+            loop = (*taking, *answering)
+            assert len(taking) == self.tick.TAKING and len(loop) == self.tick.ANSWERING
+            self._loop = (self._ring_of, loop)
+        a = compiled.arrays  # (the law's inputs, their guard and its key first)
+        return (*loop, self.io, self.buf, self.lay, self.decoded[0], compiled.time, *self.views,
+                a[0], a[1], a[2], out, self.tau, *a[3:])  # fmt: skip
 
     def run(
         self, law: ControlLaw, compiled: CompiledTicks, data: bytes, *, chan: int,
@@ -177,14 +203,7 @@ class FastTicks:
         else:
             io[tick.LOGGING] = 0
         self._set_key(compiled.key_fields, data)
-        header, states, outputs, signals = self.shared
-        tmp, q, dq, pose, tau_J_d = self.decoded
-        loop_kernel(
-            io, self.lay, self.pfd, self.buf, self.scratch, self.answered, self.key,
-            self.torque_io.command, header, states, *self._ring, outputs, signals, self.new,
-            *self.finish, compiled.time, out, tmp, q, dq, pose, tau_J_d, *self.views, self.tau,
-            self.command, *compiled.arrays,
-        )  # fmt: skip
+        loop_kernel(*self._arguments(compiled, out))
         ran = int(io[tick.TICKS])
         law.compiled_ran(compiled.time, int(io[tick.IN_SEQ]))
         state = None
