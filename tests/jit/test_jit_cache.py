@@ -95,9 +95,9 @@ def test_the_loops_that_call_the_c_library_are_keyed_over_its_intrinsics() -> No
     # (the laws' loop kernels, on the loop's skeleton: keyed over it too; the moves' also
     # over the guarded moves' condition program and the rotation's quaternion, whose
     # sources they compile)
-    for laws in (controllers, wrench):
-        assert laws.KEY.startswith(jitcache.source_key([Path(laws.__file__)])), laws.__name__
-        assert loop.KEY[:20] in laws.KEY
+    for module in (controllers, wrench):
+        assert module.KEY.startswith(jitcache.source_key([Path(module.__file__)])), module.__name__
+        assert loop.KEY[:20] in module.KEY
     compiled_here = [Path(moves.__file__), Path(condition_program.__file__),
                      Path(rotation.__file__)]  # fmt: skip
     assert moves.KEY.startswith(jitcache.source_key(compiled_here))
