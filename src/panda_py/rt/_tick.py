@@ -374,6 +374,10 @@ def _ends(io, status):  # type: ignore[no-untyped-def,unused-ignore]
     return False
 
 
+#: the law's tick that a kernel's skeleton calls: each kernel's own global (loop_kernel)
+_law_tick: Any
+
+
 def _skeleton(taking, answering, view, law):  # type: ignore[no-untyped-def,unused-ignore]
     """Ticks from waiting for the next state until a reason to return (``io[STATUS]``;
     the ticks run in ``io[TICKS]``): each tick begun (:func:`_begin`), the law's
@@ -384,7 +388,7 @@ def _skeleton(taking, answering, view, law):  # type: ignore[no-untyped-def,unus
     while True:
         status = _begin(taking, view)
         if status == 0:
-            status = _law_tick(view, law)  # noqa: F821  (the kernel's own global)
+            status = _law_tick(view, law)  # noqa: F821  (declared above, set per kernel)
         if status == 0:
             status = _finish(answering, view)
         if _ends(io, status):
