@@ -13,7 +13,7 @@ import pytest
 
 import panda_py
 from panda_py import constants
-from panda_py.controllers.moves import SETTLE_JOINT
+from panda_py.controllers.moves import SETTLE_JOINT, SETTLE_TIMEOUT
 from panda_py.motion.online import OnlineGenerator
 from panda_py.panda import planning
 from panda_py.robots.params import get_robot
@@ -115,22 +115,22 @@ def test_a_replacing_joint_move_reaches_its_goal_within_1_1x_of_the_fastest_traj
     assert max(ratios) <= REPLACE_WITHIN, (name, ratios)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 46's target for Cartesian moves, not met: with the drives' viscous friction "
-    "fed forward they end 6-86 ms after their trajectory on the FER (150-350 before), the arm "
-    "at rest 0.1 mm and 1 mrad from its goal set moving at 2-6 mrad/s by the settling's "
-    "integral and friction push on top of the tracking's own; a short move (0.29 s) ends its "
-    "trajectory 1.2 mm and 5.8 mrad off (cause not found)",
+# the moves' ends of a Cartesian move that the FER does not meet yet (issue 46)
+_POSE_NOT_MET = (
+    "issue 46's target for Cartesian moves, not met on the FER: with the settling's band "
+    "(moves.SETTLE_BAND_POSITION) 8 random moves end 2-23 ms after their trajectory, but a "
+    "short one (0.29 s) ends its trajectory 0.9 mm and 4 mrad off and settles for 216 ms (the "
+    "wrist dragged by the hand's acceleration: cause not found); the FR3 meets it"
 )
-def test_pose_moves_end_within_20_ms_of_their_trajectory(
-    robot_panda: tuple[str, panda_py.Panda],
-) -> None:
-    name, panda = robot_panda
+
+
+def _pose_moves_late(panda: panda_py.Panda, seed: int, n: int) -> list[float]:
+    """How long after its trajectory each of ``n`` random Cartesian moves of up to 12 cm
+    around the start pose ends [s] (each a success)."""
     panda.move_to_start()
-    rng = np.random.default_rng(46)
+    rng = np.random.default_rng(seed)
     late = []
-    for _ in range(3):
+    for _ in range(n):
         pose = panda_py.fk(np.array(constants.JOINT_POSITION_START))
         pose[:3, 3] += rng.uniform(-0.12, 0.12, 3)
         handle = panda.move_to_pose(pose, asynchronous=True)
@@ -138,7 +138,32 @@ def test_pose_moves_end_within_20_ms_of_their_trajectory(
         result = handle.result
         assert result is not None and result.success
         late.append(result.elapsed - result.duration)
+    return late
+
+
+def test_pose_moves_end_within_20_ms_of_their_trajectory(
+    robot_panda: tuple[str, panda_py.Panda], request: pytest.FixtureRequest
+) -> None:
+    name, panda = robot_panda
+    if name == "fer":
+        request.applymarker(pytest.mark.xfail(strict=True, reason=_POSE_NOT_MET))
+    late = _pose_moves_late(panda, 46, 3)
     assert max(late) <= END_WITHIN, (name, late)
+
+
+def test_pose_moves_come_to_rest_at_their_goal_without_creeping(
+    robot_panda: tuple[str, panda_py.Panda],
+) -> None:
+    """Eight random Cartesian moves: half of them end within 20 ms of their trajectory and
+    every one within a quarter of SETTLE_TIMEOUT. Before the settling's band the arm, at
+    rest within 0.1 mm of its goal, was driven on by the friction cancelled twice over
+    (the settling's push on top of the tracking's): the FER's median 88 ms (up to 174),
+    the FR3's 35 (up to 139); with it 10 and 0 (up to 28 and 84)."""
+    name, panda = robot_panda
+    for seed in (7, 46):
+        late = _pose_moves_late(panda, seed, 8)
+        assert float(np.median(late)) <= END_WITHIN, (name, seed, late)
+        assert max(late) <= 0.25 * SETTLE_TIMEOUT, (name, seed, late)
 
 
 PAYLOAD_END_WITHIN = 0.3  # [s] after the trajectory's end, with a weight the model lacks

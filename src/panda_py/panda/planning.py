@@ -350,15 +350,18 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         s = traj.sample(_times(k * duration) / k)
         s = s._replace(velocities=s.velocities / k, accelerations=s.accelerations / (k * k),
                        angular_velocities=s.angular_velocities / k)  # fmt: skip
-    # the angular acceleration, by central differences of the sampled angular velocity
-    alpha = np.gradient(s.angular_velocities, PERIOD, axis=0)
-    # its acceleration steps ramped (smoothing.py): the arm can follow them
+    # its acceleration steps ramped (smoothing.py): the arm can follow them; the
+    # acceleration the rate of the smoothed twist (central differences), so that it starts
+    # and ends at rest as the twist does (the moving average of the profile's own
+    # acceleration, padded with its first and last, fed the profile's whole first
+    # acceleration forward from the first tick, the reference at rest)
     position = box_filter(s.positions, SMOOTHING)
+    twist = box_filter(np.hstack([s.velocities, s.angular_velocities]), SMOOTHING)
     return PosePlan(
         position=position,
         orientation=smooth_quaternions(s.orientations, SMOOTHING),
-        twist=box_filter(np.hstack([s.velocities, s.angular_velocities]), SMOOTHING),
-        accel=box_filter(np.hstack([s.accelerations, alpha]), SMOOTHING),
+        twist=twist,
+        accel=np.gradient(twist, PERIOD, axis=0),
         q_nullspace=q_nullspace,
         impedance=opts.impedance,
         damping_ratio=opts.damping_ratio,

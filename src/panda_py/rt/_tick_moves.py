@@ -196,8 +196,8 @@ joint_move_ticks = _tick.loop_kernel(_joint_move, "joint_move_ticks", 27)
 # below [rad/s], at the goal within [m] and [rad], the settling's time out [s], the
 # integral's gain per unit stiffness [1/s], the friction push's rate [1/s], 1 / the
 # friction's speed
-(P_AT_REST, P_POSITION, P_ORIENTATION, P_TIMEOUT, P_INTEGRAL, P_RATE,
- P_INVERSE_SPEED) = range(7)  # fmt: skip
+(P_AT_REST, P_POSITION, P_ORIENTATION, P_TIMEOUT, P_INTEGRAL, P_RATE, P_INVERSE_SPEED,
+ P_BAND_POSITION, P_BAND_ROTATION, P_ERROR_RATE) = range(10)  # fmt: skip
 # the tracking law's arrays in its buffer (tracking.LAW_LAYOUT)
 _K, _ERR = tracking.LAW_LAYOUT["K"][0], tracking.LAW_LAYOUT["err"][0]
 _J, _PINV = tracking.LAW_LAYOUT["J"][0], tracking.LAW_LAYOUT["J_pinv"][0]
@@ -226,17 +226,28 @@ def _pose_settled(pose, dq, goal, goal_quat, settle, over):  # type: ignore[no-u
 
 
 @cache.keyed_jit(KEY, nogil=True)
-def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-untyped-def,unused-ignore]
+def _pose_settling(law, coulomb, settle, integral, v_d, dt, tau):  # type: ignore[no-untyped-def,unused-ignore]
     """PoseMove.step's terms past the trajectory's end, added to ``tau``: the integral of
-    the pose error (the tracking's, in ``law``), through the stiffness and the Jacobian,
-    and a push of the drives' friction toward the goal along ``J^+`` of the error."""
+    the pose error (the tracking's, in ``law``) beyond the settling's band
+    (``moves.beyond_band``), through the stiffness and the Jacobian; beyond the band a push
+    of the drives' friction toward the goal along ``J^+`` of the error, within it the
+    tracking's own cancelling of the friction along ``J^+`` of the reference's twist
+    ``v_d`` and the error undone."""
     K = law[_K : _K + 36].reshape((6, 6))
     J = law[_J : _J + 42].reshape((6, 7))
     pinv = law[_PINV : _PINV + 42].reshape((7, 6))
     err = law[_ERR : _ERR + 6]
+    beyond = stack_array(6)  # (the loop kernels allocate nothing: jit.libc.LOOP_KERNEL)
+    outside = False
+    for at, band in ((0, settle[P_BAND_POSITION]), (3, settle[P_BAND_ROTATION])):
+        n = math.sqrt(err[at] * err[at] + err[at + 1] * err[at + 1] + err[at + 2] * err[at + 2])
+        scale = (n - band) / n if n > band else 0.0
+        outside = outside or n > band
+        for r in range(at, at + 3):
+            beyond[r] = err[r] * scale
     for r in range(6):
-        integral[r] += dt * err[r]
-    wrench = stack_array(6)  # (the loop kernels allocate nothing: jit.libc.LOOP_KERNEL)
+        integral[r] += dt * beyond[r]
+    wrench = stack_array(6)
     for r in range(6):
         s = 0.0
         for c in range(6):
@@ -250,8 +261,14 @@ def _pose_settling(law, coulomb, settle, integral, dt, tau):  # type: ignore[no-
     for i in range(7):
         s = 0.0
         for r in range(6):
-            s += pinv[i, r] * (err[r] * -settle[P_RATE])
-        tau[i] += coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
+            if outside:
+                s += pinv[i, r] * (err[r] * -settle[P_RATE])
+            else:
+                s += pinv[i, r] * (v_d[r] - settle[P_ERROR_RATE] * err[r])
+        if outside:
+            tau[i] += coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
+        else:
+            tau[i] -= coulomb[i] * math.tanh(s * settle[P_INVERSE_SPEED])
 
 
 @cache.keyed_jit(KEY, nogil=True)
@@ -304,7 +321,8 @@ def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
                             coulomb, plan_p[k], plan_quat[k], plan_v[k], plan_a[k], tracking,
                             view[TAU])  # fmt: skip
     if law_t[0] > times[0] and not stopping:
-        _pose_settling(tracking, coulomb, settle, integral, law_t[1], view[TAU])
+        _pose_settling(tracking, coulomb, settle, integral, plan_v[samples[1]], law_t[1],
+                       view[TAU])  # fmt: skip
     return 0
 
 
