@@ -105,21 +105,6 @@ SETTLE_TIMEOUT = 1.0  # [s] after the trajectory's end the move ends regardless
 # further from its goal at the trajectory's end.)
 MOVE_FRICTION_SPEED = 3e-3
 MOVE_ERROR_RATE = 60.0
-
-
-def beyond_band(err: FloatArray) -> FloatArray:
-    """A Cartesian move's pose error (6,) [m, rad] beyond its settling's band: its position
-    part shortened by SETTLE_BAND_POSITION, its rotation part by SETTLE_BAND_ROTATION, each
-    zero within its band."""
-    out = np.zeros(6)
-    for at, band in ((0, SETTLE_BAND_POSITION), (3, SETTLE_BAND_ROTATION)):
-        part = err[at : at + 3]
-        n = math.sqrt(float(part @ part))
-        if n > band:
-            out[at : at + 3] = part * ((n - band) / n)
-    return out
-
-
 # a move whose arm is farther than this from its plan's start at its first tick was planned
 # while another move ran: it leads in from where the arm is (the plan's own start is the
 # arm's state when it was planned, within the robot's joint limits)
@@ -153,6 +138,19 @@ def _smoothstep(x: float) -> float:
 def _smoothstep_inverse(y: float) -> float:
     """The x in [0, 1] where :func:`_smoothstep` is y (in [0, 1])."""
     return 0.5 - math.sin(math.asin(1.0 - 2.0 * min(1.0, max(0.0, y))) / 3.0)
+
+
+def beyond_band(err: FloatArray) -> FloatArray:
+    """A Cartesian move's pose error (6,) [m, rad] beyond its settling's band: its position
+    part shortened by SETTLE_BAND_POSITION, its rotation part by SETTLE_BAND_ROTATION, each
+    zero within its band."""
+    out = np.zeros(6)
+    for at, band in ((0, SETTLE_BAND_POSITION), (3, SETTLE_BAND_ROTATION)):
+        part = err[at : at + 3]
+        n = math.sqrt(float(part @ part))
+        if n > band:
+            out[at : at + 3] = part * ((n - band) / n)
+    return out
 
 
 def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,

@@ -52,23 +52,22 @@ if _FUSED is None or _KERNELS is None:  # plain Python: Python ticks
     raise ImportError("the control laws run without numba")
 _finalize_torques = _KERNELS.finalize_torques
 
-__all__ = ["advance", "loop_kernel", "next_time"]
+__all__ = ["advance", "decode_field", "loop_kernel", "next_time"]
 
 KEY = cache.source_key([Path(__file__), Path(libc.__file__)]) + _FUSED.KEY[:12]
 
-# a loop kernel's arguments: (loop, view, law). ``view`` is what a law's tick reads and
-# writes (loop_kernel), in this order: the io words, the state datagram, its layout
+# the skeleton's arguments: (taking, answering, view, law). ``view`` is what a law's tick
+# reads and writes (loop_kernel), in this order: the io words, the state datagram, its layout
 # (``lay``), an aligned decoding scratch, the law's time and last dt [s], the decoded q,
 # dq, O_T_EE (read-only: the fused steps are compiled for read-only state arrays), the
 # law's inputs (and the guard on them that _begin checks, with its key), its outputs (the
 # time first), and the torques it computes
 IO, BUF, LAY, TMP, LAW_T, Q, DQ, POSE, VALUES, GUARD, GUARD_KEY, OUT_VALUES, TAU = range(13)
-# ``loop``: the loop's own arrays, which no law reads, as a pair: what taking a state
-# needs (_begin's ``taking``) and what answering it needs (_finish's ``answering``);
-# rt.fastloop.FastTicks builds them (once) and the view (each run). A kernel takes the
-# arrays of the four one after the other (loop_kernel): its arguments up to TAKING are
-# taking's, then up to ANSWERING answering's, then up to VIEWED the view's, the rest the
-# law's
+# ``taking`` and ``answering``: the loop's own arrays, which no law reads, what taking a
+# state needs (_begin) and what answering it needs (_finish); rt.fastloop.FastTicks builds
+# them (once) and the view (each run). A kernel takes the arrays of the four one after the
+# other (loop_kernel): its arguments up to TAKING are taking's, then up to ANSWERING
+# answering's, then up to VIEWED the view's, the rest the law's
 TAKING = 10
 ANSWERING = TAKING + 14
 VIEWED = ANSWERING + 13
@@ -351,6 +350,15 @@ def advance(view):  # type: ignore[no-untyped-def,unused-ignore]
     io[LAST_ID] = mid
     law_t[0] += dt
     law_t[1] = dt
+
+
+@cache.keyed_jit(KEY, nogil=True)
+def decode_field(view, at, count, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """``count`` floats of the state field at ``lay[at]`` (its offset, then its element
+    size: an ``L_*`` pair) of the state in ``view[BUF]`` into ``out`` (float64), for a law
+    that reads a field the skeleton does not decode."""
+    lay = view[LAY]
+    _decode(view[BUF], lay[at], lay[at + 1], count, view[TMP], out)
 
 
 @cache.keyed_jit(KEY, nogil=True)

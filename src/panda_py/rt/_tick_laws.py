@@ -13,7 +13,7 @@ from pathlib import Path
 
 from panda_py.controllers import laws
 from panda_py.fci import PERIOD
-from panda_py.jit import cache
+from panda_py.jit import cache, libc
 from panda_py.motion import online
 from panda_py.rt import _tick
 from panda_py.rt._tick import DQ, LAW_T, OUT_VALUES, PENDING, POSE, TAU, VALUES, Q
@@ -25,7 +25,7 @@ _cartesian_impedance_step = _FUSED.cartesian_impedance_step
 _joint_tracking_step = _FUSED.joint_tracking_step
 _pose_target_step = _FUSED.pose_target_step
 _sample = _ONLINE.sample
-_advance, _next_time, _copy = _tick.advance, _tick.next_time, _tick._copy
+_advance, _next_time, _copy = _tick.advance, _tick.next_time, libc.copy
 
 __all__ = [
     "applied_torque_ticks", "cartesian_impedance_ticks", "cartesian_target_ticks",

@@ -21,15 +21,15 @@ from panda_py.controllers import condition_program, laws, tracking
 from panda_py.jit import cache
 from panda_py.jit.stack import stack_array
 from panda_py.motion import online, rotation
-from panda_py.rt import _tick, _tick_laws
+from panda_py.rt import _tick
 from panda_py.rt._tick import BUF, DQ, LAW_T, PENDING, POSE, TAU, TMP, Q
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
     raise ImportError("the control laws run without numba")
 _joint_tracking_step = _FUSED.joint_tracking_step
-_sample = _tick_laws._sample
-_sample_pose = online.compiled_kernels().sample_pose
+_ONLINE = online.compiled_kernels()
+_sample, _sample_pose = _ONLINE.sample, _ONLINE.sample_pose
 _pose_tracking_step = _FUSED.pose_tracking_step
 _advance, _next_time = _tick.advance, _tick.next_time
 

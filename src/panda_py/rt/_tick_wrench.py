@@ -18,7 +18,7 @@ from pathlib import Path
 from panda_py.controllers import laws
 from panda_py.jit import cache
 from panda_py.rt import _tick
-from panda_py.rt._tick import BUF, DQ, L_TAU_J, L_TAU_J_SIZE, LAW_T, LAY, PENDING, POSE, TAU, TMP, Q
+from panda_py.rt._tick import DQ, L_TAU_J, LAW_T, PENDING, POSE, TAU, Q
 
 _FUSED = laws.fused()
 if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as well)
@@ -26,7 +26,7 @@ if _FUSED is None:  # plain Python: Python ticks (rt._tick refuses to load as we
 _applied_force_step = _FUSED.applied_force_step
 _force_exceeded = _FUSED.force_exceeded
 _force_step = _FUSED.force_step
-_advance, _next_time, _decode = _tick.advance, _tick.next_time, _tick._decode
+_advance, _next_time, _decode_field = _tick.advance, _tick.next_time, _tick.decode_field
 
 __all__ = ["applied_force_ticks", "force_ticks"]
 
@@ -53,8 +53,7 @@ def _force(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     values_in, at, buffer, tau_J, tau_J_in, chain, origin, ca, sa, mass, h, inertia, J = law
     if _next_time(view) > 0.0 and _force_exceeded(values_in, at, buffer, view[POSE]) >= 0.0:
         return PENDING  # the controller aborts: its step raises, in Python
-    lay = view[LAY]
-    _decode(view[BUF], lay[L_TAU_J], lay[L_TAU_J_SIZE], 7, view[TMP], tau_J)
+    _decode_field(view, L_TAU_J, 7, tau_J)
     _advance(view)
     law_t = view[LAW_T]
     _force_step(values_in, at, buffer, law_t[0], law_t[1], view[POSE], view[Q], view[DQ],
