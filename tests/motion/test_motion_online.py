@@ -415,6 +415,43 @@ def test_the_compiled_new_target_equals_the_python_reference(monkeypatch) -> Non
 
 
 @pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
+def test_the_compiled_mapped_peaks_equal_ruckigs_own_sampling(monkeypatch) -> None:
+    """``mapped_peaks`` (the largest ``|M v|`` and ``|M a|`` along the whole trajectory)
+    compiled (``_online_jit.mapped_peaks`` on the packed trajectory) and through ruckig's
+    ``at_time``: the same to 1e-9, from states beyond the limits (ruckig brakes first);
+    the generator's state is left as it was; and its steps then meet those peaks, never
+    more (an acceleration's peak of 2 ms only to within the ticks' sampling)."""
+    from panda_py.motion import online
+
+    kernels = online._compiled()
+    assert kernels is not None  # numba comes with the package here
+    rng = np.random.default_rng(11)
+    limits = OnlineLimits.joints(FER, 0.3)
+    for _ in range(20):
+        gen = OnlineGenerator(limits)
+        v = rng.normal(0.0, 1.5, 7) * np.array(limits.velocity)  # some beyond the limits
+        gen.reset(rng.uniform(-1.0, 1.0, 7), v, np.zeros(7))
+        gen.set_target(rng.uniform(-1.0, 1.0, 7))
+        M = rng.normal(0.0, 1.0, (3, 7))
+        before = (gen.position.copy(), gen.velocity.copy(), gen.duration)
+        fast = gen.mapped_peaks(M)
+        monkeypatch.setitem(LOADED, "panda_py.motion._online_jit", None)
+        slow = gen.mapped_peaks(M)
+        monkeypatch.setitem(LOADED, "panda_py.motion._online_jit", kernels)
+        assert fast is not None and slow is not None
+        for a, b in zip(fast, slow, strict=True):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(gen.position, before[0])
+        np.testing.assert_array_equal(gen.velocity, before[1])
+        met_v, met_a = np.zeros(3), np.zeros(3)
+        while not gen.step():
+            met_v = np.maximum(met_v, np.abs(M @ gen.velocity))
+            met_a = np.maximum(met_a, np.abs(M @ gen.acceleration))
+        assert np.all(met_v <= fast[0] + 1e-9) and np.all(met_a <= fast[1] + 1e-9)
+        assert np.all(met_v >= 0.99 * fast[0]) and np.all(met_a >= 0.85 * fast[1])
+
+
+@pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 def test_the_warmup_loads_every_compiled_step() -> None:
     """``online.warmup()`` (the control process runs it before its loop) compiles or loads
     every kernel the generators call, so none compiles in a tick."""
@@ -422,7 +459,8 @@ def test_the_warmup_loads_every_compiled_step() -> None:
 
     assert online._compiled() is not None  # numba comes with the package here
     online.warmup()
-    called = ("sample", "sample_pose", "publish_pose", "retarget", "restart_toward")
+    called = ("sample", "sample_pose", "publish_pose", "retarget", "restart_toward",
+              "mapped_peaks")  # fmt: skip
     assert set(called) | {"ROW", "aim"} == set(_online_jit.__all__)  # (aim: inside two)
     for name in called:
         kernel = getattr(_online_jit, name)

@@ -115,6 +115,12 @@ START_JOINT = 1e-2  # [rad]
 # 0.76-0.92 of the acceleration limit, at 0.6 0.67-0.80); a sampled plan is tracked more
 # closely (planning.PLAN_JOINT_SHARE)
 JOINT_SHARE = 0.6
+# joint_capped_peaks' tries (each one of ruckig's whole trajectories), and how far past
+# the share it accepts: an arm that starts beyond it (the share judged against its own
+# motion) peaks a little past its start while ruckig brakes it, whatever the limits (a
+# random replacement: 1.075, 1.039, 1.018 in four tries, and then the worst case's cap)
+PEAK_TRIES = 4
+PEAK_TOLERANCE = 1.03
 BLEND_TIME = 0.05  # [s] from one space's law to the other's (see Tracker._blend_from)
 START_POSITION = 5e-3  # [m]
 START_ORIENTATION = 1e-2  # [rad]
@@ -191,14 +197,17 @@ def joint_capped(limits: OnlineLimits, J: FloatArray, spec: Any,
 def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
                        spec: Any) -> OnlineLimits:  # fmt: skip
     """:func:`joint_capped` for a lead-in whose generator ``gen`` has its state and target:
-    each of its six coordinates counted at the largest speed and acceleration its
-    trajectory reaches (:meth:`~panda_py.motion.online.OnlineGenerator.peaks`), not at its
-    limit. A rotation that hardly moves (a Cartesian move replacing another, both holding
-    the orientation) then leaves the joints' headroom to the translation, and how much no
-    longer depends on the frame it happened to get. Every coordinate still counts at its
-    peak at once, with the worst signs: a bound, as joint_capped's. The start is the arm's
-    own: where it asks for more already, the rest is judged against it. Falls back to
-    joint_capped where three tries do not settle. The limits are left set in ``gen``."""
+    the joints' velocities and accelerations its trajectory asks for through ``J``'s
+    pseudo-inverse, along the trajectory with their signs
+    (:meth:`~panda_py.motion.online.OnlineGenerator.mapped_peaks`), not every coordinate
+    at its limit at once. Counting each coordinate at its own peak, at once and with the
+    worst signs (as this did before), left replacing moves up to 1.6x slower than the
+    trajectory the same share of the joints' limits allows (eight random replacements on
+    the FER: the braking of the replaced motion is over before the new one peaks). The
+    Jacobian is the hand-over's (it changes along the lead-in: JOINT_SHARE's margin). The start
+    is the arm's own: where it asks for more already, the rest is judged against it.
+    Falls back to joint_capped where PEAK_TRIES tries do not settle. The limits are left
+    set in ``gen``."""
     worst = joint_capped(limits, J, spec, gen.frames)
     if worst is limits:  # not even every axis at its limit at once asks too much
         gen.set_limits(limits)
@@ -206,23 +215,40 @@ def joint_capped_peaks(gen: OnlinePose, limits: OnlineLimits, J: FloatArray,
     joints = spec.joints
     pinv = laws.damped_pinv(J)
     At, Ar = gen.axes()
-    mix = np.abs(np.hstack([pinv[:, :3] @ At, pinv[:, 3:] @ Ar]))  # (7, 6)
+    mix = np.hstack([pinv[:, :3] @ At, pinv[:, 3:] @ Ar])  # (7, 6): dq = mix v (signed)
     v_share, a_share = _shares(joints.dq_max, JOINT_SHARE), _shares(joints.ddq_max, JOINT_SHARE)
-    start_v = max(1.0, float((mix @ np.abs(gen.gen.velocity) / v_share).max()))
-    start_a = max(1.0, float((mix @ np.abs(gen.gen.acceleration) / a_share).max()))
+    start_v = max(1.0, float((np.abs(mix @ gen.gen.velocity) / v_share).max()))
+    start_a = max(1.0, float((np.abs(mix @ gen.gen.acceleration) / a_share).max()))
     capped = limits
-    for _ in range(3):
+    for _ in range(PEAK_TRIES):
         gen.set_limits(capped)
-        peaks = gen.gen.peaks()
+        peaks = gen.gen.mapped_peaks(mix)
         if peaks is None:
             break
-        over_v = float((mix @ peaks[0] / v_share).max()) / start_v
-        over_a = float((mix @ peaks[1] / a_share).max()) / start_a
-        if over_v <= 1.0 and over_a <= 1.0:
+        over_v = float((peaks[0] / v_share).max()) / start_v
+        over_a = float((peaks[1] / a_share).max()) / start_a
+        if over_v <= PEAK_TOLERANCE and over_a <= PEAK_TOLERANCE:
             return capped
         capped = capped.scaled(min(1.0, 0.98 / over_v), min(1.0, 0.98 / over_a))
     gen.set_limits(worst)
     return worst
+
+
+def _holding(capped: OnlineLimits, limits: OnlineLimits, gen: OnlinePose) -> OnlineLimits:
+    """``capped`` (``limits`` scaled down, in effect in ``gen``) raised, up to ``limits``, to
+    hold the velocity and the acceleration ``gen`` starts with. A lead-in's first tick
+    runs at the worst case's cap and the next ones at its trajectory's (see
+    PoseMove.published): from a start beyond the first cap, ruckig cut the acceleration
+    for one tick and raised it again the next, a wobble in the torque (30 % of it where a
+    move replaced one in its blend)."""
+    g = gen.gen
+    over_v = float(np.max(np.abs(g.velocity) / g._vmax))
+    over_a = float(np.max(np.abs(g.acceleration) / g._amax))
+    if over_v <= 1.0 and over_a <= 1.0:
+        return capped
+    room_v = limits.velocity[0] / capped.velocity[0]
+    room_a = limits.acceleration[0] / capped.acceleration[0]
+    return capped.scaled(min(room_v, max(1.0, over_v)), min(room_a, max(1.0, over_a)))
 
 
 @functools.lru_cache(maxsize=16)
@@ -719,6 +745,7 @@ class PoseMove(Tracker):
         # left, at the peaks its trajectory reaches (see published)
         worst = joint_capped(self.limits, model.ee_jacobian(state), model.spec, g.frames)
         g.set_limits(worst)
+        g.set_limits(_holding(worst, self.limits, g))
         self.refine = worst is not self.limits
         self.k0, self.leading = j, True
         self.t_end = self.duration = math.inf
@@ -726,7 +753,7 @@ class PoseMove(Tracker):
 
     def published(self) -> None:
         """After a hand-over's first command: the lead-in's limits counted at the peaks its
-        coordinates reach (:func:`joint_capped_peaks`, up to three of ruckig's whole
+        coordinates reach (:func:`joint_capped_peaks`, up to PEAK_TRIES of ruckig's whole
         trajectories: 0.2 ms, most of a hand-over's time, which it no longer delays), from
         the generator's state and this tick's Jacobian. Until then the lead-in ran at the
         worst case's limits (the peaks' cap is mostly higher; it is lower where the arm's

@@ -27,7 +27,10 @@ import numpy as np
 from panda_py.jit import cache, stack
 from panda_py.jit.stack import stack_array
 
-__all__ = ["ROW", "aim", "publish_pose", "restart_toward", "retarget", "sample", "sample_pose"]
+__all__ = [
+    "ROW", "aim", "mapped_peaks", "publish_pose", "restart_toward", "retarget", "sample",
+    "sample_pose",
+]  # fmt: skip
 
 # the compile cache's key: the kernels compile this file and the stack arrays' helper
 # (panda_py.jit.cache)
@@ -85,6 +88,71 @@ def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore
         position[d] = p0 + tt * (v0 + tt * (a0 / 2 + tt * j / 6))
         velocity[d] = v0 + tt * (a0 + tt * j / 2)
         acceleration[d] = a0 + tt * j
+
+
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def mapped_peaks(traj, duration, M, times, p, v, a, a_prev, v_peak, a_peak):  # type: ignore[no-untyped-def,unused-ignore]
+    """The largest ``|M v(t)|`` and ``|M a(t)|`` over a trajectory (see :func:`sample`)
+    into ``v_peak``, ``a_peak`` (each (m,)), ``M`` (m, n) mapping its coordinates' rates.
+    Exact: every coordinate's acceleration is linear between its phases' ends, so ``M a``
+    is linear between the union of those times and peaks at one of them; ``M v`` peaks at
+    one of them or where ``M a`` crosses zero between two. ``times`` (n * 9 + 2,), ``p``,
+    ``v``, ``a`` (n,) and ``a_prev`` (m,): scratch. The Python reference:
+    ``online._mapped_peaks_python``."""
+    m, n = M.shape
+    count = 0
+    times[count] = 0.0
+    count += 1
+    for d in range(n):
+        r = traj[d]
+        brake = r[0]
+        if brake > 0.0:
+            times[count] = r[BRAKE_T]
+            times[count + 1] = brake
+            count += 2
+        total = brake
+        for i in range(7):
+            total += r[T + i]
+            times[count] = total
+            count += 1
+    times[count] = duration
+    count += 1
+    for i in range(1, count):  # sorted (insertion: a few dozen)
+        x = times[i]
+        j = i - 1
+        while j >= 0 and times[j] > x:
+            times[j + 1] = times[j]
+            j -= 1
+        times[j + 1] = x
+    for i in range(m):
+        v_peak[i] = 0.0
+        a_peak[i] = 0.0
+    t_prev = 0.0
+    for k in range(count):
+        t = min(max(times[k], 0.0), duration)
+        sample(traj, duration, t, p, v, a)
+        for i in range(m):
+            sv = 0.0
+            sa = 0.0
+            for c in range(n):
+                sv += M[i, c] * v[c]
+                sa += M[i, c] * a[c]
+            if abs(sv) > v_peak[i]:
+                v_peak[i] = abs(sv)
+            if abs(sa) > a_peak[i]:
+                a_peak[i] = abs(sa)
+            a_prev_i = a_prev[i]
+            a_prev[i] = sa
+            if k > 0 and t > t_prev and a_prev_i * sa < 0.0:  # M v turns in between
+                t_mid = t_prev + (t - t_prev) * a_prev_i / (a_prev_i - sa)
+                sample(traj, duration, t_mid, p, v, a)
+                sv = 0.0
+                for c in range(n):
+                    sv += M[i, c] * v[c]
+                if abs(sv) > v_peak[i]:
+                    v_peak[i] = abs(sv)
+                sample(traj, duration, t, p, v, a)  # (back at t for the outputs after i)
+        t_prev = t
 
 
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")

@@ -333,11 +333,14 @@ class OnlineGenerator:
         inp.target_acceleration = [0.0] * self.n
         self.finished = False
 
-    def peaks(self) -> tuple[FloatArray, FloatArray] | None:
-        """The largest speed and the largest acceleration magnitude (each (n,)) each
-        coordinate reaches from the current state to the target: exact, from ruckig's
-        profiles of the whole trajectory, computed without stepping (the generator's state
-        is unchanged); None where ruckig cannot."""
+    def mapped_peaks(self, M: FloatArray) -> tuple[FloatArray, FloatArray] | None:
+        """The largest ``|M v(t)|`` and ``|M a(t)|`` (each (m,)) along the trajectory from
+        the current state to the target, ``M`` (m, n) mapping the coordinates' rates to
+        another space's (a Jacobian's pseudo-inverse: the joints' velocities and
+        accelerations), with their signs: coordinates that peak at different times, or
+        cancel, are counted as they combine. Exact (at the phases' ends and where the
+        mapped acceleration crosses zero) on ruckig's whole trajectory, computed without
+        stepping (the generator's state is unchanged); None where ruckig cannot."""
         traj = Trajectory(self.n)
         try:
             result = self._otg.calculate(self._input(change=False), traj)
@@ -345,22 +348,17 @@ class OnlineGenerator:
             return None
         if result != Result.Working:
             return None
-        # in scalars: numpy's per-call cost on these short lists was most of the time
-        v_peak, a_peak = [0.0] * self.n, [0.0] * self.n
-        for section in traj.profiles:
-            for i, profile in enumerate(section):
-                vp, ap = v_peak[i], a_peak[i]
-                brake = profile.brake
-                for part in (profile,) if brake.duration <= 0.0 else (brake, profile):
-                    acc, vel = part.a, part.v
-                    vp = max(vp, max(vel), -min(vel))
-                    ap = max(ap, max(acc), -min(acc))
-                    for a0, a1, v0, jk in zip(acc, acc[1:], vel, part.j, strict=False):
-                        # the acceleration crosses 0 inside a phase: the speed peaks there
-                        if a0 * a1 < 0.0 and jk != 0.0:
-                            vp = max(vp, abs(v0 - a0 * a0 / (2.0 * jk)))
-                v_peak[i], a_peak[i] = vp, ap
-        return np.array(v_peak), np.array(a_peak)
+        M = np.ascontiguousarray(M, dtype=np.float64)
+        kernels = _compiled()
+        if kernels is None:
+            return _mapped_peaks_python(traj, M)
+        n, m = self.n, len(M)
+        v_peak, a_peak = np.zeros(m), np.zeros(m)
+        packed = np.zeros((n, _ROW))
+        _pack(traj, packed)
+        kernels.mapped_peaks(packed, traj.duration, M, np.empty(9 * n + 2), np.empty(n),
+                             np.empty(n), np.empty(n), np.zeros(m), v_peak, a_peak)  # fmt: skip
+        return v_peak, a_peak
 
     def _input(self, change: bool = True) -> InputParameter:
         """ruckig's input, its current state made the generator's where the compiled steps
@@ -837,6 +835,30 @@ def _jacobian_times(x: list[float], y: list[float], sign: float) -> list[float]:
     return [y0 + a * c0 + b * d0, y1 + a * c1 + b * d1, y2 + a * c2 + b * d2]
 
 
+def _mapped_peaks_python(traj: Trajectory, M: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:meth:`OnlineGenerator.mapped_peaks` through ruckig's own profiles and sampling (the
+    compiled ``_online_jit.mapped_peaks``' reference)."""
+    duration = traj.duration
+    times = [0.0, duration]
+    for profile in traj.profiles[0]:
+        brake = profile.brake.duration
+        if brake > 0.0:
+            times += [profile.brake.t[0], brake]
+        times += list(brake + np.cumsum(profile.t))
+    times = sorted(min(max(t, 0.0), duration) for t in times)
+    v_peak, a_peak = np.zeros(len(M)), np.zeros(len(M))
+    t_prev, a_prev = 0.0, np.zeros(len(M))
+    for k, t in enumerate(times):
+        _, v, a = traj.at_time(t)[:3]
+        mv, ma = M @ np.asarray(v), M @ np.asarray(a)
+        v_peak, a_peak = np.maximum(v_peak, np.abs(mv)), np.maximum(a_peak, np.abs(ma))
+        for i in np.nonzero((a_prev * ma < 0.0) & (k > 0) & (t > t_prev))[0]:
+            t_mid = t_prev + (t - t_prev) * a_prev[i] / (a_prev[i] - ma[i])
+            v_peak[i] = max(v_peak[i], abs(float(M[i] @ np.asarray(traj.at_time(t_mid)[1]))))
+        t_prev, a_prev = t, ma
+    return v_peak, a_peak
+
+
 def warmup() -> None:
     """Compile (or load from numba's cache) the generators' compiled steps now: a loop
     calls this before its first tick, which must not wait for a compiler."""
@@ -856,3 +878,4 @@ def warmup() -> None:
     joints.set_target(np.full(7, 0.1))
     joints.step()
     joints.step()  # (sample)
+    joints.mapped_peaks(np.eye(7))  # (mapped_peaks)
