@@ -117,10 +117,12 @@ def _online(kind: str, spec: RobotSpec, speed_factor: float) -> Online:
         return hit[1]
     make = OnlineLimits.joints if kind == "joint" else OnlineLimits.cartesian
     limits = make(spec, speed_factor)
-    # a joint lead-in's acceleration ramped (a stop's is not: it must brake as soon as it
-    # can, a guarded move's on what it touched)
-    online = Online(_ramped(limits) if kind == "joint" else limits,
-                    make(spec, max(speed_factor, STOP_SPEED_FACTOR)))  # fmt: skip
+    # a lead-in's acceleration ramped (a stop's is not: it must brake as soon as it can, a
+    # guarded move's on what it touched). A Cartesian lead-in at the robot's jerk left the
+    # arm behind its reference where it stopped accelerating: 20 random replacements ended
+    # a median 56 ms (FER) and 78 ms (FR3) after their trajectory, ramped 20 and 4 ms, for
+    # a trajectory 0-3 % longer
+    online = Online(_ramped(limits), make(spec, max(speed_factor, STOP_SPEED_FACTOR)))
     if len(_ONLINE) >= 64:  # many speed factors (a policy's): keep the newest
         _ONLINE.clear()
     _ONLINE[key] = (spec, online)
