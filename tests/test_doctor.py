@@ -8,11 +8,14 @@ import json
 import shutil
 import subprocess
 import sys
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from panda_py import doctor
 from panda_py.doctor import Status
+from panda_py.libfranka import RobotMode
 from panda_py.sim import Simulator, free_loopback_host
 
 pytestmark = pytest.mark.timeout(120)
@@ -29,18 +32,28 @@ def _by_name(checks: list[dict]) -> dict[str, dict]:
 
 @pytest.mark.exclusive  # the realtime stream's loss is judged on the wall clock
 def test_a_simulated_robot_passes_the_robot_checks() -> None:
-    # realtime, as a robot: on this VM a stall of a few ms now and then drops states, and
-    # in some seconds more than the 5 % the stream check fails at (44-51 of 1000 seen; a
-    # robot's cable would be at fault): one of three runs must pass it
+    # realtime, as a robot. States this process passed over while it was late (the VM's
+    # stalls: 353-559 of 1000 in a CI run once counted as missing, three runs in a row)
+    # are its own, not the link's. What can still be missing is what the simulator never
+    # sent: it re-synchronises its clock when the machine keeps it more than 100 ms from
+    # its schedule. So one of three runs must pass the stream check, or else, in each run
+    # it failed, the simulator itself must have been kept from its schedule, where failing
+    # is the check's right answer; the other checks pass either way
     streams = []
     with Simulator(free_loopback_host()) as sim:
         for _ in range(3):
+            sim.reset_stats()
             proc = _run("--host", sim.host, "--json")
+            stats = sim.stats()
             checks = _by_name(json.loads(proc.stdout))
-            streams.append(checks["state stream"])
-            if checks["state stream"]["status"] in ("ok", "warn"):
+            stream = checks["state stream"]
+            if stream["status"] in ("ok", "warn"):
                 break
-    assert checks["state stream"]["status"] in ("ok", "warn"), streams
+            late = stats["late_ticks"] + 100 * stats["resyncs"]  # (a resync: 100 ms behind)
+            streams.append((stream, stats["late_ticks"], stats["resyncs"], stats["ticks"]))
+            assert late > 0.05 * stats["ticks"], (
+                f"the stream failed while the simulator kept its schedule: {streams}"
+            )
     assert checks["FCI connection"]["status"] == "ok"
     assert "protocol v5 (fer)" in checks["FCI connection"]["found"]
     assert checks["robot mode"]["status"] == "ok"
@@ -48,6 +61,48 @@ def test_a_simulated_robot_passes_the_robot_checks() -> None:
     assert checks["Desk"]["status"] == "warn"  # no Desk on this simulator
     failed = [c for c in checks.values() if c["status"] == "fail"]
     assert proc.returncode == (1 if failed else 0)
+
+
+class _Stream:
+    """A robot for ``doctor._connected``: its states' times (ms) and the states its reads
+    passed over, counted as :attr:`panda_py.libfranka.Robot.skipped_states` counts them."""
+
+    def __init__(self, times: list[int], passed_over: int) -> None:
+        self.times, self.passed_over, self.skipped_states = times, passed_over, 0
+
+    def server_version(self) -> int:
+        return 5
+
+    def read(self, callback) -> None:  # type: ignore[no-untyped-def]
+        for t in self.times:
+            state = SimpleNamespace(time=SimpleNamespace(to_msec=lambda t=t: t))
+            if not callback(state):
+                break
+        self.skipped_states += self.passed_over
+
+    def read_once(self) -> object:
+        return SimpleNamespace(robot_mode=RobotMode.kIdle, current_errors=None)
+
+
+@pytest.mark.parametrize(
+    ("passed_over", "status", "missing"),
+    [(100, Status.WARN, 0), (0, Status.FAIL, 100), (40, Status.FAIL, 60)],
+)
+def test_the_stream_check_tells_states_this_process_passed_over_from_missing_ones(
+    monkeypatch, passed_over, status, missing
+) -> None:  # type: ignore[no-untyped-def]
+    """100 gaps in the robot's clock in a second: the states the reads passed over (this
+    process was late) warn and point at the timing; the rest never came (the cable, a
+    switch: past 5 % a failure)."""
+    clock = iter(np.arange(0.0, 10.0, 1e-3))
+    monkeypatch.setattr(doctor.time, "perf_counter", lambda: float(next(clock)))
+    times = [t for t in range(1, 1200) if not 500 <= t < 600]  # 100 gaps
+    stream = {c.name: c for c in doctor._connected(_Stream(times, passed_over), 0.01)}[
+        "state stream"
+    ]
+    assert stream.status is status
+    assert f"{missing} missing, {passed_over} passed over" in stream.found
+    assert ("cable" in stream.fix) == (status is Status.FAIL)
 
 
 def test_nothing_listening_fails_the_fci_check_with_its_fix() -> None:

@@ -280,6 +280,29 @@ def test_read_calls_back_until_false(robot):
     assert len(times) == 5 and bool(np.all(np.diff(times) > 0))
 
 
+def test_the_states_a_late_read_passes_over_are_counted(robot):
+    """A read hands the newest state (as libfranka's): a callback that takes 30 ms lets
+    about 30 queue, and the read passes over all but the newest. ``skipped_states``
+    counts them, so on loopback (no datagram lost) the gaps in the states' times are
+    exactly the states passed over."""
+    import time
+
+    times: list[int] = []
+
+    def cb(state):
+        times.append(state.time.to_msec())
+        if len(times) == 3:
+            time.sleep(0.03)
+        return len(times) < 6
+
+    before = robot.skipped_states
+    robot.read(cb)
+    skipped = robot.skipped_states - before
+    gaps = int(np.sum(np.diff(times) - 1))
+    assert skipped >= 10  # (the lockstep simulator's idle clock runs at the wall's)
+    assert gaps == skipped
+
+
 @pytest.mark.parametrize("version", [5, 10])
 def test_read_once_after_a_setter_shows_the_new_value(sim_for_version, version):
     """read_once discards queued states first (libfranka's readOnce), so a setter's effect

@@ -107,6 +107,9 @@ class Network:
         self._udp: socket.socket | None = None
         self._robot_ip = ""  # states are accepted from this address only
         self.foreign_datagrams = 0  # dropped: not from the robot (read before the connect)
+        # states received and passed over for a newer one queued behind them (the caller
+        # was late): Robot.skipped_states
+        self.skipped_states = 0
         try:
             self._tcp = socket.create_connection((host, port), timeout=CONNECT_TIMEOUT)
             self._tcp.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -410,6 +413,8 @@ class Network:
             while data is not None:
                 mid = unpack(data)[0]
                 if mid > best_id:
+                    if best is not None:
+                        self.skipped_states += 1
                     best, best_id = data, mid
                 data = self._recv_udp(block=False) if self._queued(udp) else None
             if best is not None:

@@ -169,6 +169,14 @@ class Robot(NamedControlMixin):
         return int(self._conn.server_version)
 
     @property
+    def skipped_states(self) -> int:
+        """States a read (:meth:`read`, :meth:`read_once`) passed over for a newer one queued
+        behind them, as libfranka's hands the newest: the caller was late. Counted since
+        connecting; where a stream's times have gaps, these are this client's and the rest
+        the network's (or the robot's). Beyond libfranka."""
+        return self._conn.net.skipped_states
+
+    @property
     def robot_spec(self) -> RobotSpec:
         """The robot parameters used for limits and the model (FER or FR3)."""
         return self._spec
