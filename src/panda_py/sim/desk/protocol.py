@@ -10,7 +10,9 @@ real clients out for about 40 s a wave. Here:
 - a connection that sends no complete request head within the header timeout (to twice
   it), or idles past uvicorn's keep-alive timeout, is aborted: its TCP connection is
   dropped at once, with no goodbye to wait for (it was sent nothing it could miss);
-- a goodbye still unanswered one to two header timeouts after it began is cut short;
+- a goodbye still unanswered one to two header timeouts after it began is cut short (its
+  socket shut down where asyncio's TLS transport, closed twice by uvicorn, no longer
+  reaches its connection);
 - a new connection that finds the limit reached makes room: the connection idle longest
   (no request under way) is aborted, so a client with a request is served at once
   however many idle connections are held.
@@ -19,6 +21,7 @@ real clients out for about 40 s a wave. Here:
 from __future__ import annotations
 
 import logging
+import socket
 from typing import Any
 
 log = logging.getLogger("panda_py.sim.desk")
@@ -32,6 +35,10 @@ def desk_protocol(header_timeout: float) -> Any:
 
     class DeskProtocol(H11Protocol):
         def connection_made(self, transport: Any) -> None:
+            # asyncio's TLS transport, closed twice, lets go of its connection (and of its
+            # extra info) while the TLS goodbye goes on: its socket, kept here, is the way
+            # left to drop it
+            self._sock = transport.get_extra_info("socket")
             super().connection_made(transport)
             self._heads = 0
             self._heads_at_check = 0
@@ -62,6 +69,12 @@ def desk_protocol(header_timeout: float) -> Any:
             # it counts against the limit no more from now (connection_lost comes later)
             self.connections.discard(self)
             self.transport.abort()
+            # and the socket itself: a TLS transport closed twice, abort() reaches nothing
+            if self._sock is not None:
+                try:
+                    self._sock.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass  # gone already
 
         def _make_room(self) -> None:
             limit = self.limit_concurrency
@@ -87,7 +100,11 @@ def desk_protocol(header_timeout: float) -> Any:
             self.loop.call_later(header_timeout, self._check)
 
         def _check(self) -> None:
-            if self._lost or self.transport.get_protocol() is not self:
+            try:
+                upgraded = self.transport.get_protocol() is not self
+            except AttributeError:  # a TLS transport closed twice (see connection_made)
+                upgraded = False
+            if self._lost or upgraded:
                 return  # gone, or upgraded to a websocket
             if self.transport.is_closing():
                 if self._closing_seen:
