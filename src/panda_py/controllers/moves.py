@@ -241,9 +241,10 @@ def _holding(capped: OnlineLimits, limits: OnlineLimits, gen: OnlinePose) -> Onl
     PoseMove.published): from a start beyond the first cap, ruckig cut the acceleration
     for one tick and raised it again the next, a wobble in the torque (30 % of it where a
     move replaced one in its blend)."""
-    g = gen.gen
-    over_v = float(np.max(np.abs(g.velocity) / g._vmax))
-    over_a = float(np.max(np.abs(g.acceleration) / g._amax))
+    g = gen.gen  # (its coordinates' limits: capped's, spread over the aligned frames)
+    v, a, lim = g.velocity.tolist(), g.acceleration.tolist(), g.limits
+    over_v = max(abs(x) / m for x, m in zip(v, lim.velocity, strict=True))
+    over_a = max(abs(x) / m for x, m in zip(a, lim.acceleration, strict=True))
     if over_v <= 1.0 and over_a <= 1.0:
         return capped
     room_v = limits.velocity[0] / capped.velocity[0]
