@@ -140,8 +140,15 @@ def test_guarded_moves_run_compiled_and_stop_where_the_python_loop_stops_them(
     b = _aligned(log["q"][a : a + n], py_log["q"], _moving_from(py_log))
     assert len(log["q"]) >= a + n and len(py_log["q"]) >= b + n
     for field, atol in (("q", 1e-6), ("dq", 1e-5), ("tau_J", 1e-4), ("O_F_ext_hat_K", 1e-3)):
-        np.testing.assert_allclose(log[field][a : a + n], py_log[field][b : b + n],
-                                   rtol=0.0, atol=atol, err_msg=field)  # fmt: skip
+        ours, theirs = log[field][a : a + n], py_log[field][b : b + n]
+        apart = np.flatnonzero(np.abs(ours - theirs).max(axis=1) > atol)
+        # where they part (a full-suite run once parted the descent's q by 1.3 mm, the
+        # condition's tick and the end the same; not reproduced alone or under load)
+        where = field
+        if apart.size:
+            where += (f": apart from tick {apart[0]} of {n} (the condition held at "
+                      f"{until_tick}; the alignment's offset {b - a})")  # fmt: skip
+        np.testing.assert_allclose(ours, theirs, rtol=0.0, atol=atol, err_msg=where)
 
 
 def test_a_condition_on_a_function_still_ends_a_move_in_python() -> None:
