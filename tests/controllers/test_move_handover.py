@@ -201,12 +201,10 @@ def test_a_move_replaced_during_its_blend_carries_the_blend_on() -> None:
     np.testing.assert_allclose(taken_over, went_on, atol=0.05 * np.abs(went_on).max())
 
 
-def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
-    """A Cartesian lead-in that brakes a 0.5 m/s motion and turns toward a new goal, the
-    orientation held: counted at the peaks its coordinates reach (the rotation: none), its
-    limits stay higher than the worst case over every axis at its limit, and along the
-    whole lead-in no joint is asked (through J^+) for more than JOINT_SHARE of its limits."""
-    from panda_py.controllers.moves import JOINT_SHARE, joint_capped, joint_capped_peaks
+def _lead_in(velocity: list[float], offset: list[float]) -> tuple[Any, Any, Any, Any]:
+    """A Cartesian lead-in from the start pose moving at ``velocity`` [m/s] to the pose
+    ``offset`` [m] from it, the orientation held, at 0.2 of the FER's limits: its
+    generator, those limits, the start's Jacobian and the goal's position."""
     from panda_py.motion.online import OnlineLimits, OnlinePose
 
     J = MODEL.ee_jacobian(STATE0)
@@ -214,8 +212,19 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     p, quat = T[12:15].copy(), laws.quat_from_matrix(T)
     limits = OnlineLimits.cartesian(FER, 0.2)
     gen = OnlinePose(limits)
-    twist = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
-    gen.reset_toward(p, quat, twist, np.zeros(6), p + np.array([-0.15, 0.15, 0.0]), quat)
+    goal = p + np.array(offset)
+    gen.reset_toward(p, quat, np.hstack([velocity, np.zeros(3)]), np.zeros(6), goal, quat)
+    return gen, limits, J, goal
+
+
+def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
+    """A Cartesian lead-in that brakes a 0.5 m/s motion and turns toward a new goal, the
+    orientation held: counted at the peaks its coordinates reach (the rotation: none), its
+    limits stay higher than the worst case over every axis at its limit, and along the
+    whole lead-in no joint is asked (through J^+) for more than JOINT_SHARE of its limits."""
+    from panda_py.controllers.moves import JOINT_SHARE, joint_capped, joint_capped_peaks
+
+    gen, limits, J, goal = _lead_in([0.5, 0.0, 0.0], [-0.15, 0.15, 0.0])
     worst = joint_capped(limits, J, FER, gen.frames)
     capped = joint_capped_peaks(gen, limits, J, FER)
     assert capped.acceleration[0] > 1.1 * worst.acceleration[0]
@@ -226,7 +235,7 @@ def test_a_lead_in_is_capped_by_the_peaks_its_trajectory_reaches() -> None:
     while not gen.step():
         peak = max(peak, float((np.abs(pinv @ gen.accel) / ddq_max).max()))
     assert 0.5 < peak <= 1.0 + 1e-3  # (pinv: undamped; the cap's is damped by 0.01)
-    np.testing.assert_allclose(gen.position, p + np.array([-0.15, 0.15, 0.0]), atol=1e-9)
+    np.testing.assert_allclose(gen.position, goal, atol=1e-9)
 
 
 def test_a_lead_in_counts_its_coordinates_as_they_combine_along_its_trajectory() -> None:
@@ -237,16 +246,8 @@ def test_a_lead_in_counts_its_coordinates_as_they_combine_along_its_trajectory()
     acceleration limit and left the joints at 0.44 of their share: 1.41 s where 0.82 s
     fit."""
     from panda_py.controllers.moves import JOINT_SHARE, joint_capped_peaks
-    from panda_py.motion.online import OnlineLimits, OnlinePose
 
-    J = MODEL.ee_jacobian(STATE0)
-    T = STATE0.O_T_EE
-    p, quat = T[12:15].copy(), laws.quat_from_matrix(T)
-    limits = OnlineLimits.cartesian(FER, 0.2)
-    gen = OnlinePose(limits)
-    twist = np.array([0.3, 0.2, 0.0, 0.0, 0.0, 0.0])
-    goal = p + np.array([0.1, -0.2, 0.05])
-    gen.reset_toward(p, quat, twist, np.zeros(6), goal, quat)
+    gen, limits, J, goal = _lead_in([0.3, 0.2, 0.0], [0.1, -0.2, 0.05])
     joint_capped_peaks(gen, limits, J, FER)
     pinv = np.linalg.pinv(J)
     dq_max = JOINT_SHARE * np.array(FER.joints.dq_max)
