@@ -88,3 +88,31 @@ def test_idle_connections_do_not_lock_out_a_real_client(fr3: Simulator, tmp_path
     finally:
         for sock in idle:
             sock.close()
+
+
+def test_connections_that_never_read_their_answer_do_not_lock_out_a_real_client(
+    fr3: Simulator, tmp_path: Path
+) -> None:
+    """Peers that send a whole request (``Connection: close``) and then never read: each
+    answer ends in a TLS goodbye they never complete, and until the Desk cuts it short
+    (one to two header timeouts) the connection counts against the limit."""
+    assert fr3.desk is not None
+    held = []
+    try:
+        for _ in range(IDLE):
+            raw = socket.create_connection((fr3.host, fr3.desk.port), timeout=10)
+            tls = _context().wrap_socket(raw)
+            tls.sendall(b"GET /api/system HTTP/1.1\r\nHost: robot\r\nConnection: close\r\n\r\n")
+            held.append(tls)  # and then nothing read
+        desk = Desk(
+            fr3.desk.hostname, "franka", "franka123", timeout=10.0,
+            token_dir=str(tmp_path / "store"), connect=False,
+        )  # fmt: skip
+        end = time.monotonic() + 2 * HEADER_TIMEOUT + PROMPT
+        while time.monotonic() < end:
+            t0 = time.monotonic()
+            desk.login()  # GET /api/system; a 503 raises
+            assert time.monotonic() - t0 < PROMPT
+    finally:
+        for sock in held:
+            sock.close()

@@ -13,9 +13,10 @@ real clients out for about 40 s a wave. Here:
 - a goodbye still unanswered one to two header timeouts after it began is cut short (its
   socket shut down where asyncio's TLS transport, closed twice by uvicorn, no longer
   reaches its connection);
-- a new connection that finds the limit reached makes room: the connection idle longest
-  (no request under way) is aborted, so a client with a request is served at once
-  however many idle connections are held.
+- a new connection that finds the limit reached makes room: a connection in its TLS
+  goodbye (its answer sent; the peer never read it) is aborted first, then the one idle
+  longest (no request under way), so a client with a request is served at once however
+  many such connections are held.
 """
 
 from __future__ import annotations
@@ -83,14 +84,19 @@ def desk_protocol(header_timeout: float) -> Any:
             excess = len(self.connections) - (limit - 1)  # this one's request must fit
             if excess <= 0:
                 return
-            idle = [
+            # those in their TLS goodbye first (answered: they serve nobody), then the
+            # idle ones; the quiet longest first within each
+            spare = [
                 p
                 for p in self.connections
-                if p is not self and isinstance(p, DeskProtocol) and p._idle()
+                if p is not self
+                and isinstance(p, DeskProtocol)
+                and (p.transport.is_closing() or p._idle())
             ]
-            idle.sort(key=lambda p: p._quiet_since)
-            for p in idle[:excess]:
-                p._abort("was idle longest, to make room for a new one")
+            spare.sort(key=lambda p: (not p.transport.is_closing(), p._quiet_since))
+            for p in spare[:excess]:
+                why = "was closing" if p.transport.is_closing() else "was idle longest"
+                p._abort(f"{why}, to make room for a new one")
 
         def timeout_keep_alive_handler(self) -> None:
             if not self.transport.is_closing():
