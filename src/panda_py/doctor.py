@@ -250,14 +250,16 @@ def _connected(robot: Robot, connect_s: float) -> list[Check]:
             f"protocol v{version} ({spec.name}), connected in {1e3 * connect_s:.0f} ms",
         )
     ]
-    ids, times = [], []
+    ids, times, passed = [], [], []
 
     def watch(state: object) -> bool:
         ids.append(state.time.to_msec())  # type: ignore[attr-defined]
         times.append(time.perf_counter())
+        # counted from the first state on: the states queued before the read began are
+        # passed over before it, and are not in the gaps
+        passed.append(robot.skipped_states)
         return times[-1] - times[0] < STATE_SECONDS
 
-    skipped = robot.skipped_states
     try:
         robot.read(watch)
     except Exception as exc:
@@ -272,7 +274,7 @@ def _connected(robot: Robot, connect_s: float) -> list[Check]:
         return out
     # a gap in the robot's clock is a state this process passed over (it was late: the
     # read hands the newest) or one that never came (the network, or the robot)
-    skipped = robot.skipped_states - skipped
+    skipped = passed[-1] - passed[0] if passed else 0
     gaps = np.diff(ids) if len(ids) > 1 else np.zeros(1)
     missing = max(0, int(np.sum(gaps - 1)) - skipped)
     late = int(np.sum(np.diff(times) > LATE_PERIOD)) if len(times) > 1 else 0
