@@ -421,10 +421,11 @@ def test_the_compiled_mapped_peaks_equal_ruckigs_own_sampling(monkeypatch) -> No
     ``at_time``: the same to 1e-9, from states beyond the limits (ruckig brakes first);
     the generator's state is left as it was; and its steps then meet those peaks, never
     more (an acceleration's peak of 2 ms only to within the ticks' sampling)."""
-    from panda_py.motion import online
+    from panda_py.motion import _online_jit, online
 
     kernels = online._compiled()
     assert kernels is not None  # numba comes with the package here
+    assert online._PEAK_SIZE == _online_jit.PEAK_SIZE
     rng = np.random.default_rng(11)
     limits = OnlineLimits.joints(FER, 0.3)
     for _ in range(20):
@@ -449,6 +450,15 @@ def test_the_compiled_mapped_peaks_equal_ruckigs_own_sampling(monkeypatch) -> No
             met_a = np.maximum(met_a, np.abs(M @ gen.acceleration))
         assert np.all(met_v <= fast[0] + 1e-9) and np.all(met_a <= fast[1] + 1e-9)
         assert np.all(met_v >= 0.99 * fast[0]) and np.all(met_a >= 0.85 * fast[1])
+
+
+def test_mapped_peaks_refuse_a_map_of_another_shape_by_name() -> None:
+    gen = OnlineGenerator(OnlineLimits.joints(FER, 0.3))
+    gen.reset(np.zeros(7), np.zeros(7), np.zeros(7))
+    gen.set_target(np.full(7, 0.1))
+    for bad in (np.eye(6), np.zeros(7), np.zeros((9, 7)), np.zeros((0, 7))):
+        with pytest.raises(ValueError, match=r"M: expected 1 to 8 rows .* 7 coordinates"):
+            gen.mapped_peaks(bad)
 
 
 @pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")

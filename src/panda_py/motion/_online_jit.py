@@ -90,16 +90,24 @@ def sample(traj, duration, t, position, velocity, acceleration):  # type: ignore
         acceleration[d] = a0 + tt * j
 
 
+# mapped_peaks' bound on the coordinates and the outputs (its scratch on the stack)
+PEAK_SIZE = 8
+
+
 @cache.keyed_jit(KEY, nogil=True, error_model="numpy")
-def mapped_peaks(traj, duration, M, times, p, v, a, a_prev, v_peak, a_peak):  # type: ignore[no-untyped-def,unused-ignore]
+def mapped_peaks(traj, duration, M, v_peak, a_peak):  # type: ignore[no-untyped-def,unused-ignore]
     """The largest ``|M v(t)|`` and ``|M a(t)|`` over a trajectory (see :func:`sample`)
-    into ``v_peak``, ``a_peak`` (each (m,)), ``M`` (m, n) mapping its coordinates' rates.
-    Exact: every coordinate's acceleration is linear between its phases' ends, so ``M a``
-    is linear between the union of those times and peaks at one of them; ``M v`` peaks at
-    one of them or where ``M a`` crosses zero between two. ``times`` (n * 9 + 2,), ``p``,
-    ``v``, ``a`` (n,) and ``a_prev`` (m,): scratch. The Python reference:
-    ``online._mapped_peaks_python``."""
+    into ``v_peak``, ``a_peak`` (each (m,)), ``M`` (m, n) mapping its coordinates' rates
+    (n, m <= PEAK_SIZE). Exact: every coordinate's acceleration is linear between its
+    phases' ends, so ``M a`` is linear between the union of those times and peaks at one
+    of them; ``M v`` peaks at one of them or where ``M a`` crosses zero between two. The
+    Python reference: ``online._mapped_peaks_python``."""
     m, n = M.shape
+    # (stack_array takes literals: 9 PEAK_SIZE + 2 times, each coordinate's brake and phase
+    # ends, and PEAK_SIZE for the rest)
+    times = stack_array(74)
+    p, v, a = stack_array(8), stack_array(8), stack_array(8)
+    v_mid, a_mid, a_prev = stack_array(8), stack_array(8), stack_array(8)
     count = 0
     times[count] = 0.0
     count += 1
@@ -141,17 +149,15 @@ def mapped_peaks(traj, duration, M, times, p, v, a, a_prev, v_peak, a_peak):  # 
                 v_peak[i] = abs(sv)
             if abs(sa) > a_peak[i]:
                 a_peak[i] = abs(sa)
-            a_prev_i = a_prev[i]
-            a_prev[i] = sa
-            if k > 0 and t > t_prev and a_prev_i * sa < 0.0:  # M v turns in between
-                t_mid = t_prev + (t - t_prev) * a_prev_i / (a_prev_i - sa)
-                sample(traj, duration, t_mid, p, v, a)
-                sv = 0.0
+            if k > 0 and t > t_prev and a_prev[i] * sa < 0.0:  # M v turns in between
+                t_mid = t_prev + (t - t_prev) * a_prev[i] / (a_prev[i] - sa)
+                sample(traj, duration, t_mid, p, v_mid, a_mid)  # (p: not read)
+                sm = 0.0
                 for c in range(n):
-                    sv += M[i, c] * v[c]
-                if abs(sv) > v_peak[i]:
-                    v_peak[i] = abs(sv)
-                sample(traj, duration, t, p, v, a)  # (back at t for the outputs after i)
+                    sm += M[i, c] * v_mid[c]
+                if abs(sm) > v_peak[i]:
+                    v_peak[i] = abs(sm)
+            a_prev[i] = sa
         t_prev = t
 
 

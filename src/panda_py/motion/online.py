@@ -151,6 +151,7 @@ def _factor(value: float) -> float:
 
 
 _ROW = 49  # _online_jit.ROW (a test holds them equal): importing it would load numba
+_PEAK_SIZE = 8  # _online_jit.PEAK_SIZE (likewise)
 
 
 def _pack(traj: Trajectory, out: FloatArray, into: Any = None) -> None:
@@ -349,15 +350,19 @@ class OnlineGenerator:
         if result != Result.Working:
             return None
         M = np.ascontiguousarray(M, dtype=np.float64)
+        if (M.ndim != 2 or M.shape[1] != self.n or not 0 < len(M) <= _PEAK_SIZE
+                or self.n > _PEAK_SIZE):  # fmt: skip
+            raise ValueError(
+                f"M: expected 1 to {_PEAK_SIZE} rows of this generator's {self.n} "
+                f"coordinates (at most {_PEAK_SIZE}), got shape {M.shape}"
+            )
         kernels = _compiled()
         if kernels is None:
             return _mapped_peaks_python(traj, M)
-        n, m = self.n, len(M)
-        v_peak, a_peak = np.zeros(m), np.zeros(m)
-        packed = np.zeros((n, _ROW))
+        v_peak, a_peak = np.zeros(len(M)), np.zeros(len(M))
+        packed = np.zeros((self.n, _ROW))
         _pack(traj, packed)
-        kernels.mapped_peaks(packed, traj.duration, M, np.empty(9 * n + 2), np.empty(n),
-                             np.empty(n), np.empty(n), np.zeros(m), v_peak, a_peak)  # fmt: skip
+        kernels.mapped_peaks(packed, traj.duration, M, v_peak, a_peak)
         return v_peak, a_peak
 
     def _input(self, change: bool = True) -> InputParameter:
