@@ -200,6 +200,26 @@ def test_loaded_arm_equals_the_checked_functions() -> None:
             )
 
 
+def test_motion_torques_along_a_trajectory_are_the_mass_and_coriolis_terms() -> None:
+    """LoadedArm.motion_torques: ``M(q) ddq + C(q, dq) dq`` at every row (no gravity), on
+    the compiled kernels and on the plain recursion; rows of different counts refused."""
+    from panda_py import dynamics
+
+    rng = np.random.default_rng(46)
+    load = {"m_load": 0.73, "F_x_Cload": [-0.01, 0.0, 0.03], "I_load": np.eye(3) * 2e-3}
+    Q, dQ, ddQ = rng.uniform(-1.5, 1.5, (3, 6, 7))
+    for robot in ("fer", "fr3"):
+        arm = dynamics.LoadedArm(robot, **load)
+        expected = np.array([arm.mass_matrix(q) @ a + arm.coriolis(q, v)
+                             for q, v, a in zip(Q, dQ, ddQ, strict=True)])  # fmt: skip
+        np.testing.assert_allclose(arm.motion_torques(Q, dQ, ddQ), expected, atol=1e-12)
+        plain = dynamics.LoadedArm(robot, **load)
+        plain._kernels = None  # the plain recursion
+        np.testing.assert_allclose(plain.motion_torques(Q, dQ, ddQ), expected, atol=1e-12)
+        with pytest.raises(ValueError, match="as many rows each, got 6, 5, 6"):
+            arm.motion_torques(Q, dQ[:5], ddQ)
+
+
 @pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")
 @pytest.mark.parametrize("robot", ["fer", "fr3"])
 def test_the_loaded_arm_compiled_equals_the_plain_recursion(robot, monkeypatch) -> None:

@@ -444,6 +444,28 @@ class LoadedArm:
                np.array(a, dtype=np.float64), out)  # fmt: skip
         return out
 
+    def motion_torques(self, q: ArrayLike, dq: ArrayLike, ddq: ArrayLike) -> NDArray[np.float64]:
+        """``M(q) ddq + C(q, dq) dq`` [Nm] (N, 7) at each row of ``q``, ``dq``, ``ddq`` (N, 7)
+        [rad, rad/s, rad/s^2]: the torques of a motion along a trajectory, gravity left out
+        (the robot compensates it), in one compiled call where numba is installed."""
+        Q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, _N)
+        dQ = np.ascontiguousarray(dq, dtype=np.float64).reshape(-1, _N)
+        ddQ = np.ascontiguousarray(ddq, dtype=np.float64).reshape(-1, _N)
+        if not len(Q) == len(dQ) == len(ddQ):
+            raise ValueError(
+                f"q, dq, ddq: expected as many rows each, got {len(Q)}, {len(dQ)}, {len(ddQ)}"
+            )
+        out = np.empty((len(Q), _N))
+        k = self._kernels
+        if k is None:
+            for i in range(len(Q)):
+                rot = _rotations(self._chain, _floats(Q[i]))
+                out[i] = _rnea(self._chain, rot, self._bodies, _floats(dQ[i]), _floats(ddQ[i]),
+                               _ZERO3)  # fmt: skip
+            return out
+        k.rnea_along(*self._arrays, Q, dQ, ddQ, self._zero3, out)
+        return out
+
     def mass_matrix(self, q: ArrayLike) -> NDArray[np.float64]:
         """The 7x7 joint-space mass matrix [kg m^2] at ``q``."""
         k = self._kernels

@@ -19,7 +19,7 @@ from panda_py import progress
 from panda_py.jit import cache, stack
 from panda_py.jit.stack import stack_array
 
-__all__ = ["crba", "rnea", "warmup"]
+__all__ = ["crba", "rnea", "rnea_along", "warmup"]
 
 # the compile cache's key: the kernels compile this file and the stack arrays' helper
 # (panda_py.jit.cache)
@@ -196,13 +196,24 @@ def crba(origin, ca, sa, mass, h, inertia, q, M):  # type: ignore[no-untyped-def
             M[j, i] = no[2]
 
 
+@cache.keyed_jit(KEY, nogil=True, error_model="numpy")
+def rnea_along(origin, ca, sa, mass, h, inertia, Q, dQ, ddQ, a_base, tau):  # type: ignore[no-untyped-def,unused-ignore]
+    """:func:`rnea` at every row of ``Q``, ``dQ``, ``ddQ`` (N, 7) into the rows of
+    ``tau`` (N, 7): the torques along a trajectory in one call."""
+    for k in range(Q.shape[0]):
+        rnea(origin, ca, sa, mass, h, inertia, Q[k], dQ[k], ddQ[k], a_base, tau[k])
+
+
 def warmup() -> None:
     """Compile (or load from numba's cache) both kernels now, for the C-contiguous
     float64 arrays :class:`panda_py.dynamics.LoadedArm` passes, with a progress bar the
     first time after installing (several seconds)."""
     z7, z73, z733 = np.zeros(_N), np.zeros((_N, 3)), np.zeros((_N, 3, 3))
-    with progress.work("panda_py: compiling the dynamics, once after installing", 2) as work:
+    with progress.work("panda_py: compiling the dynamics, once after installing", 3) as work:
         rnea(z73, z7, z7, z7, z73, z733, z7, z7, z7, np.zeros(3), np.empty(_N))
         work.advance()
         crba(z73, z7, z7, z7, z73, z733, z7, np.empty((_N, _N)))
+        work.advance()
+        z17 = np.zeros((1, _N))
+        rnea_along(z73, z7, z7, z7, z73, z733, z17, z17, z17, np.zeros(3), np.empty((1, _N)))
         work.advance()
