@@ -288,8 +288,8 @@ def test_a_waypoint_path_with_max_deviation_passes_its_corners_without_stopping(
             gap = np.linalg.norm(p[1:] - w[:3, 3], axis=1)
             assert gap.min() <= deviation + 0.003
             slowest = speed[gap <= deviation + 0.005].min()
-            if deviation == 0.0:  # panda-py's: at rest at the corner
-                assert slowest < 0.01
+            if deviation == 0.0:  # panda-py's: at rest at the corner (but for the
+                assert slowest < 0.02  # smoothing's rounding: 1 cm/s at 30 ms, more wider)
             else:  # through it, at speed
                 assert slowest > 0.05
     assert timings[0.02] < timings[0.0] - 200  # [ms]

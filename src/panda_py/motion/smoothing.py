@@ -3,10 +3,12 @@
 The time-optimal profiles (:class:`~panda_py.motion.JointTrajectory`,
 :class:`~panda_py.motion.CartesianTrajectory`, as panda-py's) switch between full
 acceleration and none from one sample to the next. A reference tracked through impedance
-with an inertial feed-forward turns that step into a torque step, which the robot's torque
-rate limit (1000 Nm/s) spreads over several milliseconds: the arm overshoots each switch,
-and the last one (the arrival) leaves it a few millimetres from the goal, held there by
-the joints' dry friction.
+with an inertial feed-forward turns that step into a torque step, which the torque rate
+limit (the robot's 1000 Nm/s; the control loop's 386 Nm/s, panda_py.panda.plan_torques)
+spreads over several milliseconds: the arm overshoots each switch, and the last one (the
+arrival) leaves it a few millimetres from the goal, held there by the joints' dry
+friction. (A Cartesian plan whose ramps would still ask for torques faster than the loop
+delivers is smoothed wider: :func:`panda_py.panda.plan_torques.smoothing_width`.)
 
 A moving average of width ``T`` (one box filter over every sampled quantity, position,
 velocity and acceleration alike: the filter commutes with the derivatives) turns each

@@ -35,6 +35,7 @@ from panda_py.panda.context import PandaContext
 from panda_py.panda.handle import MotionHandle
 from panda_py.panda.motions import JointMotion, PoseMotion
 from panda_py.panda.move_args import JOINT_MOVE_DEFAULTS
+from panda_py.panda.plan_torques import load_of
 from panda_py.panda.proxy import RobotProxy
 from panda_py.robots.params import START_POSE, get_robot
 from panda_py.rt import byvalue
@@ -484,7 +485,7 @@ class Panda:
             p_now = state.O_T_EE[12:15].copy()
             quat_now = laws.quat_from_matrix(state.O_T_EE)
             plan = _plans.pose_move(p_now, quat_now, positions, quats, opts, state.q.copy(),
-                                    self._limits, F_T_EE=F_T_EE)  # fmt: skip
+                                    self._limits, F_T_EE=F_T_EE, load=load_of(state))  # fmt: skip
         if opts.joint_space is None or plan is None:
             return self._move(plan, "move_to_pose", flag, until, self._plan_then(then, plan))
         # panda-py < 1.0's form: the straight path tracked in joint space
@@ -560,7 +561,8 @@ class Panda:
             p, quat = state.O_T_EE[12:15].copy(), laws.quat_from_matrix(state.O_T_EE)
         return _plans.pose_move(p, quat, then.positions, then.orientations, then.options,
                                 state.q.copy(), self._limits, at_rest=True,
-                                F_T_EE=state.F_T_EE.reshape(4, 4, order="F"))  # fmt: skip
+                                F_T_EE=state.F_T_EE.reshape(4, 4, order="F"),
+                                load=load_of(state))  # fmt: skip
 
     # --- panda-py's moves: one line each over move() -------------------------------------
 

@@ -23,8 +23,9 @@ from panda_py.motion import CartesianTrajectory, JointTrajectory
 from panda_py.motion.cartesian import CartesianSamples
 from panda_py.motion.online import OnlineLimits
 from panda_py.motion.rotation import matrix_rows, transforms
-from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter, smooth_quaternions
+from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter
 from panda_py.panda.move_args import JointMoveOptions, PoseMoveOptions
+from panda_py.panda.plan_torques import Load, Samples, loaded_arm, smoothed, smoothing_width
 from panda_py.robots.params import RobotSpec
 
 __all__ = ["check_reachable", "joint_goal", "joint_move", "pose_goal", "pose_move"]
@@ -313,23 +314,28 @@ def pose_move_in_joint_space(
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
               spec: RobotSpec, *, at_rest: Literal[True],
-              F_T_EE: FloatArray | None = None) -> PosePlan: ...  # fmt: skip
+              F_T_EE: FloatArray | None = None,
+              load: Load | None = None) -> PosePlan: ...  # fmt: skip
 @overload
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
               spec: RobotSpec, *, at_rest: bool = False,
-              F_T_EE: FloatArray | None = None) -> PosePlan | None: ...  # fmt: skip
+              F_T_EE: FloatArray | None = None,
+              load: Load | None = None) -> PosePlan | None: ...  # fmt: skip
 def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
               quats: FloatArray, opts: PoseMoveOptions, q_nullspace: FloatArray,
               spec: RobotSpec, *, at_rest: bool = False,
-              F_T_EE: FloatArray | None = None) -> PosePlan | None:  # fmt: skip
+              F_T_EE: FloatArray | None = None,
+              load: Load | None = None) -> PosePlan | None:  # fmt: skip
     """The sampled Cartesian plan from the current pose through the targets, its
     nullspace resting at ``q_nullspace`` (the arm's configuration now); None if already
     there (``at_rest``: then a plan that rests there). The Cartesian limits alone can ask a
     joint for more than its own (near the start pose, 2.6 m/s^2 at speed factor 0.2 is all
     of joint 2's): the plan is time-optimal under the joints' limits too (:class:`ArmJoints`,
     ``F_T_EE`` the end effector's, None: the robot's hand), and every sample is checked
-    (:func:`joint_time_scale`)."""
+    (:func:`joint_time_scale`). Its smoothing is wide enough for the loop to deliver the
+    torques it asks for (:mod:`.plan_torques`; ``load``: the state's total load, None:
+    the Franka Hand's)."""
     joints = ArmJoints(spec, q_nullspace, F_T_EE)
     traj = CartesianTrajectory(
         np.vstack([p_now, positions]), np.vstack([quat_now, quats]), opts.speed_factor,
@@ -352,18 +358,21 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
         s = traj.sample(_times(k * duration) / k)
         s = s._replace(velocities=s.velocities / k, accelerations=s.accelerations / (k * k),
                        angular_velocities=s.angular_velocities / k)  # fmt: skip
-    # its acceleration steps ramped (smoothing.py): the arm can follow them; the
-    # acceleration the rate of the smoothed twist (central differences), so that it starts
-    # and ends at rest as the twist does (the moving average of the profile's own
-    # acceleration, padded with its first and last, fed the profile's whole first
-    # acceleration forward from the first tick, the reference at rest)
-    position = box_filter(s.positions, SMOOTHING)
-    twist = box_filter(np.hstack([s.velocities, s.angular_velocities]), SMOOTHING)
+    # its acceleration steps ramped (smoothing.py), as widely as the loop's torque rate
+    # needs (plan_torques): the arm can follow them; the acceleration the rate of the
+    # smoothed twist (central differences), so that it starts and ends at rest as the twist
+    # does (the moving average of the profile's own acceleration, padded with its first and
+    # last, fed the profile's whole first acceleration forward from the first tick, the
+    # reference at rest)
+    samples = Samples(s.positions, s.orientations, np.hstack([s.velocities, s.angular_velocities]))
+    width, _ = smoothing_width(samples, SMOOTHING, joints, loaded_arm(spec, load),
+                               np.asarray(spec.drives.armature))  # fmt: skip
+    position, orientation, twist, accel = smoothed(samples, width)
     return PosePlan(
         position=position,
-        orientation=smooth_quaternions(s.orientations, SMOOTHING),
+        orientation=orientation,
         twist=twist,
-        accel=np.gradient(twist, PERIOD, axis=0),
+        accel=accel,
         q_nullspace=q_nullspace,
         impedance=opts.impedance,
         damping_ratio=opts.damping_ratio,

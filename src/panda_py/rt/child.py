@@ -69,9 +69,10 @@ FAST_TICKS = os.environ.get("PANDA_PY_FAST_TICKS", "1") != "0"
 # libfranka's rate limiter stays off: the loop's own saturation (laws.DTAU_MAX_PER_TICK,
 # 1 Nm a tick around tau_J_d) is libfranka's torque-rate bound (1000 Nm/s), applied before
 # the low-pass filter (controllers.finalize, which the loop applies itself, so libfranka
-# is asked for none), which only shrinks the step further; the limiter could never bind,
-# so running it (as panda-py does) would only cost time. tests/rt/test_loop_limits.py
-# holds this.
+# is asked for none), which only shrinks the step further (to FILTER_GAIN of it: 386 Nm/s,
+# as panda-py's controllers get, which a Cartesian plan keeps within:
+# panda.plan_torques); the limiter could never bind, so running it (as panda-py does)
+# would only cost time. tests/rt/test_loop_limits.py holds this.
 LIMIT_RATE = False
 # what Panda.get_robot() may run on the robot (between ticks)
 ROBOT_METHODS = frozenset({
