@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 
 from panda_py.controllers import laws
 from panda_py.controllers.condition_program import COLUMNS, compile_condition
+from panda_py.controllers.finalize import ahead_of_filter
 from panda_py.controllers.law import CompiledTicks, ControlLaw, StateView, readonly
 from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
@@ -710,11 +711,15 @@ class PoseMove(Tracker):
     ``tau = J^T (-K e - D (J dq - v_d)) + M J^+ (a_d - dJ dq)
     + N (k_n (q_0 - q) - 2 sqrt(k_n) dq) + coriolis``, plus the drives' dry and viscous
     friction along the planned joint velocity ``J^+ v_d`` and, once the trajectory has
-    ended, an integral of the error to the goal (as :class:`JointMove`)."""
+    ended, an integral of the error to the goal (as :class:`JointMove`). The planned
+    acceleration it feeds forward is the plan's FILTER_LAG ticks on
+    (:func:`~panda_py.controllers.finalize.ahead_of_filter`), so that the loop's low-pass
+    filter delivers its torque on time."""
 
     def __init__(self, plan: PosePlan) -> None:
         super().__init__(len(plan.position), plan.dq_threshold)
         self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
+        self.a_ff = ahead_of_filter(self.a)  # what its inertial feed-forward takes
         self.law = PoseImpedance(plan.impedance, plan.damping_ratio, plan.q_nullspace,
                                  plan.nullspace_stiffness, viscous_feedforward=True)  # fmt: skip
         self.success_threshold = plan.success_threshold
@@ -841,7 +846,7 @@ class PoseMove(Tracker):
         traj, *sampling = self.gen.sampling()
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
-            readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
+            readonly(self.v), readonly(self.a_ff), self.law.buffer, chain, *arm, model.armature,
             model.coulomb, self._times(), self._samples, self._settle(), self.integral,
             self._lead, readonly(traj), *sampling, *program,
         )  # fmt: skip
@@ -871,6 +876,8 @@ class PoseMove(Tracker):
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()
+        if not self.leading:  # the plan's acceleration, ahead of the loop's filter
+            a_d = self.a_ff[self.sample()]
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
         err, J = self.law.err, self.law.J_prev  # (this tick's)
