@@ -475,3 +475,49 @@ def test_the_warmup_loads_every_compiled_step() -> None:
     for name in called:
         kernel = getattr(_online_jit, name)
         assert kernel.signatures, f"{name} was not compiled or loaded by the warm-up"
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_acceleration_ahead_is_the_one_the_steps_reach_that_much_later(
+    compiled: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """acceleration_ahead(dt) / accel_ahead(dt): where the generator's acceleration will
+    be ``dt`` on (what a torque fed forward through the loop's filter aims at), compiled
+    and through ruckig's own trajectory, from a state mid-motion toward a new target and
+    past the trajectory's end (its last acceleration kept, as ruckig's); before the first
+    step after a reset, the state's own."""
+    from panda_py.motion import online
+
+    kernels = online._compiled()
+    if compiled and kernels is None:
+        pytest.skip("PANDA_PY_NO_JIT is set: the compiled sampling is off")
+    monkeypatch.setitem(LOADED, ONLINE_JIT, kernels if compiled else None)
+    rng = np.random.default_rng(46)
+    limits = OnlineLimits.joints(FER, 0.3)
+    gen = OnlineGenerator(limits)
+    a0 = rng.normal(0.0, 0.3, 7) * np.array(limits.acceleration)
+    gen.reset(rng.uniform(-1.0, 1.0, 7), rng.normal(0.0, 0.3, 7) * np.array(limits.velocity), a0)
+    np.testing.assert_array_equal(gen.acceleration_ahead(2 * PERIOD), a0)
+    gen.set_target(rng.uniform(-1.0, 1.0, 7))
+    ahead, reached = [], []
+    while not gen.step():
+        ahead.append(gen.acceleration_ahead(3 * PERIOD).copy())
+        reached.append(gen.acceleration.copy())
+    assert np.abs(np.array(reached)).max() > 0.1  # (it moved)
+    np.testing.assert_allclose(ahead[:-3], reached[3:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(gen.acceleration_ahead(0.1), gen.acceleration, atol=1e-12)
+
+    pose = OnlinePose(OnlineLimits.cartesian(FER, 0.2))
+    pose.reset(np.array([0.3, 0.0, 0.5]), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(6),
+               np.zeros(6))  # fmt: skip
+    turn = rotation.multiply(rotation.exp(np.array([0.1, -0.2, 0.05])),
+                             np.array([1.0, 0.0, 0.0, 0.0]))  # fmt: skip
+    pose.set_target(np.array([0.4, 0.1, 0.45]), turn)
+    ahead, reached = [], []
+    while not pose.step():
+        ahead.append(pose.accel_ahead(2 * PERIOD).copy())
+        reached.append(pose.accel.copy())
+    assert np.abs(np.array(reached)).max() > 0.5
+    # the rotation's in the base frame at the pose of the step (without the compiled
+    # kernels: at the pose now, the rotation vector's change over 2 ms left out)
+    np.testing.assert_allclose(ahead[:-2], reached[2:], rtol=0, atol=1e-9 if compiled else 1e-6)

@@ -88,13 +88,15 @@ def test_a_replacing_joint_move_reaches_its_goal_within_1_1x_of_the_fastest_traj
     in, the fastest trajectory within our limits (the online generator at the move's
     limits) bounds how soon it can be at its goal; it ends within 1.1x of that (before: up
     to 1.19x, the lead-in's acceleration falling within 2 ms at its arrival, a torque step
-    the robot's rate limit turned into a push past the goal)."""
+    the robot's rate limit turned into a push past the goal), and within 20 ms of its
+    trajectory (before its generator's acceleration was fed forward ahead of the loop's
+    filter, OnlineGenerator.acceleration_ahead: 8-27 ms in bench_move_ends' runs)."""
     name, panda = robot_panda
     spec = get_robot(name)
     limits = planning.joint_online(spec, 0.2).limits
     rng = np.random.default_rng(7)
     q0 = np.array(constants.JOINT_POSITION_START)
-    ratios = []
+    ratios, late = [], []
     for _ in range(4):
         panda.move_to_start()
         panda.enable_logging(10_000)
@@ -119,7 +121,9 @@ def test_a_replacing_joint_move_reaches_its_goal_within_1_1x_of_the_fastest_traj
         gen.set_target(goal)
         gen.step()
         ratios.append(b.elapsed / gen.duration)
+        late.append(b.elapsed - b.duration)
     assert max(ratios) <= REPLACE_WITHIN, (name, ratios)
+    assert max(late) <= END_WITHIN, (name, late)
 
 
 def _pose_moves(panda: panda_py.Panda, seed: int, n: int) -> Iterator[tuple[np.ndarray, Any]]:

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from panda_py.controllers import laws
 from panda_py.controllers.condition_program import COLUMNS, compile_condition
-from panda_py.controllers.finalize import ahead_of_filter
+from panda_py.controllers.finalize import FILTER_LAG, ahead_of_filter
 from panda_py.controllers.law import CompiledTicks, ControlLaw, StateView, readonly
 from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
@@ -481,8 +481,9 @@ class Tracker(ControlLaw):
 
     def _times(self) -> FloatArray:
         """The plan's clock as a compiled loop reads it: the trajectory's end, the law's
-        time at plan time 0, the period, the friction's speed and error rate."""
-        return np.array([self.t_end, self.t0, PERIOD, *self.friction])
+        time at plan time 0, the period, the friction's speed and error rate, and how far
+        ahead of the loop's filter the acceleration is fed forward [s]."""
+        return np.array([self.t_end, self.t0, PERIOD, *self.friction, FILTER_LAG * PERIOD])
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
@@ -516,6 +517,7 @@ class JointMove(Tracker):
     def __init__(self, plan: JointPlan) -> None:
         super().__init__(len(plan.q), plan.dq_threshold)
         self.q, self.dq, self.ddq = plan.q, plan.dq, plan.ddq
+        self.ddq_ff = ahead_of_filter(self.ddq)  # what its inertial feed-forward takes
         self.K, self.D = plan.stiffness, plan.damping
         self.success_threshold = plan.success_threshold
         self.goal = plan.q[-1]
@@ -529,6 +531,7 @@ class JointMove(Tracker):
         # the compiled ticks' generator scalars and its velocity times viscous_gain
         self._lead = np.zeros(5)
         self._lead_dq = np.zeros(7)
+        self._ahead = np.zeros((3, 7))  # the generator's state ahead of the filter
 
     def _damped_velocity(self, model: ControlModel) -> FloatArray:
         """The drives' viscous friction ``b dq_d`` fed forward through the damping:
@@ -638,10 +641,10 @@ class JointMove(Tracker):
                              duration)  # fmt: skip
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
-            readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
+            readonly(self.ddq_ff), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
             self._settle(), self.integral, self._lead, traj, gen.position, gen.velocity,
-            gen.acceleration, gain, self._lead_dq, *program,
+            gen.acceleration, gain, self._lead_dq, self._ahead, *program,
         )  # fmt: skip
         return CompiledTicks("joint_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -664,6 +667,12 @@ class JointMove(Tracker):
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         q_d, dq_d, ddq_d = self.ref = self._reference()
+        # the acceleration fed forward ahead of the loop's filter: the plan's, or the
+        # generator's while it leads in or comes to rest
+        if self.leading:
+            ddq_d = self.gen.acceleration_ahead(FILTER_LAG * PERIOD)
+        else:
+            ddq_d = self.ddq_ff[self.sample()]
         tau = joint_impedance_torque(self.K, self.D, q_d, dq_d * self._damped_velocity(model),
                                      ddq_d, state, model, MOVE_FRICTION_SPEED,
                                      MOVE_ERROR_RATE)  # fmt: skip
@@ -844,11 +853,12 @@ class PoseMove(Tracker):
             self._lead[:] = (1.0, 1.0 if self.stopping else 0.0, time, 1.0 if finished else 0.0,
                              duration)  # fmt: skip
         traj, *sampling = self.gen.sampling()
+        gen = self.gen
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
             readonly(self.v), readonly(self.a_ff), self.law.buffer, chain, *arm, model.armature,
             model.coulomb, self._times(), self._samples, self._settle(), self.integral,
-            self._lead, readonly(traj), *sampling, *program,
+            self._lead, readonly(traj), *sampling, gen._ahead_gen, *gen._ahead_out, *program,
         )  # fmt: skip
         return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -876,7 +886,11 @@ class PoseMove(Tracker):
 
     def step(self, state: StateView, model: ControlModel) -> FloatArray:
         p_d, quat_d, v_d, a_d = self.ref = self._reference()
-        if not self.leading:  # the plan's acceleration, ahead of the loop's filter
+        # the acceleration fed forward ahead of the loop's filter: the plan's, or the
+        # generator's while it leads in or comes to rest
+        if self.leading:
+            a_d = self.gen.accel_ahead(FILTER_LAG * PERIOD)
+        else:
             a_d = self.a_ff[self.sample()]
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)

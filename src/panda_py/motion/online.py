@@ -240,6 +240,7 @@ class OnlineGenerator:
         self.position = np.zeros(n)
         self.velocity = np.zeros(n)
         self.acceleration = np.zeros(n)
+        self._ahead = np.zeros((3, n))  # (acceleration_ahead's state ahead)
         self.finished = True
         self.duration = 0.0  # [s] of the trajectory computed for the newest target
 
@@ -396,6 +397,24 @@ class OnlineGenerator:
                        self.acceleration)  # fmt: skip
         return self.finished
 
+    def acceleration_ahead(self, dt: float) -> FloatArray:
+        """The trajectory's acceleration ``dt`` [s] after its last step (the last phase's
+        kept after its end, as ruckig's), a buffer the next call rewrites: what a torque
+        fed forward through a filter that trails it by ``dt`` should aim at
+        (``controllers.finalize.FILTER_LAG``)."""
+        kernels = _compiled()
+        if self._changed:  # reset, no step yet: where it is
+            return self.acceleration
+        if kernels is None:  # every step is ruckig's, whose output has the time
+            _, _, acceleration = self._out.trajectory.at_time(self._out.time + dt)
+            self._ahead[2] = acceleration
+            return self._ahead[2]
+        self.pack()
+        ahead = self._ahead
+        kernels.sample(self._packed, self.duration, self._time + dt, ahead[0], ahead[1],
+                       ahead[2])  # fmt: skip
+        return ahead[2]
+
     def _advance(self) -> float:
         """A compiled step's bookkeeping (the input unchanged since ruckig's step): the
         trajectory packed if ruckig's step just calculated it, the time advanced one period
@@ -492,10 +511,34 @@ class OnlinePose:
         self.orientation = self._q0.copy()
         self.twist = np.zeros(6)
         self.accel = np.zeros(6)
+        # accel_ahead's state ahead: the generator's (3, 6), then the pose's outputs
+        self._ahead_gen = np.zeros((3, 6))
+        self._ahead_out = (np.zeros(3), np.zeros(4), np.zeros(6), np.zeros(6))
 
     @property
     def finished(self) -> bool:
         return self.gen.finished
+
+    def accel_ahead(self, dt: float) -> FloatArray:
+        """:attr:`accel` ``dt`` [s] after the last step (as
+        :meth:`OnlineGenerator.acceleration_ahead`), a buffer the next call rewrites."""
+        g = self.gen
+        if g._changed:  # reset, no step yet
+            return self.accel
+        kernels = _compiled()
+        if kernels is None:  # the generator's, in the base frame at the pose now
+            a = g.acceleration_ahead(dt).tolist()
+            xs = _times(self._Fr_rows, g.position.tolist()[3:])
+            out = self._ahead_out[3]
+            out[:3] = _times(self._Ft_rows, a[:3])
+            out[3:] = _times(self._R0_rows,
+                             _jacobian_times(xs, _times(self._Fr_rows, a[3:]), 1.0))  # fmt: skip
+            return out
+        g.pack()
+        ahead = self._ahead_gen
+        kernels.sample_pose(g._packed, g.duration, g._time + dt, ahead[0], ahead[1], ahead[2],
+                            self._Ft, self._Fr, self._R0, self._q0, *self._ahead_out)  # fmt: skip
+        return self._ahead_out[3]
 
     @property
     def frames(self) -> tuple[FloatArray, FloatArray]:

@@ -142,21 +142,23 @@ def _generator_hands_back(gs, times, dq, over, at_rest, timeout):  # type: ignor
 
 @cache.keyed_jit(KEY, nogil=True)
 def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
-    """A joint move (``controllers.moves.JointMove``). Following its plan: the sample at
-    the law's time (``times``: t_end, t0, the period, the friction's speed and error rate;
+    """A joint move (``controllers.moves.JointMove``). Following its plan: the sample at the
+    law's time (``times``: t_end, t0, the period, the friction's speed and error rate;
     ``samples``: k0, the last), tracked by ``_fused.joint_tracking_step``; past the
     trajectory's end ``times[0]`` its settling (:func:`_joint_settling`, ``settle``'s
     constants, the error's ``integral`` kept across calls). Leading in, or coming to rest
     (``gs``: G_*), the online generator's reference instead: its trajectory ``traj``
     (packed, as ruckig calculated it) sampled into ``gen_q``, ``gen_dq``, ``gen_ddq``, its
-    velocity times the viscous ``gain`` (into ``lead_dq``) tracked. Python's, the state
-    unanswered: the tick the generator reaches its target on (the lead-in joins the plan,
-    or the stop's reference ends), the state the move ends on (at rest at the goal, or
-    stopped at rest, or the settling's time out: :func:`_joint_settled`), and one on which
-    its ``until`` condition (``program``, none if empty) holds while it is not stopping."""
+    velocity times the viscous ``gain`` (into ``lead_dq``) tracked, its acceleration
+    ``times[5]`` on (``ahead``' rows) fed forward (``OnlineGenerator.acceleration_ahead``).
+    Python's, the state unanswered: the tick the generator reaches its target on (the
+    lead-in joins the plan, or the stop's reference ends), the state the move ends on (at rest at
+    the goal, or stopped at rest, or the settling's time out: :func:`_joint_settled`), and
+    one on which its ``until`` condition (``program``, none if empty) holds while it is not
+    stopping."""
     (plan_q, plan_dq, plan_ddq, K, D, _chain, origin, ca, sa, mass, h, inertia, armature,
      coulomb, times, samples, settle, integral, gs, traj, gen_q, gen_dq, gen_ddq, gain,
-     lead_dq, program, stack) = law  # fmt: skip
+     lead_dq, ahead, program, stack) = law  # fmt: skip
     q, dq, law_t = view[Q], view[DQ], view[LAW_T]
     goal = plan_q[samples[1]]
     stopping, leading = gs[G_STOPPING] != 0.0, gs[G_LEADING] != 0.0
@@ -175,10 +177,11 @@ def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
         if gs[G_FINISHED] == 0.0:  # (OnlineGenerator.step, compiled)
             gs[G_TIME] += times[2]
             _sample(traj, gs[G_DURATION], gs[G_TIME], gen_q, gen_dq, gen_ddq)
+        _sample(traj, gs[G_DURATION], gs[G_TIME] + times[5], ahead[0], ahead[1], ahead[2])
         for i in range(7):
             lead_dq[i] = gen_dq[i] * gain[i]
         _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
-                             gen_q, lead_dq, gen_ddq, times[3], times[4], view[TAU])  # fmt: skip
+                             gen_q, lead_dq, ahead[2], times[3], times[4], view[TAU])  # fmt: skip
     else:
         k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
         _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
@@ -189,7 +192,7 @@ def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     return 0
 
 
-joint_move_ticks = _tick.loop_kernel(_joint_move, "joint_move_ticks", 27)
+joint_move_ticks = _tick.loop_kernel(_joint_move, "joint_move_ticks", 28)
 
 
 # a Cartesian move's settling constants (controllers.moves.PoseMove._settle): at rest
@@ -284,7 +287,8 @@ def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     ``Ft``, ``Fr`` and anchor ``R0``, ``q0``, into ``lead_*``)."""
     (plan_p, plan_quat, plan_v, plan_a, tracking, chain, origin, ca, sa, mass, h, inertia,
      armature, coulomb, times, samples, settle, integral, gs, traj, gen_x, gen_dx, gen_ddx, Ft,
-     Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a, program, stack) = law  # fmt: skip
+     Fr, R0, q0, lead_p, lead_quat, lead_v, lead_a, ahead_gen, ahead_p, ahead_quat, ahead_v,
+     ahead_a, program, stack) = law  # fmt: skip
     q, dq, pose, law_t = view[Q], view[DQ], view[POSE], view[LAW_T]
     goal, goal_quat = plan_p[samples[1]], plan_quat[samples[1]]
     stopping, leading = gs[G_STOPPING] != 0.0, gs[G_LEADING] != 0.0
@@ -312,8 +316,12 @@ def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
             gs[G_TIME] += times[2]
             _sample_pose(traj, gs[G_DURATION], gs[G_TIME], gen_x, gen_dx, gen_ddx, Ft, Fr, R0,
                          q0, lead_p, lead_quat, lead_v, lead_a)  # fmt: skip
+        # its acceleration times[5] on fed forward (OnlinePose.accel_ahead)
+        _sample_pose(traj, gs[G_DURATION], gs[G_TIME] + times[5], ahead_gen[0], ahead_gen[1],
+                     ahead_gen[2], Ft, Fr, R0, q0, ahead_p, ahead_quat, ahead_v,
+                     ahead_a)  # fmt: skip
         _pose_tracking_step(pose, q, dq, chain, origin, ca, sa, mass, h, inertia, armature,
-                            coulomb, lead_p, lead_quat, lead_v, lead_a, tracking,
+                            coulomb, lead_p, lead_quat, lead_v, ahead_a, tracking,
                             view[TAU])  # fmt: skip
     else:
         k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
@@ -326,4 +334,4 @@ def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     return 0
 
 
-pose_move_ticks = _tick.loop_kernel(_pose_move, "pose_move_ticks", 33)
+pose_move_ticks = _tick.loop_kernel(_pose_move, "pose_move_ticks", 38)
