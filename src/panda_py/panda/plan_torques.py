@@ -116,7 +116,7 @@ def feedforward_torques(q: FloatArray, dq: FloatArray, arm: Any,
     with the end effector's and the payload's load) plus the drives' rotor inertia
     ``armature`` (7,) times ``ddq`` (central differences of ``dq``); gravity left out, the
     robot compensates it. Rows where ``q`` is not finite are NaN."""
-    ok = np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1)
+    ok = np.asarray(np.isfinite(q).all(axis=1) & np.isfinite(dq).all(axis=1), dtype=bool)
     out = np.full(q.shape, np.nan)
     if len(q) < 2 or not ok.any():
         return out
