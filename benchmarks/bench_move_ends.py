@@ -19,7 +19,10 @@ joints', for a pose move: "vs fastest"), and for a pose move also the fastest of
 trajectories whose joint velocities and accelerations stay within the robot's joint limits
 all the way (the limits scaled down until an arm following it through J^+ from the logged
 joints fits: "vs in joints"), and within the share of them a Cartesian lead-in leaves
-itself for its tracking's overshoot (``moves.JOINT_SHARE``: "vs our share"). Prints
+itself for its tracking's overshoot (``moves.JOINT_SHARE``), at the move's own limits
+(their jerk ramped: ``planning.pose_online``; "vs our share"). A replacing pose move's
+start is the replaced move's reference at the hand-over (its plan made again as
+``Panda.move_to_pose`` makes it: planning is deterministic), not the logged arm. Prints
 median, p99 and worst per kind (p99 of 20 moves is about the worst).
 """
 
@@ -33,8 +36,12 @@ import numpy as np
 import panda_py
 from panda_py import constants, kinematics
 from panda_py.controllers import laws, moves
+from panda_py.controllers.plans import PosePlan
 from panda_py.motion import rotation as rot
 from panda_py.motion.online import OnlineGenerator, OnlineLimits, OnlinePose
+from panda_py.panda import planning
+from panda_py.panda.move_args import pose_options
+from panda_py.panda.plan_torques import load_of
 from panda_py.robots.params import get_robot
 from panda_py.sim import Simulator, free_loopback_host
 
@@ -71,8 +78,23 @@ def _handover_state(log: dict[str, list[np.ndarray]], elapsed: float) -> int:
     return int(moving[0]) + round(elapsed / 1e-3)
 
 
+def _first_plan(panda: panda_py.Panda, goal: np.ndarray, spec: object) -> PosePlan:
+    """The plan ``Panda.move_to_pose(goal)`` makes from the arm at rest now (the same call
+    with the same state: planning is deterministic), whose reference a replacing move
+    takes over."""
+    state = panda.get_state()
+    quat = laws.quat_from_matrix(state.O_T_EE)
+    goal_quat = laws.quat_from_matrix(goal.reshape(16, order="F"))
+    return planning.pose_move(
+        state.O_T_EE[12:15].copy(), quat, goal[:3, 3][None], goal_quat[None], pose_options({}),
+        state.q.copy(), spec, at_rest=True,  # type: ignore[arg-type]
+        F_T_EE=state.F_T_EE.reshape(4, 4, order="F"), load=load_of(state),
+    )  # fmt: skip
+
+
 def _bound(kind: str, goal: object, log: dict[str, list[np.ndarray]], k: int,
-           spec: object, robot: str) -> tuple[float, float, float]:  # fmt: skip
+           spec: object, robot: str,
+           ref: tuple[np.ndarray, ...] | None = None) -> tuple[float, float, float]:  # fmt: skip
     """[s] the fastest trajectory at the move's limits from the logged state at ``k``, and
     the fastest of those whose joint velocities and accelerations stay within the
     robot's joint limits along the way, and within JOINT_SHARE of them (a joint move:
@@ -97,14 +119,19 @@ def _bound(kind: str, goal: object, log: dict[str, list[np.ndarray]], k: int,
     w = 2.0 * rot.multiply((quats[2] - quats[0]) / 2e-3, rot.conjugate(quats[1]))[:3]
     Tg = np.asarray(goal)
     quat_goal = laws.quat_from_matrix(Tg.reshape(16, order="F"))
-    start = (p[k], quats[1], np.hstack([v, w]), np.hstack([a, np.zeros(3)]), Tg[:3, 3],
-             quat_goal, np.zeros(6), np.zeros(6))  # fmt: skip
+    if ref is None:  # the arm's state, from the log
+        start = (p[k], quats[1], np.hstack([v, w]), np.hstack([a, np.zeros(3)]), Tg[:3, 3],
+                 quat_goal, np.zeros(6), np.zeros(6))  # fmt: skip
+    else:  # the replaced move's reference, which the lead-in starts from
+        start = (*ref, Tg[:3, 3], quat_goal, np.zeros(6), np.zeros(6))
     limits = OnlineLimits.cartesian(spec, 0.2)  # type: ignore[arg-type]
     twists = _pose_twists(limits, start)
     out = [len(twists) * 1e-3]
     q0 = np.array(log["q"][k])
-    for share in (1.0, moves.JOINT_SHARE):
-        capped, within = limits, twists
+    # ours: the move's own limits (their jerk the acceleration over planning.RAMP_TIME)
+    ours = planning.pose_online(spec, 0.2).limits  # type: ignore[arg-type]
+    for share, base in ((1.0, limits), (moves.JOINT_SHARE, ours)):
+        capped, within = base, twists if base is limits else _pose_twists(base, start)
         for _ in range(12):  # the limits scaled until the joints' demand fits
             over_v, over_a = _joint_demand(within, q0, spec, robot, share)
             if over_v <= 1.0 and over_a <= 1.0:
@@ -170,7 +197,9 @@ def run(robot: str, moves: int, kinds: tuple[str, ...]) -> None:
                     continue
                 panda.move_to_start()
                 panda.enable_logging(20_000)
-                first = _start(panda, _random_target(base, rng))
+                target = _random_target(base, rng)
+                plan = _first_plan(panda, target[1], spec) if base == "pose" else None  # type: ignore[arg-type]
+                first = _start(panda, target)
                 ticks = panda.get_state().time.to_msec()
                 wait = rng.uniform(100.0, 400.0)
                 while panda.get_state().time.to_msec() - ticks < wait:
@@ -182,7 +211,11 @@ def run(robot: str, moves: int, kinds: tuple[str, ...]) -> None:
                 assert a is not None and b is not None
                 log = panda.get_log()
                 k = _handover_state(log, a.elapsed)
-                cartesian, joints, shared = _bound(base, target[1], log, k, spec, robot)
+                ref = None
+                if plan is not None:  # the first move's reference at its last tick
+                    i = min(round(a.elapsed / 1e-3), len(plan.position) - 1)
+                    ref = (plan.position[i], plan.orientation[i], plan.twist[i], plan.accel[i])
+                cartesian, joints, shared = _bound(base, target[1], log, k, spec, robot, ref)
                 ratios.append(b.elapsed / cartesian)
                 within.append(b.elapsed / joints)
                 at_share.append(b.elapsed / shared)
