@@ -1,7 +1,7 @@
 """What the loop's finishing of a law's torques delivers (controllers.finalize): panda-py's
 saturation to 1 Nm around the last command, then libfranka's 100 Hz filter from it, so a
 torque moves by at most FILTER_GAIN Nm a tick; a ramp the filter trails by FILTER_LAG
-ticks, which a plan's samples taken that much ahead (ahead_of_filter) make up for."""
+ticks, which a plan's samples taken that much ahead (ahead_at) make up for."""
 
 from __future__ import annotations
 
@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from panda_py.controllers import laws
-from panda_py.controllers.finalize import FILTER_GAIN, FILTER_LAG, ahead_of_filter
+from panda_py.controllers.finalize import FILTER_GAIN, FILTER_LAG, ahead_at
 
 _TAU_MAX = np.array([87.0] * 4 + [12.0] * 3)
+
+
+def _led(samples: np.ndarray) -> np.ndarray:
+    """Every sample of ``samples`` as a move feeds it forward (ahead_at)."""
+    return np.array([ahead_at(samples, k) for k in range(len(samples))])
 
 
 def _delivered(wanted: np.ndarray, start: float = 0.0) -> np.ndarray:
@@ -47,7 +52,7 @@ def test_a_ramp_within_the_rate_arrives_on_time_when_led_by_the_filters_lag(slop
     settled = slice(n // 2, n - 3)
     late = _delivered(ramp, -10.0)
     np.testing.assert_allclose((ramp - late)[settled], slope * FILTER_LAG, atol=1e-6)
-    led = _delivered(ahead_of_filter(ramp), -10.0)
+    led = _delivered(_led(ramp), -10.0)
     np.testing.assert_allclose(led[settled], ramp[settled], atol=1e-6)
 
 
@@ -56,14 +61,14 @@ def test_a_ramp_beyond_the_rate_falls_ever_further_behind() -> None:
     from accelerating to braking, with its default 30 ms smoothing) the command falls
     behind by 0.21 Nm more each tick, lead or not (panda_py.panda.plan_torques)."""
     ramp = np.outer(-10.0 + np.arange(34) * 0.6, np.ones(7))
-    led = _delivered(ahead_of_filter(ramp), -10.0)
+    led = _delivered(_led(ramp), -10.0)
     behind = ramp[:, 0] - led[:, 0]
     np.testing.assert_allclose(np.diff(behind)[5:30], 0.6 - FILTER_GAIN, rtol=1e-9)
 
 
-def test_ahead_of_filter_holds_the_last_sample() -> None:
+def test_ahead_at_holds_the_last_sample() -> None:
     x = np.arange(5.0)[:, None] * np.ones((1, 2))
-    led = ahead_of_filter(x)
+    led = _led(x)
     assert led.shape == x.shape
     np.testing.assert_allclose(led[:, 0], [FILTER_LAG, 1 + FILTER_LAG, 2 + FILTER_LAG, 4, 4])
-    assert ahead_of_filter(np.zeros((0, 6))).shape == (0, 6)
+    np.testing.assert_array_equal(ahead_at(np.ones((1, 6)), 0), np.ones(6))  # a single sample

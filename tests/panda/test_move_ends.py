@@ -147,7 +147,7 @@ def test_pose_moves_end_at_rest_at_their_goal_within_20_ms_of_their_trajectory(
     """Sixteen random Cartesian moves: every one ends within 20 ms of its trajectory, at
     rest (panda-py's dq_threshold) within the settle tolerances of its goal, without
     passing it by more than the settling's band. Before the plan's feed-forward was led
-    by the loop's filter (controllers.finalize.ahead_of_filter) and its smoothing widened
+    by the loop's filter (controllers.finalize.ahead_at) and its smoothing widened
     to the torque rate the loop delivers (panda.plan_torques): the FER's ended a median
     10 ms after their trajectory, up to 28, and a short one (3.8 cm in 0.29 s) 216 ms, 5
     mrad off along the elbow's weakest direction; the FR3's up to 84 ms."""

@@ -20,7 +20,10 @@ from panda_py.libfranka.limits import lowpass_filter
 from panda_py.libfranka.state import RobotState
 from panda_py.robots.params import RobotSpec
 
-__all__ = ["CUTOFF_FREQUENCY", "FILTER_GAIN", "FILTER_LAG", "Finalize", "ahead_of_filter"]
+__all__ = [
+    "CUTOFF_FREQUENCY", "FILTER_GAIN", "FILTER_LAG", "LAG_PART", "LAG_TICKS", "Finalize",
+    "ahead_at",
+]  # fmt: skip
 
 CUTOFF_FREQUENCY = 100.0  # [Hz] libfranka's low-pass filter, as panda-py runs controllers
 #: the filter's gain per tick at :data:`CUTOFF_FREQUENCY` [-]
@@ -29,21 +32,22 @@ FILTER_GAIN = float(lowpass_filter(PERIOD, 1.0, 0.0, CUTOFF_FREQUENCY))
 FILTER_LAG = (1.0 - FILTER_GAIN) / FILTER_GAIN
 
 
-def ahead_of_filter(samples: np.ndarray) -> np.ndarray:
-    """A plan's samples (N, ...) one PERIOD apart, each taken FILTER_LAG ticks later along
-    the plan (linearly between samples; the last one held): fed forward through the
-    filter, a torque computed from them arrives when the plan gets there. Measured on the
+# FILTER_LAG in whole ticks and the part of one (ahead_at; the compiled move ticks read them)
+LAG_TICKS = int(FILTER_LAG)
+LAG_PART = FILTER_LAG - LAG_TICKS
+
+
+def ahead_at(samples: np.ndarray, k: int) -> np.ndarray:
+    """A plan's sample FILTER_LAG ticks after sample ``k`` of ``samples`` (N, ...), one
+    PERIOD apart (linearly between samples; the last one held): fed forward through the
+    filter, a torque computed from it arrives when the plan gets there. Measured on the
     FER's Cartesian moves: fed forward on time, the planned deceleration's torque trailed
     it by 1.6 ms and the arm swung on past its goal for 20 ms after its trajectory (joints
     2 and 3 at 2-4 mrad/s, the hand within 0.03 mm); led, the moves ended within 2 ms."""
-    x = np.asarray(samples, dtype=np.float64)
-    n = len(x)
-    if n == 0:
-        return x.copy()
-    whole, part = int(FILTER_LAG), FILTER_LAG - int(FILTER_LAG)
-    i0 = np.minimum(np.arange(n) + whole, n - 1)
-    i1 = np.minimum(i0 + 1, n - 1)
-    return (1.0 - part) * x[i0] + part * x[i1]
+    last = len(samples) - 1
+    i = min(k + LAG_TICKS, last)
+    j = min(i + 1, last)
+    return (1.0 - LAG_PART) * samples[i] + LAG_PART * samples[j]
 
 
 class Finalize:

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 
 from panda_py.controllers import laws
 from panda_py.controllers.condition_program import COLUMNS, compile_condition
-from panda_py.controllers.finalize import FILTER_LAG, ahead_of_filter
+from panda_py.controllers.finalize import FILTER_LAG, LAG_PART, LAG_TICKS, ahead_at
 from panda_py.controllers.law import CompiledTicks, ControlLaw, StateView, readonly
 from panda_py.controllers.model import FRICTION_SPEED, LOAD_FIELDS, ControlModel
 from panda_py.controllers.plans import JointPlan, MoveResult, PosePlan, Progress, rotation_angle
@@ -482,8 +482,10 @@ class Tracker(ControlLaw):
     def _times(self) -> FloatArray:
         """The plan's clock as a compiled loop reads it: the trajectory's end, the law's
         time at plan time 0, the period, the friction's speed and error rate, and how far
-        ahead of the loop's filter the acceleration is fed forward [s]."""
-        return np.array([self.t_end, self.t0, PERIOD, *self.friction, FILTER_LAG * PERIOD])
+        ahead of the loop's filter the acceleration is fed forward: [s], then in whole
+        ticks and the part of one (finalize.ahead_at)."""
+        return np.array([self.t_end, self.t0, PERIOD, *self.friction, FILTER_LAG * PERIOD,
+                         LAG_TICKS, LAG_PART])  # fmt: skip
 
     def compiled_ran(self, time: FloatArray, in_seq: int) -> None:
         super().compiled_ran(time, in_seq)
@@ -517,7 +519,6 @@ class JointMove(Tracker):
     def __init__(self, plan: JointPlan) -> None:
         super().__init__(len(plan.q), plan.dq_threshold)
         self.q, self.dq, self.ddq = plan.q, plan.dq, plan.ddq
-        self.ddq_ff = ahead_of_filter(self.ddq)  # what its inertial feed-forward takes
         self.K, self.D = plan.stiffness, plan.damping
         self.success_threshold = plan.success_threshold
         self.goal = plan.q[-1]
@@ -641,7 +642,7 @@ class JointMove(Tracker):
                              duration)  # fmt: skip
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.q), readonly(self._dq_law),
-            readonly(self.ddq_ff), readonly(self.K), readonly(self.D), chain, *arm,
+            readonly(self.ddq), readonly(self.K), readonly(self.D), chain, *arm,
             model.armature, model.coulomb, self._times(), np.array([self.k0, self.last]),
             self._settle(), self.integral, self._lead, traj, gen.position, gen.velocity,
             gen.acceleration, gain, self._lead_dq, self._ahead, *program,
@@ -672,7 +673,7 @@ class JointMove(Tracker):
         if self.leading:
             ddq_d = self.gen.acceleration_ahead(FILTER_LAG * PERIOD)
         else:
-            ddq_d = self.ddq_ff[self.sample()]
+            ddq_d = ahead_at(self.ddq, self.sample())
         tau = joint_impedance_torque(self.K, self.D, q_d, dq_d * self._damped_velocity(model),
                                      ddq_d, state, model, MOVE_FRICTION_SPEED,
                                      MOVE_ERROR_RATE)  # fmt: skip
@@ -722,13 +723,12 @@ class PoseMove(Tracker):
     friction along the planned joint velocity ``J^+ v_d`` and, once the trajectory has
     ended, an integral of the error to the goal (as :class:`JointMove`). The planned
     acceleration it feeds forward is the plan's FILTER_LAG ticks on
-    (:func:`~panda_py.controllers.finalize.ahead_of_filter`), so that the loop's low-pass
+    (:func:`~panda_py.controllers.finalize.ahead_at`), so that the loop's low-pass
     filter delivers its torque on time."""
 
     def __init__(self, plan: PosePlan) -> None:
         super().__init__(len(plan.position), plan.dq_threshold)
         self.p, self.quat, self.v, self.a = plan.position, plan.orientation, plan.twist, plan.accel
-        self.a_ff = ahead_of_filter(self.a)  # what its inertial feed-forward takes
         self.law = PoseImpedance(plan.impedance, plan.damping_ratio, plan.q_nullspace,
                                  plan.nullspace_stiffness, viscous_feedforward=True)  # fmt: skip
         self.success_threshold = plan.success_threshold
@@ -856,9 +856,9 @@ class PoseMove(Tracker):
         gen = self.gen
         arrays = (
             _NO_INPUTS, _NO_GUARD, _NO_INPUTS, readonly(self.p), readonly(self.quat),
-            readonly(self.v), readonly(self.a_ff), self.law.buffer, chain, *arm, model.armature,
+            readonly(self.v), readonly(self.a), self.law.buffer, chain, *arm, model.armature,
             model.coulomb, self._times(), self._samples, self._settle(), self.integral,
-            self._lead, readonly(traj), *sampling, gen._ahead_gen, *gen._ahead_out, *program,
+            self._lead, readonly(traj), *sampling, *gen.ahead_buffers(), *program,
         )  # fmt: skip
         return CompiledTicks("pose_move_ticks", arrays, ("F_T_EE", *LOAD_FIELDS),
                              np.array([self.t, self.dt]))  # fmt: skip
@@ -891,7 +891,7 @@ class PoseMove(Tracker):
         if self.leading:
             a_d = self.gen.accel_ahead(FILTER_LAG * PERIOD)
         else:
-            a_d = self.a_ff[self.sample()]
+            a_d = ahead_at(self.a, self.sample())
         self.spec = getattr(model, "spec", None)
         tau = self.law.torque(state, model, self.dt, p_d, quat_d, v_d, a_d)
         err, J = self.law.err, self.law.J_prev  # (this tick's)

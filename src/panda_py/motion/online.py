@@ -519,6 +519,12 @@ class OnlinePose:
     def finished(self) -> bool:
         return self.gen.finished
 
+    def ahead_buffers(self) -> tuple[FloatArray, ...]:
+        """:meth:`accel_ahead`'s buffers, for a compiled loop that samples ahead itself:
+        the generator's state (3, 6), then the position, orientation, twist and
+        acceleration (the arrays themselves: they are written)."""
+        return (self._ahead_gen, *self._ahead_out)
+
     def accel_ahead(self, dt: float) -> FloatArray:
         """:attr:`accel` ``dt`` [s] after the last step (as
         :meth:`OnlineGenerator.acceleration_ahead`), a buffer the next call rewrites."""

@@ -141,6 +141,18 @@ def _generator_hands_back(gs, times, dq, over, at_rest, timeout):  # type: ignor
 
 
 @cache.keyed_jit(KEY, nogil=True)
+def _plan_ahead(plan, k, last, times, out):  # type: ignore[no-untyped-def,unused-ignore]
+    """The plan's sample ``times[6]`` whole ticks and ``times[7]`` of one after sample
+    ``k`` (the last, ``last``, held) into ``out``: ``finalize.ahead_at``, in its
+    arithmetic."""
+    i = min(k + int(times[6]), last)
+    j = min(i + 1, last)
+    part = times[7]
+    for c in range(out.shape[0]):
+        out[c] = (1.0 - part) * plan[i, c] + part * plan[j, c]
+
+
+@cache.keyed_jit(KEY, nogil=True)
 def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
     """A joint move (``controllers.moves.JointMove``). Following its plan: the sample at the
     law's time (``times``: t_end, t0, the period, the friction's speed and error rate;
@@ -184,8 +196,9 @@ def _joint_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
                              gen_q, lead_dq, ahead[2], times[3], times[4], view[TAU])  # fmt: skip
     else:
         k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+        _plan_ahead(plan_ddq, k, samples[1], times, ahead[2])
         _joint_tracking_step(q, dq, origin, ca, sa, mass, h, inertia, armature, coulomb, K, D,
-                             plan_q[k], plan_dq[k], plan_ddq[k], times[3], times[4],
+                             plan_q[k], plan_dq[k], ahead[2], times[3], times[4],
                              view[TAU])  # fmt: skip
     if law_t[0] > times[0] and not stopping:
         _joint_settling(q, goal, K, coulomb, settle, integral, law_t[1], view[TAU])
@@ -325,8 +338,9 @@ def _pose_move(view, law):  # type: ignore[no-untyped-def,unused-ignore]
                             view[TAU])  # fmt: skip
     else:
         k = min(samples[0] + round((law_t[0] - times[1]) / times[2]), samples[1])
+        _plan_ahead(plan_a, k, samples[1], times, ahead_a)  # (the generator's buffer: idle)
         _pose_tracking_step(pose, q, dq, chain, origin, ca, sa, mass, h, inertia, armature,
-                            coulomb, plan_p[k], plan_quat[k], plan_v[k], plan_a[k], tracking,
+                            coulomb, plan_p[k], plan_quat[k], plan_v[k], ahead_a, tracking,
                             view[TAU])  # fmt: skip
     if law_t[0] > times[0] and not stopping:
         _pose_settling(tracking, coulomb, settle, integral, plan_v[samples[1]], law_t[1],
