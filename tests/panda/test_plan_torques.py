@@ -9,11 +9,11 @@ import pytest
 
 import panda_py
 from panda_py.controllers import laws
+from panda_py.motion.cartesian import CartesianSamples
 from panda_py.panda import planning
 from panda_py.panda.move_args import pose_options
 from panda_py.panda.plan_torques import (
     PLAN_TORQUE_RATE,
-    Samples,
     feedforward_torques,
     loaded_arm,
     smoothed,
@@ -86,7 +86,8 @@ def test_smoothed_samples_are_consistent() -> None:
     n, width = 50, 7
     t = np.linspace(0.0, 1.0, n)[:, None]
     v = np.hstack([np.sin(np.pi * t)] * 6)
-    s = Samples(np.cumsum(v[:, :3], axis=0) * 1e-3, np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), v)
+    s = CartesianSamples(np.cumsum(v[:, :3], axis=0) * 1e-3, np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)),
+                         v[:, :3], np.zeros((n, 3)), v[:, 3:])  # fmt: skip
     p, quat, twist, accel = smoothed(s, width)
     assert len(p) == len(quat) == len(twist) == len(accel) == n + width - 1
     np.testing.assert_allclose(accel, np.gradient(twist, 1e-3, axis=0))

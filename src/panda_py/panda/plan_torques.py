@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from panda_py.controllers.finalize import FILTER_GAIN
 from panda_py.controllers.laws import DTAU_MAX_PER_TICK
 from panda_py.fci import PERIOD
+from panda_py.motion.cartesian import CartesianSamples
 from panda_py.motion.rotation import transforms
 from panda_py.motion.smoothing import box_filter, smooth_quaternions
 from panda_py.robots.params import FRANKA_HAND, RobotSpec
@@ -92,19 +93,14 @@ def load_of(state: Any) -> Load:
             tuple(np.asarray(state.I_total, dtype=float).tolist()))  # fmt: skip
 
 
-class Samples:
-    """A Cartesian plan's samples every PERIOD before smoothing: positions (N, 3),
-    orientations (N, 4), twists (N, 6)."""
-
-    def __init__(self, positions: FloatArray, orientations: FloatArray, twists: FloatArray) -> None:
-        self.positions, self.orientations, self.twists = positions, orientations, twists
+Smoothed = tuple[FloatArray, FloatArray, FloatArray, FloatArray]
 
 
-def smoothed(s: Samples, width: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The samples smoothed over ``width`` (:mod:`panda_py.motion.smoothing`): positions,
-    orientations, twists and the twists' rate (central differences, so that it starts and
-    ends at rest as the twist does)."""
-    twist = box_filter(s.twists, width)
+def smoothed(s: CartesianSamples, width: int) -> Smoothed:
+    """A Cartesian profile's samples (every PERIOD) smoothed over ``width``
+    (:mod:`panda_py.motion.smoothing`): positions, orientations, twists and the twists'
+    rate (central differences, so that it starts and ends at rest as the twist does)."""
+    twist = box_filter(np.hstack([s.velocities, s.angular_velocities]), width)
     return (box_filter(s.positions, width), smooth_quaternions(s.orientations, width), twist,
             np.gradient(twist, PERIOD, axis=0))  # fmt: skip
 
@@ -131,20 +127,21 @@ def _peak_rate(torques: FloatArray) -> float:
     return float(np.max(rate, initial=0.0, where=np.isfinite(rate)))
 
 
-def smoothing_width(s: Samples, width: int, joints: Any, arm: Any,
-                    armature: FloatArray) -> tuple[int, float]:  # fmt: skip
+def smoothing_width(s: CartesianSamples, width: int, joints: Any, arm: Any,
+                    armature: FloatArray) -> tuple[int, float, Smoothed]:  # fmt: skip
     """The narrowest smoothing from ``width`` up (at most MAX_SMOOTHING_FACTOR times it, in
     WIDTH_TRIES tries) whose plan's feed-forward torque changes by no more than
     PLAN_TORQUE_RATE a tick on the arm (``joints``:
     :class:`~panda_py.panda.planning.ArmJoints`, its configurations along the plan;
-    ``arm``, ``armature``: as :func:`feedforward_torques`), and that plan's peak rate [Nm
-    per tick]."""
+    ``arm``, ``armature``: as :func:`feedforward_torques`), that plan's peak rate [Nm per
+    tick] and its samples (:func:`smoothed`)."""
     widest = MAX_SMOOTHING_FACTOR * width
     for tries_left in range(WIDTH_TRIES - 1, -1, -1):
-        position, orientation, twist, _ = smoothed(s, width)
+        samples = smoothed(s, width)
+        position, orientation, twist, _ = samples
         q = joints.configurations(transforms(position, orientation))
         rate = _peak_rate(feedforward_torques(q, joints.rates_at(q, twist), arm, armature))
         if rate <= PLAN_TORQUE_RATE or width >= widest or not tries_left:
-            return width, rate
+            return width, rate, samples
         width = min(widest, math.ceil(width * rate / PLAN_TORQUE_RATE))
     raise AssertionError("unreachable")  # (WIDTH_TRIES >= 1)

@@ -25,7 +25,7 @@ from panda_py.motion.online import OnlineLimits
 from panda_py.motion.rotation import matrix_rows, transforms
 from panda_py.motion.smoothing import SMOOTHING_TIME, box_filter
 from panda_py.panda.move_args import JointMoveOptions, PoseMoveOptions
-from panda_py.panda.plan_torques import Load, Samples, loaded_arm, smoothed, smoothing_width
+from panda_py.panda.plan_torques import Load, loaded_arm, smoothing_width
 from panda_py.robots.params import RobotSpec
 
 __all__ = ["check_reachable", "joint_goal", "joint_move", "pose_goal", "pose_move"]
@@ -364,10 +364,9 @@ def pose_move(p_now: FloatArray, quat_now: FloatArray, positions: FloatArray,
     # does (the moving average of the profile's own acceleration, padded with its first and
     # last, fed the profile's whole first acceleration forward from the first tick, the
     # reference at rest)
-    samples = Samples(s.positions, s.orientations, np.hstack([s.velocities, s.angular_velocities]))
-    width, _ = smoothing_width(samples, SMOOTHING, joints, loaded_arm(spec, load),
-                               np.asarray(spec.drives.armature))  # fmt: skip
-    position, orientation, twist, accel = smoothed(samples, width)
+    _, _, (position, orientation, twist, accel) = smoothing_width(
+        s, SMOOTHING, joints, loaded_arm(spec, load), np.asarray(spec.drives.armature)
+    )
     return PosePlan(
         position=position,
         orientation=orientation,
