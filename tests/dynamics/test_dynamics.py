@@ -218,6 +218,10 @@ def test_motion_torques_along_a_trajectory_are_the_mass_and_coriolis_terms() -> 
         np.testing.assert_allclose(plain.motion_torques(Q, dQ, ddQ), expected, atol=1e-12)
         with pytest.raises(ValueError, match="as many rows each, got 6, 5, 6"):
             arm.motion_torques(Q, dQ[:5], ddQ)
+        with pytest.raises(
+            ValueError, match=r"dq: expected rows of 7 joints \(N, 7\), got shape \(6, 6\)"
+        ):
+            arm.motion_torques(Q, dQ[:, :6], ddQ)
 
 
 @pytest.mark.skipif(not jit.enabled(), reason="PANDA_PY_NO_JIT is set: compares the kernels")

@@ -521,3 +521,8 @@ def test_the_acceleration_ahead_is_the_one_the_steps_reach_that_much_later(
     # the rotation's in the base frame at the pose of the step (without the compiled
     # kernels: at the pose now, the rotation vector's change over 2 ms left out)
     np.testing.assert_allclose(ahead[:-2], reached[2:], rtol=0, atol=1e-9 if compiled else 1e-6)
+    for bad in (-1e-3, float("nan")):
+        with pytest.raises(ValueError, match="dt: expected a time >= 0"):
+            gen.acceleration_ahead(bad)
+        with pytest.raises(ValueError, match="dt: expected a time >= 0"):
+            pose.accel_ahead(bad)

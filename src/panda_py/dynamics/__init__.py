@@ -448,9 +448,12 @@ class LoadedArm:
         """``M(q) ddq + C(q, dq) dq`` [Nm] (N, 7) at each row of ``q``, ``dq``, ``ddq`` (N, 7)
         [rad, rad/s, rad/s^2]: the torques of a motion along a trajectory, gravity left out
         (the robot compensates it), in one compiled call where numba is installed."""
-        Q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, _N)
-        dQ = np.ascontiguousarray(dq, dtype=np.float64).reshape(-1, _N)
-        ddQ = np.ascontiguousarray(ddq, dtype=np.float64).reshape(-1, _N)
+        Q, dQ, ddQ = (np.ascontiguousarray(a, dtype=np.float64) for a in (q, dq, ddq))
+        for name, a in (("q", Q), ("dq", dQ), ("ddq", ddQ)):
+            if a.ndim != 2 or a.shape[1] != _N:
+                raise ValueError(
+                    f"{name}: expected rows of {_N} joints (N, {_N}), got shape {a.shape}"
+                )
         if not len(Q) == len(dQ) == len(ddQ):
             raise ValueError(
                 f"q, dq, ddq: expected as many rows each, got {len(Q)}, {len(dQ)}, {len(ddQ)}"

@@ -402,6 +402,8 @@ class OnlineGenerator:
         kept after its end, as ruckig's), a buffer the next call rewrites: what a torque
         fed forward through a filter that trails it by ``dt`` should aim at
         (``controllers.finalize.FILTER_LAG``)."""
+        if not dt >= 0.0:
+            raise ValueError(f"dt: expected a time >= 0 [s], got {dt!r}")
         kernels = _compiled()
         if self._changed:  # reset, no step yet: where it is
             return self.acceleration
@@ -528,6 +530,8 @@ class OnlinePose:
     def accel_ahead(self, dt: float) -> FloatArray:
         """:attr:`accel` ``dt`` [s] after the last step (as
         :meth:`OnlineGenerator.acceleration_ahead`), a buffer the next call rewrites."""
+        if not dt >= 0.0:
+            raise ValueError(f"dt: expected a time >= 0 [s], got {dt!r}")
         g = self.gen
         if g._changed:  # reset, no step yet
             return self.accel
